@@ -1,0 +1,96 @@
+"""One assembly loop for every distributed generalized force (DESIGN.md §3).
+
+Each force is a density w(r, r_x, r_xx) at a quadrature point (modules in :mod:`ancf.forces`).  Since
+r = S q^i, r_x = S_x q^i, r_xx = S_xx q^i are linear in the element coordinates, with
+B = [S; S_x; S_xx] (9 × 12) the element gradient is Bᵀ ∇w and the Hessian Bᵀ ∇²w B.  ``S`` has the
+Kronecker structure [s_j I]_j, so B never needs to be formed: with N[k, α, j] = d^α s_j/dx^α,
+
+    G[block j, c]                += Σ_α N[k,α,j] ∇w[3α + c],
+    H[block j, c; block l, c']   += Σ_α Σ_β N[k,α,j] N[k,β,l] ∇²w[3α + c, 3β + c'].
+
+Q(q) = ∂Π/∂q is paper eq. (1) with the signs of the potential
+Π = U_axial + U_bend + Σ T_i l_c,i − p A_eff ∫λ dx − m' ∫ g·r dx − F · p_end.
+"""
+
+import numpy as np
+from numba import njit
+
+from .forces.axial import add_axial
+from .forces.bending import add_bending
+from .forces.gravity import add_gravity
+from .forces.pressure import add_pressure, add_stretch_length
+from .forces.tendon import add_tendon
+from .forces.tip_load import add_tip_load
+
+
+@njit(cache=True)
+def _scatter(q_off, Nk, g9, H9, G, H, want_H):
+    for j in range(4):
+        for c in range(3):
+            G[q_off + 3 * j + c] += Nk[0, j] * g9[c] + Nk[1, j] * g9[3 + c] + Nk[2, j] * g9[6 + c]
+    if want_H:
+        for j in range(4):
+            for l in range(4):
+                for al in range(3):
+                    for be in range(3):
+                        f = Nk[al, j] * Nk[be, l]
+                        if f == 0.0:
+                            continue
+                        for c in range(3):
+                            for c2 in range(3):
+                                H[q_off + 3 * j + c, q_off + 3 * l + c2] += f * H9[3 * al + c, 3 * be + c2]
+
+
+@njit(cache=True)
+def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H):
+    """Total potential Π, its gradient Q (ndof,) and Hessian (ndof, ndof) at the full coordinates q.
+
+    Also returns the tendon lengths l_c (m,), their gradients J_l (m, ndof) [= ∂Q/∂T], the deformed
+    length ∫λ dx and its gradient (ndof,) [∂Q/∂p = −A_eff × this].
+
+    Parameters: N (nq, 3, 4) shape table, wq (nq,) weights in x [m]; ea, ei stiffness coefficients;
+    pA = p A_eff [N]; mg = m' g [N/m]; E actuator frame (3, 3); d, co, so (m,) tendon distance [m] and
+    cos/sin θ; T (m,) tensions [N]; h tool offset [m]; F (3,) total tip load [N].
+    """
+    ndof = q.size
+    m = d.size
+    G = np.zeros(ndof)
+    H = np.zeros((ndof, ndof)) if want_H else np.zeros((1, 1))
+    lc = np.zeros(m)
+    Jl = np.zeros((m, ndof))
+    Jarc = np.zeros(ndof)
+    arc = 0.0
+    energy = 0.0
+    nq = wq.size
+    r = np.empty(3)
+    a = np.empty(3)
+    b = np.empty(3)
+    zero9 = np.zeros((9, 9))
+    for e in range(n_el):
+        off = 6 * e
+        for k in range(nq):
+            Nk = N[k]
+            for c in range(3):
+                r[c] = Nk[0, 0] * q[off + c] + Nk[0, 1] * q[off + 3 + c] + Nk[0, 2] * q[off + 6 + c] + Nk[0, 3] * q[off + 9 + c]
+                a[c] = Nk[1, 0] * q[off + c] + Nk[1, 1] * q[off + 3 + c] + Nk[1, 2] * q[off + 6 + c] + Nk[1, 3] * q[off + 9 + c]
+                b[c] = Nk[2, 0] * q[off + c] + Nk[2, 1] * q[off + 3 + c] + Nk[2, 2] * q[off + 6 + c] + Nk[2, 3] * q[off + 9 + c]
+            sc = wq[k]
+            g9 = np.zeros(9)
+            H9 = np.zeros((9, 9))
+            energy += add_axial(a, ea, sc, g9, H9)
+            energy += add_bending(a, b, ei, sc, g9, H9)
+            if pA != 0.0:
+                energy += add_pressure(a, pA, sc, g9, H9)
+            energy += add_gravity(r, mg, sc, g9)
+            ga = np.zeros(9)
+            arc += add_stretch_length(a, sc, ga)
+            _scatter(off, Nk, ga, zero9, Jarc, H, False)
+            for i in range(m):
+                gl = np.zeros(9)
+                li = add_tendon(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H)
+                lc[i] += li
+                energy += T[i] * li
+                _scatter(off, Nk, gl, zero9, Jl[i], H, False)
+            _scatter(off, Nk, g9, H9, G, H, want_H)
+    energy += add_tip_load(q, h, F, G, H, want_H)
+    return energy, G, H, lc, Jl, arc, Jarc

@@ -1,0 +1,101 @@
+"""Typed exception tree shared by every package of the product.
+
+All errors raised on purpose derive from :class:`BellowsError`, so a script can catch the whole family
+with one ``except``.  Each subclass also derives from the matching builtin (``ValueError``,
+``RuntimeError``) so generic handlers keep working.
+
+::
+
+    BellowsError
+    ├── ConfigError (ValueError)            bad parameter file / value / unit, unknown key
+    ├── InputError (ValueError)             NaN / inf / wrong shape / out-of-range call argument
+    ├── ConvergenceError (RuntimeError)     a nonlinear solve did not converge (carries residual history)
+    ├── InfeasibleTargetError (ValueError)  IK target needs a tension outside its bounds / is unreachable
+    └── HardwareError (RuntimeError)        rig layer: limits, faults, timeouts (see ``hardware``)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+
+class BellowsError(Exception):
+    """Base class of every error the product raises on purpose."""
+
+
+class ConfigError(BellowsError, ValueError):
+    """A configuration (parameter file, preset override, keyword) is invalid."""
+
+
+class InputError(BellowsError, ValueError):
+    """A call argument is invalid (NaN, wrong shape, outside the operating range, ...)."""
+
+
+class ConvergenceError(BellowsError, RuntimeError):
+    """A nonlinear solve did not converge.
+
+    Attributes
+    ----------
+    solver : str
+        Which solve failed (``"fk"``, ``"ik"``, ``"fk_locked"``, ...).
+    iterations : int
+        Iterations spent.
+    residual_norm : float
+        Final residual norm (units of the solver's residual, stated in ``message``).
+    tolerance : float
+        Tolerance that was not met.
+    history : list[float]
+        Residual norm per iteration.
+    """
+
+    def __init__(self, message: str, *, solver: str, iterations: int, residual_norm: float,
+                 tolerance: float, history: Sequence[float] = ()):
+        self.solver = solver
+        self.iterations = int(iterations)
+        self.residual_norm = float(residual_norm)
+        self.tolerance = float(tolerance)
+        self.history = [float(h) for h in history]
+        super().__init__(
+            f"{solver}: {message} (residual {self.residual_norm:.3e} > tolerance {self.tolerance:.1e} "
+            f"after {self.iterations} iterations)")
+
+
+class InfeasibleTargetError(BellowsError, ValueError):
+    """An IK target cannot be reached with tensions inside their bounds.
+
+    Attributes
+    ----------
+    target : ndarray (3,)
+        Requested tip position [m].
+    nearest : ndarray (3,) or None
+        Nearest tip position reachable within the bounds [m].
+    tensions : ndarray (m,) or None
+        Tensions [N] that reach ``nearest``.
+    violated : list[str]
+        Human-readable list of the bounds that the unconstrained solution violates,
+        e.g. ``["T2 >= 0 N (needs -0.41 N)"]``.
+    """
+
+    def __init__(self, message: str, *, target, nearest=None, tensions=None, violated=()):
+        self.target = np.asarray(target, float)
+        self.nearest = None if nearest is None else np.asarray(nearest, float)
+        self.tensions = None if tensions is None else np.asarray(tensions, float)
+        self.violated = list(violated)
+        super().__init__(message)
+
+
+class HardwareError(BellowsError, RuntimeError):
+    """Base of rig-layer errors (limits, faults, timeouts)."""
+
+
+def check_finite(name: str, value, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """Return ``value`` as a float array, raising :class:`InputError` on NaN/inf or a wrong shape."""
+    arr = np.asarray(value, dtype=float)
+    if shape is not None and arr.shape != shape:
+        raise InputError(f"{name} must have shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name} contains NaN or inf: {arr}")
+    return arr

@@ -1,0 +1,85 @@
+"""Generalized tendon force Q_c,i (paper eq. 1) and the tendon length l_c,i (paper eq. 5).
+
+Tendon i runs at distance d_i from the centreline at angle θ_i (from the reference direction, about the
+base axis).  Its path is carried by the section frame R(t) (Rodrigues, taking the base axis to the local
+tangent t = r_x/|r_x|):
+
+    r_c(x) = r(x) + d_i R(t(x)) o_i,     o_i = cos θ_i e2 + sin θ_i e3,
+    l_c,i  = ∫ |r_c,x| dx,               r_c,x = r_x + d_i (∂g/∂a)(r_x) r_xx,   g(a) = R(a/|a|) o_i.
+
+With constant tension T_i the tendon's potential is T_i l_c,i, so Q_c,i = T_i ∂l_c,i/∂q: the same row
+∂l_c,i/∂q is the constraint Jacobian J_A of the locked-length problems and ∂Q/∂T_i.  At a quadrature
+point, with u = r_c,x(a, b) (generated: :mod:`._tendon_generated`, derivation in :mod:`._tendon_codegen`),
+w = |u|, n = u/|u|:
+
+    ∂w/∂(a,b) = Juᵀ n,     ∂²w/∂(a,b)² = Juᵀ (I − n nᵀ) Ju / |u| + Σ_k n_k ∂²u_k/∂(a,b)².
+
+The generated code works in the actuator frame (e1 = base axis, e2 = reference direction, e3 = e1 × e2);
+with E = [e1 e2 e3], a_loc = Eᵀ a and the derivatives rotate back blockwise (g = E g_loc, H = E H_loc Eᵀ).
+"""
+
+import numpy as np
+from numba import njit
+
+from ._tendon_generated import tendon_u
+
+
+@njit(cache=True)
+def tendon_density(a, b, E, d, co, so):
+    """Length density |r_c,x| of one tendon, its gradient (6,) and Hessian (6, 6) w.r.t. (a, b) = (r_x, r_xx),
+    all in the world frame.  E (3, 3): actuator frame as columns."""
+    al = np.empty(3)
+    bl = np.empty(3)
+    for i in range(3):
+        al[i] = E[0, i] * a[0] + E[1, i] * a[1] + E[2, i] * a[2]
+        bl[i] = E[0, i] * b[0] + E[1, i] * b[1] + E[2, i] * b[2]
+    u = np.empty(3)
+    Ju = np.empty((3, 6))
+    Hu = np.zeros((3, 6, 6))
+    tendon_u(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u, Ju, Hu)
+    w = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    n = u / w
+    gl = np.empty(6)
+    for i in range(6):
+        gl[i] = Ju[0, i] * n[0] + Ju[1, i] * n[1] + Ju[2, i] * n[2]
+    # Hl = Ju^T (I - n n^T) Ju / w + sum_k n_k Hu[k]
+    Hl = np.empty((6, 6))
+    for i in range(6):
+        for j in range(i, 6):
+            v = (Ju[0, i] * Ju[0, j] + Ju[1, i] * Ju[1, j] + Ju[2, i] * Ju[2, j] - gl[i] * gl[j]) / w
+            v += n[0] * Hu[0, i, j] + n[1] * Hu[1, i, j] + n[2] * Hu[2, i, j]
+            Hl[i, j] = v
+            Hl[j, i] = v
+    # rotate back to the world frame, blockwise: g = E g_loc, H = E H_loc E^T
+    g = np.empty(6)
+    Hw = np.empty((6, 6))
+    T1 = np.empty((6, 6))
+    for I in range(2):
+        for c in range(3):
+            g[3 * I + c] = E[c, 0] * gl[3 * I] + E[c, 1] * gl[3 * I + 1] + E[c, 2] * gl[3 * I + 2]
+    for i in range(6):          # T1 = Hl E^T (blockwise on columns)
+        for J in range(2):
+            for c in range(3):
+                T1[i, 3 * J + c] = (Hl[i, 3 * J] * E[c, 0] + Hl[i, 3 * J + 1] * E[c, 1]
+                                    + Hl[i, 3 * J + 2] * E[c, 2])
+    for I in range(2):          # Hw = E T1 (blockwise on rows)
+        for c in range(3):
+            for j in range(6):
+                Hw[3 * I + c, j] = (E[c, 0] * T1[3 * I, j] + E[c, 1] * T1[3 * I + 1, j]
+                                    + E[c, 2] * T1[3 * I + 2, j])
+    return w, g, Hw
+
+
+@njit(cache=True)
+def add_tendon(a, b, E, d, co, so, T, scale, g, H, gl, want_H):
+    """Add T × scale × (gradient, Hessian) of the length density into the (a, b) blocks (3:9) of g, H and
+    scale × gradient into gl (9,), the tendon's own length gradient.  Returns scale × density."""
+    w, gw, Hw = tendon_density(a, b, E, d, co, so)
+    for i in range(6):
+        gl[3 + i] += scale * gw[i]
+        g[3 + i] += T * scale * gw[i]
+    if want_H and T != 0.0:
+        for i in range(6):
+            for j in range(6):
+                H[3 + i, 3 + j] += T * scale * Hw[i, j]
+    return scale * w

@@ -1,0 +1,559 @@
+"""The reduced ANCF kinetostatic model (paper Sec. II–III-B): equilibrium, FK, IK, locked-tendon FK.
+
+Unknowns: the full coordinate vector q (6(n+1),) = [r_1, r_x,1, …, r_{n+1}, r_x,{n+1}].  The base node is
+clamped (r_1 = 0, r_x,1 = e1); with ``free_base_stretch`` the base slope keeps its direction but not its
+length.  Free coordinates z map to q = q_fix + P z.
+
+Equilibrium is the stationarity of the potential (DESIGN.md §3)
+
+    Π(q) = U_axial + U_bend + Σ_i T_i l_c,i(q) − p A_eff ∫|r_x| dx − m' ∫ g·r dx − F · p_end(q),
+
+Q(q, T, p, F) = ∂Π/∂q = 0 is paper eq. (1); its exact derivatives are
+
+    ∂Q/∂q = ∇²Π (symmetric),  ∂Q/∂T_i = ∂l_c,i/∂q,  ∂Q/∂p = −A_eff ∂(∫λ dx)/∂q,  ∂Q/∂F = −(∂p_end/∂q)ᵀ.
+
+Solvers:
+* FK (T, p, F) → q: Newton on ∇Π with an energy line search, LM shift, load stepping fallback.
+* IK (p_d, p, F) → (q, T): Newton on [Q; p_end − p_d] = 0 (square for 3 tendons), then a bounded
+  reduced solve over T ∈ [T_min, T_max] that either confirms a feasible solution or returns the nearest
+  reachable tip in an :class:`~ancf.errors.InfeasibleTargetError`.
+* Locked FK (l⁰, p, F) → (q, T, β): paper eqs. (3)–(6).  ``method="active_set"`` (default, exact):
+  Newton on the KKT system of min Π₀ s.t. l_i(q) ≤ l⁰_i with an active-set loop.  ``method="gamma"``:
+  the paper's substitution T = γ², β = 0 (γ > 0), T = 0, β = γ² (γ ≤ 0), solved by Newton/LM.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, asdict
+from typing import Optional, Sequence
+
+import numpy as np
+import scipy.optimize as so
+
+from . import kinematics as kin
+from .assembly import assemble
+from .errors import ConvergenceError, InfeasibleTargetError, InputError, check_finite
+from .params import ActuatorParams
+from .solvers import minimize_newton, solve_root
+
+
+@dataclass
+class Evaluation:
+    """Everything the assembly gives at one state (full coordinates, SI units)."""
+    energy: float                 # Π [J]
+    Q: np.ndarray                 # ∂Π/∂q (ndof,)
+    K: Optional[np.ndarray]       # ∂²Π/∂q² (ndof, ndof) or None
+    lengths: np.ndarray           # l_c,i [m] (m,)
+    J_l: np.ndarray               # ∂l_c/∂q (m, ndof)
+    arc_length: float             # ∫|r_x| dx [m]
+    J_arc: np.ndarray             # ∂(∫|r_x| dx)/∂q (ndof,)
+
+
+@dataclass
+class Equilibrium:
+    """A converged equilibrium.  Arrays in SI units (m, N, Pa).
+
+    q (ndof,), tip (3,) tool point p_end [m], tip_rotation (3, 3), tendon_lengths (m,) [m],
+    tensions (m,) [N], slack (m,) [m] (locked FK only, else None), active (tuple of taut tendon indices,
+    locked FK only), pressure [Pa], tip_force (3,) [N], converged (always True: failures raise),
+    iterations, residual_norm, energy [J], solver.
+    """
+    q: np.ndarray
+    tip: np.ndarray
+    tip_rotation: np.ndarray
+    tendon_lengths: np.ndarray
+    tensions: np.ndarray
+    pressure: float
+    tip_force: np.ndarray
+    iterations: int
+    residual_norm: float
+    energy: float
+    solver: str
+    slack: Optional[np.ndarray] = None
+    active: Optional[tuple] = None
+    converged: bool = True
+    history: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """JSON-friendly dictionary (lists instead of arrays)."""
+        out = {}
+        for k, v in asdict(self).items():
+            out[k] = v.tolist() if isinstance(v, np.ndarray) else v
+        return out
+
+
+class Model:
+    """ANCF model of one actuator.  ``Model(params)``; all methods take and return SI units."""
+
+    def __init__(self, params: ActuatorParams):
+        if not isinstance(params, ActuatorParams):
+            raise InputError(f"Model needs ActuatorParams, got {type(params).__name__}")
+        self.params = params
+        p = params
+        self.n = p.n_elements
+        self.ndof = 6 * (self.n + 1)
+        self.m = p.n_tendons
+        self._N, self._wq = kin.shape_table(p.quadrature_points, p.element_length)
+        self._ea = p.stiffness.ea
+        self._ei = p.stiffness.ei
+        self._E = np.ascontiguousarray(p.frame)
+        self._e1 = self._E[:, 0].copy()
+        self._d = p.tendon_distances
+        self._co = np.cos(p.tendon_angles)
+        self._so = np.sin(p.tendon_angles)
+        self._g = np.asarray(p.gravity, float)
+        self._mg = p.line_mass * self._g
+        self.q_ref = kin.reference_q(self.n, p.length, p.base_axis)
+        # free-coordinate map q = q_fix + P z
+        if p.free_base_stretch:
+            self._q_fix = self.q_ref.copy()
+            self._q_fix[:6] = 0.0
+            P = np.zeros((self.ndof, self.ndof - 5))
+            P[3:6, 0] = self._e1
+            P[6:, 1:] = np.eye(self.ndof - 6)
+            self._P = P
+            self._free = None
+        else:
+            self._q_fix = self.q_ref.copy()
+            self._q_fix[6:] = 0.0
+            self._P = None
+            self._free = np.arange(6, self.ndof)
+        self.nz = self.ndof - 6 + (1 if p.free_base_stretch else 0)
+        # scale for mixing force and position residuals (N/m): axial stiffness of the whole actuator
+        self._kscale = float(p.stiffness.EA(1.0)) / p.length
+        self._droop: Optional[Equilibrium] = None
+
+    # ----------------------------------------------------------------------------- coordinate maps
+    def to_free(self, q: np.ndarray) -> np.ndarray:
+        if self._P is None:
+            return q[6:].copy()
+        z = np.empty(self.nz)
+        z[0] = float(q[3:6] @ self._e1)
+        z[1:] = q[6:]
+        return z
+
+    def to_full(self, z: np.ndarray) -> np.ndarray:
+        if self._P is None:
+            q = self._q_fix.copy()
+            q[6:] = z
+            return q
+        return self._q_fix + self._P @ z
+
+    def reduce_vec(self, v: np.ndarray) -> np.ndarray:
+        """Pᵀ v for a vector (ndof,) or rows (k, ndof) → (k, nz)."""
+        if self._P is None:
+            return v[..., 6:]
+        return v @ self._P
+
+    def reduce_mat(self, K: np.ndarray) -> np.ndarray:
+        """Pᵀ K P (nz, nz)."""
+        if self._P is None:
+            return K[6:, 6:]
+        return self._P.T @ K @ self._P
+
+    # ----------------------------------------------------------------------------- evaluation
+    def _check_inputs(self, tensions, pressure, tip_force, check_limits: bool):
+        p = self.params
+        T = check_finite("tensions", tensions, (self.m,)) if tensions is not None else np.zeros(self.m)
+        pr = float(check_finite("pressure", pressure, ()))
+        F = check_finite("tip_force", tip_force, (3,))
+        if check_limits:
+            for i, t in enumerate(T):
+                if t < p.tension_min - 1e-12 or t > p.tension_max + 1e-12:
+                    raise InputError(f"tension T{i + 1} = {t:g} N is outside the limits "
+                                     f"[{p.tension_min:g}, {p.tension_max:g}] N (pass check_limits=False to "
+                                     f"analyse it anyway)")
+            if pr < p.pressure_min - 1e-9 or pr > p.pressure_max + 1e-9:
+                raise InputError(f"pressure {pr:g} Pa is outside the limits [{p.pressure_min:g}, "
+                                 f"{p.pressure_max:g}] Pa (note: SI pascals, 30 kPa = 30e3)")
+        return np.ascontiguousarray(T, dtype=float), pr, np.ascontiguousarray(F, dtype=float)
+
+    def total_tip_load(self, tip_force) -> np.ndarray:
+        """External tip force plus the tip mass weight [N]."""
+        return np.asarray(tip_force, float) + self.params.tip_mass * self._g
+
+    def evaluate(self, q, tensions=None, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
+                 hessian: bool = True, gravity_scale: float = 1.0) -> Evaluation:
+        """Potential, generalized force Q = ∂Π/∂q and tangent at full coordinates ``q`` (ndof,)."""
+        T = np.zeros(self.m) if tensions is None else np.ascontiguousarray(tensions, dtype=float)
+        F = self.params.tip_mass * self._g * gravity_scale + np.asarray(tip_force, float)
+        E, Q, K, lc, Jl, arc, Jarc = assemble(
+            np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, self._ea, self._ei,
+            float(pressure) * self.params.A_eff, self._mg * gravity_scale, self._E, self._d, self._co,
+            self._so, T, self.params.tool_offset, np.ascontiguousarray(F), hessian)
+        return Evaluation(E, Q, K if hessian else None, lc, Jl, arc, Jarc)
+
+    # convenience accessors (full coordinates) ---------------------------------------------------
+    def residual(self, q, tensions=None, pressure=0.0, tip_force=(0, 0, 0)) -> np.ndarray:
+        """Q(q, T, p, F) = ∂Π/∂q (ndof,) — paper eq. (1)."""
+        return self.evaluate(q, tensions, pressure, tip_force, hessian=False).Q
+
+    def tangent(self, q, tensions=None, pressure=0.0, tip_force=(0, 0, 0)) -> np.ndarray:
+        """∂Q/∂q (ndof, ndof), symmetric."""
+        return self.evaluate(q, tensions, pressure, tip_force).K
+
+    def dQ_dT(self, q) -> np.ndarray:
+        """∂Q/∂T (ndof, m) = (∂l_c/∂q)ᵀ."""
+        return self.evaluate(q, hessian=False).J_l.T
+
+    def dQ_dp(self, q) -> np.ndarray:
+        """∂Q/∂p (ndof,) [m²]."""
+        return -self.params.A_eff * self.evaluate(q, hessian=False).J_arc
+
+    def dQ_dF(self, q) -> np.ndarray:
+        """∂Q/∂F_e (ndof, 3) = −(∂p_end/∂q)ᵀ."""
+        return -self.tip_jacobian(q).T
+
+    def tendon_lengths(self, q) -> np.ndarray:
+        """l_c,i(q) [m] (paper eq. 5)."""
+        return self.evaluate(q, hessian=False).lengths
+
+    def tendon_jacobian(self, q) -> np.ndarray:
+        """∂l_c/∂q (m, ndof)."""
+        return self.evaluate(q, hessian=False).J_l
+
+    def tip(self, q) -> np.ndarray:
+        """Tool point p_end [m]."""
+        return kin.tip_position(np.asarray(q, float), self.params.tool_offset)
+
+    def tip_jacobian(self, q) -> np.ndarray:
+        """∂p_end/∂q (3, ndof)."""
+        return kin.tip_position_jacobian(np.asarray(q, float), self.params.tool_offset)
+
+    def tip_rotation(self, q) -> np.ndarray:
+        """Tip orientation R (3, 3), Rodrigues rotation of the base axis onto the tip tangent."""
+        return kin.tip_rotation(np.asarray(q, float), self._e1)
+
+    def tip_angular_jacobian(self, q) -> np.ndarray:
+        """J_ω (3, ndof): δR = [J_ω δq]× R."""
+        return kin.tip_angular_jacobian(np.asarray(q, float), self._e1)
+
+    def centreline(self, q, per_element: int = 10) -> np.ndarray:
+        """Points along the centreline (m, 3) [m]."""
+        return kin.interpolate(np.asarray(q, float), self.n, self.params.length, per_element)
+
+    def tendon_paths(self, q, per_element: int = 10) -> np.ndarray:
+        """Tendon routing points r + d R(t) o, array (m_tendons, points, 3) [m]."""
+        r = kin.interpolate(q, self.n, self.params.length, per_element, 0)
+        a = kin.interpolate(q, self.n, self.params.length, per_element, 1)
+        out = np.empty((self.m, len(r), 3))
+        for k in range(len(r)):
+            R = kin.rodrigues(a[k] / np.linalg.norm(a[k]), self._e1)
+            for i in range(self.m):
+                o = self._co[i] * self._E[:, 1] + self._so[i] * self._E[:, 2]
+                out[i, k] = r[k] + self._d[i] * (R @ o)
+        return out
+
+    # ----------------------------------------------------------------------------- results
+    def _result(self, q, T, pr, F, info, ev: Evaluation, solver, slack=None, active=None) -> Equilibrium:
+        return Equilibrium(q=q, tip=self.tip(q), tip_rotation=self.tip_rotation(q),
+                           tendon_lengths=ev.lengths.copy(), tensions=np.array(T, float), pressure=pr,
+                           tip_force=np.array(F, float), iterations=info.iterations,
+                           residual_norm=info.residual_norm, energy=ev.energy, solver=solver, slack=slack,
+                           active=active, history=info.history)
+
+    def _initial_z(self, q0) -> np.ndarray:
+        if q0 is None:
+            return self.to_free(self.q_ref)
+        q0 = check_finite("q0", q0, (self.ndof,))
+        return self.to_free(q0)
+
+    # ----------------------------------------------------------------------------- FK
+    def fk(self, tensions=(0.0, 0.0, 0.0), pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
+           q0=None, *, tol: float = 1e-9, max_iter: int = 60, check_limits: bool = True) -> Equilibrium:
+        """Forward kinetostatics (T [N], p [Pa], F_e [N]) → equilibrium (paper Sec. III-A).
+
+        ``q0`` (ndof,) warm-starts; default: the straight reference.  Converged when the free
+        generalized-force residual ‖Q‖₂ < ``tol`` [N, N m].  Raises ConvergenceError otherwise.
+        """
+        if tensions is not None and np.ndim(tensions) == 1 and len(tensions) != self.m:
+            raise InputError(f"tensions needs {self.m} values (one per tendon), got {len(tensions)}")
+        T, pr, F = self._check_inputs(tensions, pressure, tip_force, check_limits)
+        z0 = self._initial_z(q0)
+        z, info = self._fk_z(z0, T, pr, F, tol, max_iter)
+        q = self.to_full(z)
+        ev = self.evaluate(q, T, pr, F, hessian=False)
+        return self._result(q, T, pr, F, info, ev, "fk")
+
+    def _fk_fun(self, T, pr, F, load=1.0):
+        def fun(z, hessian):
+            q = self.to_full(z)
+            if not self._admissible(q):
+                return np.inf, None, None
+            ev = self.evaluate(q, T * load, pr * load, F * load, hessian=hessian, gravity_scale=load)
+            return ev.energy, self.reduce_vec(ev.Q), (self.reduce_mat(ev.K) if hessian else None)
+        return fun
+
+    def _admissible(self, q) -> bool:
+        """Reject states with a nearly collapsed slope (|r_x| < 0.2) at the nodes."""
+        a = q.reshape(-1, 6)[:, 3:]
+        return bool(np.all(np.isfinite(q)) and np.min(np.einsum("ij,ij->i", a, a)) > 0.04)
+
+    def _fk_z(self, z0, T, pr, F, tol, max_iter):
+        try:
+            return minimize_newton(self._fk_fun(T, pr, F), z0, tol=tol, max_iter=max_iter, name="fk")
+        except ConvergenceError as first:
+            pass
+        # load stepping from the unloaded reference (robust cold start)
+        z = self.to_free(self.q_ref)
+        s, ds, total_it, hist = 0.0, 0.25, 0, []
+        while s < 1.0:
+            s_try = min(1.0, s + ds)
+            try:
+                z_try, info = minimize_newton(self._fk_fun(T, pr, F, s_try), z, tol=tol, max_iter=max_iter,
+                                              name="fk")
+                z, s = z_try, s_try
+                total_it += info.iterations
+                hist += info.history
+                ds = min(ds * 2, 1.0)
+            except ConvergenceError:
+                ds /= 4
+                if ds < 1e-4:
+                    raise ConvergenceError(
+                        f"load stepping stalled at load factor {s:.4f} (direct Newton: residual "
+                        f"{first.residual_norm:.3e})", solver="fk", iterations=total_it + first.iterations,
+                        residual_norm=first.residual_norm, tolerance=tol, history=first.history) from None
+        from .solvers import SolveInfo
+        return z, SolveInfo(total_it, hist[-1] if hist else 0.0, hist)
+
+    def droop(self, pressure: float = 0.0) -> Equilibrium:
+        """Gravity-only equilibrium (T = 0, no tip force) — the stored warm start of the paper's LACC."""
+        if self._droop is None or self._droop.pressure != pressure:
+            self._droop = self.fk(np.zeros(self.m), pressure, (0, 0, 0))
+        return self._droop
+
+    # ----------------------------------------------------------------------------- IK
+    def ik(self, target, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None, tensions0=None, *,
+           tol: float = 1e-9, tol_position: float = 1e-9, max_iter: int = 60,
+           tension_regularisation: float = 1e-6) -> Equilibrium:
+        """Inverse kinetostatics (p_d [m], p [Pa], F_e [N]) → (q, T) with T_min ≤ T ≤ T_max
+        (paper Sec. III-A, eq. 2).
+
+        Raises InfeasibleTargetError (naming the violated bound and giving the nearest reachable tip)
+        when no tensions inside the bounds reach the target, ConvergenceError if a solve fails.
+        ``tension_regularisation`` [m²/N²] selects the least-tension solution with more than 3 tendons.
+        """
+        pd = check_finite("target", target, (3,))
+        _, pr, F = self._check_inputs(None, pressure, tip_force, True)
+        p = self.params
+        T0 = np.zeros(self.m) if tensions0 is None else check_finite("tensions0", tensions0, (self.m,))
+        if q0 is None:
+            q0 = self.fk(np.clip(T0, p.tension_min, p.tension_max), pr, F).q
+        z0 = self._initial_z(q0)
+        sol = None
+        if self.m == 3:
+            try:
+                sol = self._ik_newton(z0, T0, pd, pr, F, tol, tol_position, max_iter)
+            except ConvergenceError:
+                sol = None
+        if sol is not None:
+            z, T, info = sol
+            if np.all(T >= p.tension_min - 1e-9) and np.all(T <= p.tension_max + 1e-9):
+                T = np.clip(T, p.tension_min, p.tension_max)
+                q = self.to_full(z)
+                ev = self.evaluate(q, T, pr, F, hessian=False)
+                return self._result(q, T, pr, F, info, ev, "ik")
+        # bounded reduced solve over the tensions: feasible solution or nearest reachable point
+        unconstrained = None if sol is None else sol[1]
+        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained,
+                                tension_regularisation if self.m > 3 else 0.0)
+
+    def _ik_newton(self, z0, T0, pd, pr, F, tol, tol_position, max_iter):
+        nz, m = self.nz, self.m
+
+        def fun(x):
+            z, T = x[:nz], x[nz:]
+            q = self.to_full(z)
+            if not self._admissible(q):
+                return np.full(nz + 3, np.nan), None
+            ev = self.evaluate(q, T, pr, F)
+            R = np.concatenate([self.reduce_vec(ev.Q), self.tip(q) - pd])
+            J = np.zeros((nz + 3, nz + m))
+            J[:nz, :nz] = self.reduce_mat(ev.K)
+            J[:nz, nz:] = self.reduce_vec(ev.J_l).T
+            J[nz:, :nz] = self.reduce_vec(self.tip_jacobian(q))
+            return R, J
+
+        w = np.concatenate([np.ones(nz), np.full(3, self._kscale)])
+        tol_w = min(tol, self._kscale * tol_position)
+        x, info = solve_root(fun, np.concatenate([z0, T0]), tol=tol_w, max_iter=max_iter, name="ik",
+                             weights=w)
+        return x[:nz], x[nz:], info
+
+    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, reg):
+        p = self.params
+        state = {"z": z0}
+        lo, hi = np.full(self.m, p.tension_min), np.full(self.m, p.tension_max)
+        sr = math.sqrt(reg)
+
+        def solve_fk(T):
+            z, info = self._fk_z(state["z"], T, pr, F, tol, 60)
+            state["z"] = z
+            return z
+
+        def fun(T):
+            z = solve_fk(T)
+            r = self.tip(self.to_full(z)) - pd
+            return np.concatenate([r, sr * T]) if reg else r
+
+        def jac(T):
+            z = solve_fk(T)
+            q = self.to_full(z)
+            ev = self.evaluate(q, T, pr, F)
+            H = self.reduce_mat(ev.K)
+            dz = -np.linalg.solve(H, self.reduce_vec(ev.J_l).T)
+            Jp = self.reduce_vec(self.tip_jacobian(q)) @ dz
+            return np.vstack([Jp, sr * np.eye(self.m)]) if reg else Jp
+
+        x0 = np.clip(T0 if unconstrained is None else unconstrained, lo, hi)
+        res = so.least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", xtol=1e-14, ftol=1e-15,
+                               gtol=1e-15, max_nfev=200)
+        T = res.x
+        z = solve_fk(T)
+        q = self.to_full(z)
+        err = float(np.linalg.norm(self.tip(q) - pd))
+        if err <= max(tol_position * 10, 1e-8):
+            if reg == 0.0:  # polish on the square system when interior
+                ev = self.evaluate(q, T, pr, F, hessian=False)
+            else:
+                ev = self.evaluate(q, T, pr, F, hessian=False)
+            from .solvers import SolveInfo
+            info = SolveInfo(int(res.nfev), float(np.linalg.norm(self.reduce_vec(ev.Q))), [])
+            return self._result(q, T, pr, F, info, ev, "ik")
+        violated = []
+        for i in range(self.m):
+            need = None if unconstrained is None else unconstrained[i]
+            if T[i] <= lo[i] + 1e-9 and (need is None or need < lo[i]):
+                violated.append(f"T{i + 1} >= {lo[i]:g} N" + (f" (unconstrained solution needs {need:.3g} N)"
+                                                              if need is not None else ""))
+            elif T[i] >= hi[i] - 1e-9 and (need is None or need > hi[i]):
+                violated.append(f"T{i + 1} <= {hi[i]:g} N" + (f" (unconstrained solution needs {need:.3g} N)"
+                                                              if need is not None else ""))
+        if not violated:
+            violated = [f"T{i + 1} at {'lower' if T[i] <= lo[i] + 1e-9 else 'upper'} bound"
+                        for i in range(self.m) if T[i] <= lo[i] + 1e-9 or T[i] >= hi[i] - 1e-9]
+        near = self.tip(q)
+        raise InfeasibleTargetError(
+            f"IK target {np.round(pd * 1e3, 3).tolist()} mm is not reachable with tensions in "
+            f"[{p.tension_min:g}, {p.tension_max:g}] N at p = {pr / 1e3:g} kPa: violated "
+            f"{'; '.join(violated) or 'no bound (solver stalled)'}; nearest reachable tip "
+            f"{np.round(near * 1e3, 3).tolist()} mm ({err * 1e3:.3f} mm away) with tensions "
+            f"{np.round(T, 4).tolist()} N", target=pd, nearest=near, tensions=T, violated=violated)
+
+    # ----------------------------------------------------------------------------- locked FK
+    def fk_locked(self, tendon_lengths, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None,
+                  tensions0=None, *, method: str = "active_set", tol: float = 1e-9, tol_length: float = 1e-10,
+                  max_iter: int = 60) -> Equilibrium:
+        """FK with locked tendon lengths l⁰ [m] (paper eqs. 3–6): returns q, tensions T ≥ 0 and slack
+        β = l⁰ − l(q) ≥ 0 with T_i β_i = 0.  ``method``: ``"active_set"`` (exact) or ``"gamma"`` (paper)."""
+        l0 = check_finite("tendon_lengths", tendon_lengths, (self.m,))
+        _, pr, F = self._check_inputs(None, pressure, tip_force, True)
+        if q0 is None:
+            q0 = self.fk(np.zeros(self.m), pr, F).q
+        z0 = self._initial_z(q0)
+        if tensions0 is None:
+            T0 = np.zeros(self.m)
+        else:
+            T0 = check_finite("tensions0", tensions0, (self.m,))
+        if method == "active_set":
+            return self._locked_active_set(z0, T0, l0, pr, F, tol, tol_length, max_iter)
+        if method == "gamma":
+            return self._locked_gamma(z0, T0, l0, pr, F, tol, tol_length, max_iter)
+        raise InputError(f"fk_locked method must be 'active_set' or 'gamma', got {method!r}")
+
+    def _locked_system(self, A, l0, pr, F):
+        nz = self.nz
+        A = list(A)
+
+        def fun(x):
+            z, TA = x[:nz], x[nz:]
+            T = np.zeros(self.m)
+            T[A] = TA
+            q = self.to_full(z)
+            if not self._admissible(q):
+                return np.full(nz + len(A), np.nan), None
+            ev = self.evaluate(q, T, pr, F)
+            JlA = self.reduce_vec(ev.J_l[A])
+            R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths[A] - l0[A]])
+            J = np.zeros((nz + len(A), nz + len(A)))
+            J[:nz, :nz] = self.reduce_mat(ev.K)
+            J[:nz, nz:] = JlA.T
+            J[nz:, :nz] = JlA
+            return R, J
+        return fun
+
+    def _locked_active_set(self, z0, T0, l0, pr, F, tol, tol_length, max_iter):
+        # initial active set: tendons carrying tension at lock time, else those the start state stretches
+        l_start = self.evaluate(self.to_full(z0), hessian=False).lengths
+        A = [i for i in range(self.m) if T0[i] > 0 or l_start[i] > l0[i]]
+        z, T = z0.copy(), T0.copy()
+        seen = set()
+        total = 0
+        for _ in range(4 * self.m + 4):
+            key = tuple(A)
+            if key in seen:
+                break
+            seen.add(key)
+            fun = self._locked_system(A, l0, pr, F)
+            w = np.concatenate([np.ones(self.nz), np.full(len(A), self._kscale * self.params.length)])
+            x, info = solve_root(fun, np.concatenate([z, T[A]]), tol=min(tol, self._kscale * self.params.length
+                                                                       * tol_length), max_iter=max_iter,
+                                 name="fk_locked", weights=w)
+            total += info.iterations
+            z = x[:self.nz]
+            T = np.zeros(self.m)
+            T[A] = x[self.nz:]
+            lengths = self.evaluate(self.to_full(z), hessian=False).lengths
+            neg = [i for i in A if T[i] < -1e-10]
+            over = [i for i in range(self.m) if i not in A and lengths[i] > l0[i] + tol_length]
+            if not neg and not over:
+                q = self.to_full(z)
+                T = np.maximum(T, 0.0)
+                ev = self.evaluate(q, T, pr, F, hessian=False)
+                slack = np.maximum(l0 - ev.lengths, 0.0)
+                slack[A] = 0.0
+                info.iterations = total
+                return self._result(q, T, pr, F, info, ev, "fk_locked", slack=slack, active=tuple(A))
+            if neg:
+                A.remove(min(neg, key=lambda i: T[i]))
+            if over:
+                A.append(max(over, key=lambda i: lengths[i] - l0[i]))
+                A.sort()
+        raise ConvergenceError("active-set loop of the locked-length FK cycled", solver="fk_locked",
+                               iterations=total, residual_norm=float("nan"), tolerance=tol)
+
+    def _locked_gamma(self, z0, T0, l0, pr, F, tol, tol_length, max_iter):
+        nz, m = self.nz, self.m
+        l_start = self.evaluate(self.to_full(z0), hessian=False).lengths
+        g0 = np.where(T0 > 0, np.sqrt(np.maximum(T0, 0)), -np.sqrt(np.maximum(l0 - l_start, 0)))
+        g0 = np.where(g0 == 0, 1e-3, g0)
+
+        def fun(x):
+            z, gam = x[:nz], x[nz:]
+            T = np.where(gam > 0, gam ** 2, 0.0)
+            beta = np.where(gam > 0, 0.0, gam ** 2)
+            q = self.to_full(z)
+            if not self._admissible(q):
+                return np.full(nz + m, np.nan), None
+            ev = self.evaluate(q, T, pr, F)
+            Jl = self.reduce_vec(ev.J_l)
+            R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths + beta - l0])
+            J = np.zeros((nz + m, nz + m))
+            J[:nz, :nz] = self.reduce_mat(ev.K)
+            J[:nz, nz:] = Jl.T * np.where(gam > 0, 2 * gam, 0.0)
+            J[nz:, :nz] = Jl
+            J[nz:, nz:] = np.diag(np.where(gam > 0, 0.0, 2 * gam))
+            return R, J
+
+        w = np.concatenate([np.ones(nz), np.full(m, self._kscale * self.params.length)])
+        x, info = solve_root(fun, np.concatenate([z0, g0]), tol=min(tol, self._kscale * self.params.length
+                                                                  * tol_length), max_iter=max_iter * 3,
+                             name="fk_locked(gamma)", weights=w)
+        z, gam = x[:nz], x[nz:]
+        T = np.where(gam > 0, gam ** 2, 0.0)
+        slack = np.where(gam > 0, 0.0, gam ** 2)
+        q = self.to_full(z)
+        ev = self.evaluate(q, T, pr, F, hessian=False)
+        return self._result(q, T, pr, F, info, ev, "fk_locked(gamma)", slack=slack,
+                            active=tuple(int(i) for i in np.flatnonzero(gam > 0)))

@@ -1,0 +1,336 @@
+"""Actuator parameters: one immutable, validated object, loadable from TOML with explicit units.
+
+Everything inside is SI (m, kg, N, Pa, rad).  TOML files state units in the key names
+(``length_mm = 160``, ``pressure_max_kPa = 120``, ``angle_deg = 120``); a dimensioned key without a unit,
+an unknown unit or an unknown key is rejected with a message that names the key and suggests the
+accepted spellings.  See ``ancf/presets/paper.toml`` for a complete, commented example.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import pathlib
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover
+    import tomli as tomllib
+
+from .errors import ConfigError
+from .stiffness import StiffnessLaw
+
+# ----------------------------------------------------------------------------------------------- units
+UNITS: dict[str, dict[str, float]] = {
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3},
+    "angle": {"rad": 1.0, "deg": math.pi / 180},
+    "mass": {"kg": 1.0, "g": 1e-3},
+    "line_mass": {"kg_per_m": 1.0, "g_per_m": 1e-3, "g_per_mm": 1.0},
+    "force": {"N": 1.0},
+    "pressure": {"Pa": 1.0, "kPa": 1e3, "bar": 1e5, "MPa": 1e6},
+    "acceleration": {"m_per_s2": 1.0},
+    "bending_stiffness": {"N_m2": 1.0, "N_mm2": 1e-6},
+    "dimensionless": {"": 1.0},
+}
+
+# field name -> dimension, for the top level of an actuator TOML file
+TOP_FIELDS = {
+    "name": None, "description": None,
+    "length": "length", "n_elements": "dimensionless", "quadrature_points": "dimensionless",
+    "D_eff": "length", "line_mass": "line_mass", "tip_mass": "mass", "tool_offset": "length",
+    "base_axis": "dimensionless", "reference_direction": "dimensionless", "gravity": "acceleration",
+    "tension_min": "force", "tension_max": "force", "pressure_min": "pressure", "pressure_max": "pressure",
+    "free_base_stretch": None,
+}
+STIFFNESS_FIELDS = {"law": None, "a": "force", "b": "force", "D_a": "length", "EA": "force",
+                    "EI": "bending_stiffness", "EA_coeffs": "force", "EI_coeffs": "bending_stiffness"}
+TENDON_FIELDS = {"distance": "length", "angle": "angle"}
+
+
+def _parse_table(table: dict, fields: dict[str, str | None], where: str) -> dict[str, Any]:
+    """Map ``{key_with_unit: value}`` to ``{field: SI value}``; reject unknown keys and missing units."""
+    out: dict[str, Any] = {}
+    spellings = {}
+    for f, dim in fields.items():
+        if dim is None or dim == "dimensionless":
+            spellings[f] = (f, 1.0)
+        else:
+            for u, fac in UNITS[dim].items():
+                spellings[f"{f}_{u}"] = (f, fac)
+    for key, value in table.items():
+        if key in spellings:
+            f, fac = spellings[key]
+            if f in out:
+                raise ConfigError(f"{where}: '{f}' given twice (e.g. in two units)")
+            out[f] = _scale(value, fac, f"{where}.{key}")
+            continue
+        if key in fields and fields[key] not in (None, "dimensionless"):
+            units = ", ".join(f"{key}_{u}" for u in UNITS[fields[key]])
+            raise ConfigError(f"{where}: '{key}' needs an explicit unit; write one of: {units}")
+        close = difflib.get_close_matches(key, list(spellings), n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise ConfigError(f"{where}: unknown key '{key}'{hint}")
+    return out
+
+
+def _scale(value, fac: float, where: str):
+    if isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, (list, tuple)):
+        return [_scale(v, fac, where) for v in value]
+    if not isinstance(value, (int, float)):
+        raise ConfigError(f"{where}: expected a number, got {value!r}")
+    v = float(value) * fac
+    if not math.isfinite(v):
+        raise ConfigError(f"{where}: value must be finite, got {value!r}")
+    return v if fac != 1.0 or isinstance(value, float) else value
+
+
+# ------------------------------------------------------------------------------------------- objects
+class Tendon(BaseModel):
+    """One tendon: routing distance ``distance`` [m] from the axis, angle ``angle`` [rad] about the
+    axis measured from the reference direction."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+    distance: float
+    angle: float
+
+    @field_validator("distance")
+    @classmethod
+    def _d(cls, v):
+        if not (0 < v < 0.5):
+            raise ValueError(f"tendon distance {v} m must be in (0, 0.5) m")
+        return v
+
+
+class ActuatorParams(BaseModel):
+    """Complete description of a tendon-pneumatic bellows actuator (SI units).
+
+    Attributes
+    ----------
+    name : str
+    length : float                 undeformed length L [m]
+    n_elements : int               number of ANCF elements n (paper: 6)
+    quadrature_points : int        Gauss points per element (≥ 4)
+    stiffness : StiffnessLaw       EA(λ), EI(λ)
+    D_eff : float                  effective pressure diameter [m]; A_eff = π D_eff²/4
+    tendons : tuple[Tendon, ...]   ≥ 3 tendons
+    line_mass : float              m' [kg/m] (distributed self-weight)
+    tip_mass : float               lumped mass at the tool point [kg]
+    tool_offset : float            rigid tool offset h along the tip tangent [m]
+    base_axis : tuple              undeformed axis direction (unit)
+    reference_direction : tuple    direction of θ = 0 (unit, ⟂ base_axis)
+    gravity : tuple                gravity vector [m/s²]
+    tension_min, tension_max       tendon tension limits [N]
+    pressure_min, pressure_max     pressure limits [Pa]
+    free_base_stretch : bool       leave |r_x| at the base free (default: clamped to 1)
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=False)
+
+    name: str = "custom"
+    description: str = ""
+    length: float
+    n_elements: int = 6
+    quadrature_points: int = 5
+    stiffness: StiffnessLaw
+    D_eff: float
+    tendons: tuple[Tendon, ...]
+    line_mass: float = 0.0
+    tip_mass: float = 0.0
+    tool_offset: float = 0.0
+    base_axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    reference_direction: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    tension_min: float = 0.0
+    tension_max: float = 5.0
+    pressure_min: float = 0.0
+    pressure_max: float = 120e3
+    free_base_stretch: bool = False
+
+    @field_validator("length")
+    @classmethod
+    def _len(cls, v):
+        if not (0 < v < 10):
+            raise ValueError(f"length {v} m must be in (0, 10) m (SI metres: 160 mm is 0.16)")
+        return v
+
+    @field_validator("n_elements")
+    @classmethod
+    def _n(cls, v):
+        if not (1 <= v <= 200):
+            raise ValueError("n_elements must be in [1, 200]")
+        return v
+
+    @field_validator("quadrature_points")
+    @classmethod
+    def _ng(cls, v):
+        if not (4 <= v <= 20):
+            raise ValueError("quadrature_points must be in [4, 20]")
+        return v
+
+    @field_validator("D_eff")
+    @classmethod
+    def _deff(cls, v):
+        if not (0 < v < 1):
+            raise ValueError(f"D_eff {v} m must be in (0, 1) m (SI metres: 26 mm is 0.026)")
+        return v
+
+    @field_validator("line_mass", "tip_mass", "tool_offset", "tension_min", "pressure_min")
+    @classmethod
+    def _nonneg(cls, v):
+        if not (v >= 0 and math.isfinite(v)):
+            raise ValueError("must be finite and >= 0")
+        return v
+
+    @field_validator("tendons")
+    @classmethod
+    def _tendons(cls, v):
+        if len(v) < 3:
+            raise ValueError(f"need at least 3 tendons, got {len(v)}")
+        return v
+
+    @model_validator(mode="after")
+    def _frame(self):
+        e1 = np.asarray(self.base_axis, float)
+        er = np.asarray(self.reference_direction, float)
+        if not np.all(np.isfinite(e1)) or abs(np.linalg.norm(e1) - 1) > 1e-9:
+            raise ValueError(f"base_axis {self.base_axis} must be a unit vector")
+        if not np.all(np.isfinite(er)) or abs(np.linalg.norm(er) - 1) > 1e-9 or abs(e1 @ er) > 1e-9:
+            raise ValueError(f"reference_direction {self.reference_direction} must be a unit vector "
+                             f"perpendicular to base_axis {self.base_axis}")
+        if not np.all(np.isfinite(self.gravity)):
+            raise ValueError("gravity must be finite")
+        if not (self.tension_max > self.tension_min):
+            raise ValueError("tension_max must exceed tension_min")
+        if not (self.pressure_max >= self.pressure_min):
+            raise ValueError("pressure_max must be >= pressure_min")
+        return self
+
+    def __init__(self, **data):
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:  # re-raise as the product's own error with a readable message
+            msgs = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'params'}: {e['msg']}"
+                             for e in exc.errors())
+            raise ConfigError(f"invalid actuator parameters: {msgs}") from None
+
+    # ----------------------------------------------------------------------------- derived quantities
+    @property
+    def A_eff(self) -> float:
+        """Effective pressure area π D_eff²/4 [m²]."""
+        return math.pi * self.D_eff ** 2 / 4
+
+    @property
+    def element_length(self) -> float:
+        return self.length / self.n_elements
+
+    @property
+    def n_tendons(self) -> int:
+        return len(self.tendons)
+
+    @property
+    def tendon_distances(self) -> np.ndarray:
+        return np.array([t.distance for t in self.tendons])
+
+    @property
+    def tendon_angles(self) -> np.ndarray:
+        return np.array([t.angle for t in self.tendons])
+
+    @property
+    def frame(self) -> np.ndarray:
+        """Actuator frame as columns ``[e1, e2, e3]``: base axis, reference direction, e1 × e2."""
+        e1 = np.asarray(self.base_axis, float)
+        e2 = np.asarray(self.reference_direction, float)
+        return np.column_stack([e1, e2, np.cross(e1, e2)])
+
+    def replace(self, **changes) -> "ActuatorParams":
+        """A validated copy with some fields changed, e.g. ``params.replace(n_elements=8)``."""
+        unknown = set(changes) - set(type(self).model_fields)
+        if unknown:
+            raise ConfigError(f"unknown parameter(s) {sorted(unknown)}; known: {sorted(type(self).model_fields)}")
+        data = self.model_dump()
+        data.update(changes)
+        data["stiffness"] = changes.get("stiffness", self.stiffness)
+        if "tendons" not in changes:
+            data["tendons"] = self.tendons
+        return ActuatorParams(**data)
+
+    # ----------------------------------------------------------------------------------------- TOML
+    @classmethod
+    def from_toml(cls, path) -> "ActuatorParams":
+        """Load parameters from a TOML file with unit-suffixed keys (see module docstring)."""
+        path = pathlib.Path(path)
+        try:
+            text = path.read_text()
+        except OSError as exc:
+            raise ConfigError(f"cannot read actuator file {path}: {exc}") from None
+        return cls.from_toml_string(text, where=str(path))
+
+    @classmethod
+    def from_toml_string(cls, text: str, where: str = "<string>") -> "ActuatorParams":
+        try:
+            raw = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{where}: not valid TOML: {exc}") from None
+        raw = dict(raw)
+        stiff = raw.pop("stiffness", None)
+        tendons = raw.pop("tendons", None)
+        if stiff is None:
+            raise ConfigError(f"{where}: missing [stiffness] table")
+        if not tendons:
+            raise ConfigError(f"{where}: missing [[tendons]] entries")
+        top = _parse_table(raw, TOP_FIELDS, where)
+        s = _parse_table(stiff, STIFFNESS_FIELDS, f"{where}[stiffness]")
+        law = s.pop("law", None)
+        try:
+            if law == "linear":
+                stiffness = StiffnessLaw.linear(**s)
+            elif law == "constant":
+                stiffness = StiffnessLaw.constant(**s)
+            elif law == "polynomial":
+                stiffness = StiffnessLaw.polynomial(EA=s["EA_coeffs"], EI=s["EI_coeffs"])
+            else:
+                raise ConfigError(f"{where}[stiffness]: law must be 'linear', 'constant' or 'polynomial', "
+                                  f"got {law!r}")
+        except TypeError as exc:
+            raise ConfigError(f"{where}[stiffness]: wrong keys for law '{law}': {exc}") from None
+        tl = [Tendon(**_parse_table(t, TENDON_FIELDS, f"{where}[[tendons]][{i}]")) for i, t in enumerate(tendons)]
+        for k in ("base_axis", "reference_direction", "gravity"):
+            if k in top:
+                top[k] = tuple(float(x) for x in top[k])
+                if k != "gravity":
+                    v = np.asarray(top[k])
+                    top[k] = tuple(v / np.linalg.norm(v))
+        return cls(stiffness=stiffness, tendons=tuple(tl), **top)
+
+    def to_toml(self) -> str:
+        """Serialise to the TOML format read by :meth:`from_toml` (SI units spelled out)."""
+        lines = [f'name = "{self.name}"']
+        if self.description:
+            lines.append(f'description = "{self.description}"')
+        lines += [
+            f"length_m = {self.length!r}", f"n_elements = {self.n_elements}",
+            f"quadrature_points = {self.quadrature_points}", f"D_eff_m = {self.D_eff!r}",
+            f"line_mass_kg_per_m = {self.line_mass!r}", f"tip_mass_kg = {self.tip_mass!r}",
+            f"tool_offset_m = {self.tool_offset!r}", f"base_axis = {list(self.base_axis)}",
+            f"reference_direction = {list(self.reference_direction)}",
+            f"gravity_m_per_s2 = {list(self.gravity)}", f"tension_min_N = {self.tension_min!r}",
+            f"tension_max_N = {self.tension_max!r}", f"pressure_min_Pa = {self.pressure_min!r}",
+            f"pressure_max_Pa = {self.pressure_max!r}",
+            f"free_base_stretch = {'true' if self.free_base_stretch else 'false'}", "", "[stiffness]",
+            f'law = "{self.stiffness.kind}"']
+        s = self.stiffness
+        if s.kind == "linear":
+            lines += [f"a_N = {s.source['a']!r}", f"b_N = {s.source['b']!r}", f"D_a_m = {s.source['D_a']!r}"]
+        elif s.kind == "constant":
+            lines += [f"EA_N = {s.EA_coeffs[0]!r}", f"EI_N_m2 = {s.EI_coeffs[0]!r}"]
+        else:
+            lines += [f"EA_coeffs_N = {list(s.EA_coeffs)}", f"EI_coeffs_N_m2 = {list(s.EI_coeffs)}"]
+        for t in self.tendons:
+            lines += ["", "[[tendons]]", f"distance_m = {t.distance!r}", f"angle_rad = {t.angle!r}"]
+        return "\n".join(lines) + "\n"

@@ -1,0 +1,141 @@
+"""Small dense nonlinear solvers used by :class:`ancf.Model` (paper Sec. III-A/B).
+
+* :func:`minimize_newton` — Newton on the gradient of a potential with an Armijo line search on the
+  potential itself and Levenberg–Marquardt shifting when the Hessian is not positive definite (FK).
+* :func:`solve_root` — damped Newton on a square system F(x) = 0 with backtracking on ‖F‖ and an LM
+  fallback (IK, locked-length FK); the LM damping follows the paper (initial μ = 0.01, relative).
+
+Both raise :class:`ancf.errors.ConvergenceError` with the residual history on failure: a non-converged
+state is never returned as a result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.linalg as sla
+
+from .errors import ConvergenceError
+
+
+@dataclass
+class SolveInfo:
+    iterations: int
+    residual_norm: float
+    history: list[float] = field(default_factory=list)
+
+
+def _chol_solve(H: np.ndarray, g: np.ndarray):
+    """Solve H x = g by Cholesky; None if H is not positive definite."""
+    try:
+        c = sla.cho_factor(H, lower=True, check_finite=False)
+    except (np.linalg.LinAlgError, sla.LinAlgError):
+        return None
+    return sla.cho_solve(c, g, check_finite=False)
+
+
+def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
+                    name: str = "fk") -> tuple[np.ndarray, SolveInfo]:
+    """Minimise a smooth potential with Newton steps.
+
+    ``fun(x, hessian: bool) -> (energy, gradient, hessian or None)``; the energy may be ``inf``/``nan``
+    where the state is inadmissible (the line search then backtracks).  Converged when ‖gradient‖₂ < tol.
+    """
+    x = np.array(x0, float)
+    E, g, H = fun(x, True)
+    hist = [float(np.linalg.norm(g))]
+    mu = 0.0
+    for it in range(max_iter):
+        gn = hist[-1]
+        if gn < tol:
+            return x, SolveInfo(it, gn, hist)
+        # Newton direction, shifted (LM) until the matrix is positive definite
+        scale = max(np.max(np.abs(np.diag(H))), 1e-12)
+        dx = _chol_solve(H, -g) if mu == 0.0 else None
+        shift = mu
+        while dx is None:
+            shift = max(shift * 10.0, 1e-8 * scale) if shift else 1e-8 * scale
+            if shift > 1e8 * scale:
+                break
+            dx = _chol_solve(H + shift * np.eye(len(x)), -g)
+        if dx is None:
+            break
+        slope = float(g @ dx)
+        alpha = 1.0
+        accepted = False
+        for _ in range(30):
+            xn = x + alpha * dx
+            En, gn_, Hn = fun(xn, True)
+            if np.isfinite(En) and (En <= E + 1e-4 * alpha * slope or
+                                    (abs(En - E) <= 1e-14 * max(1.0, abs(E)) and
+                                     np.linalg.norm(gn_) < hist[-1])):
+                accepted = True
+                break
+            alpha *= 0.5
+        if not accepted:
+            # energy stagnates at round-off level: accept if the gradient norm decreases
+            break
+        x, E, g, H = xn, En, gn_, Hn
+        hist.append(float(np.linalg.norm(g)))
+    raise ConvergenceError("Newton on the equilibrium did not converge", solver=name,
+                           iterations=len(hist) - 1, residual_norm=hist[-1], tolerance=tol, history=hist)
+
+
+def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60, name: str = "ik",
+               weights: np.ndarray | None = None) -> tuple[np.ndarray, SolveInfo]:
+    """Solve a square system F(x) = 0 (``fun(x) -> (F, J)``) by Newton with backtracking on the
+    weighted residual norm ‖W F‖₂, switching to Levenberg–Marquardt steps when Newton stalls.
+
+    Converged when ‖W F‖₂ < tol.
+    """
+    x = np.array(x0, float)
+    w = np.ones(len(x)) if weights is None else np.asarray(weights, float)
+    F, J = fun(x)
+    r = float(np.linalg.norm(w * F)) if np.all(np.isfinite(F)) else np.inf
+    hist = [r]
+    lm = 1e-2                                     # paper: LM damping factor 0.01 (relative here)
+    for it in range(max_iter):
+        if r < tol:
+            return x, SolveInfo(it, r, hist)
+        Jw = w[:, None] * J
+        Fw = w * F
+        step_ok = False
+        try:
+            dx = np.linalg.solve(Jw, -Fw)
+            alpha = 1.0
+            for _ in range(12):
+                Fn, Jn = fun(x + alpha * dx)
+                rn = float(np.linalg.norm(w * Fn)) if np.all(np.isfinite(Fn)) else np.inf
+                if rn < (1 - 1e-4 * alpha) * r:
+                    step_ok = True
+                    break
+                alpha *= 0.5
+        except np.linalg.LinAlgError:
+            pass
+        if not step_ok:  # Levenberg–Marquardt on the normal equations
+            A = Jw.T @ Jw
+            gr = Jw.T @ Fw
+            dscale = np.maximum(np.diag(A), 1e-12 * max(np.max(np.diag(A)), 1e-300))
+            for _ in range(25):
+                try:
+                    dx = np.linalg.solve(A + lm * np.diag(dscale), -gr)
+                except np.linalg.LinAlgError:
+                    lm *= 10
+                    continue
+                Fn, Jn = fun(x + dx)
+                rn = float(np.linalg.norm(w * Fn)) if np.all(np.isfinite(Fn)) else np.inf
+                if rn < r:
+                    lm = max(lm / 10, 1e-12)
+                    step_ok = True
+                    alpha = 1.0
+                    break
+                lm *= 10
+            if not step_ok:
+                break
+        x = x + alpha * dx
+        F, J, r = Fn, Jn, rn
+        hist.append(r)
+    raise ConvergenceError("Newton/LM did not converge", solver=name, iterations=len(hist) - 1,
+                           residual_norm=hist[-1], tolerance=tol, history=hist)
