@@ -16,7 +16,7 @@ Tip (paper eq. 2b and the rigid tool offset h):  p_end = r_{n+1} + h t,  t = r_x
 Tip orientation: the Rodrigues rotation taking the base axis e1 to t (no twist; torsion is not modelled),
 with v = e1 × t and c = e1 · t,
 
-    R(t) = c I + [v]× + [v]×² / (1 + c),
+    R(t) = I + [v]× + [v]×² / (1 + c)   (equivalently R x = c x + v × x + (v·x) v / (1 + c)),
 
 defined for every t except t = −e1 (a 180° fold, outside any physical state of this actuator).
 """
@@ -102,7 +102,7 @@ def rodrigues(t, e1) -> np.ndarray:
     if c <= -1.0 + 1e-12:
         raise ValueError("Rodrigues rotation undefined for t = -e1 (180 degree fold)")
     V = skew(v)
-    return c * np.eye(3) + V + V @ V / (1.0 + c)
+    return np.eye(3) + V + V @ V / (1.0 + c)
 
 
 def rodrigues_derivative(t, e1) -> np.ndarray:
@@ -116,7 +116,7 @@ def rodrigues_derivative(t, e1) -> np.ndarray:
         ek[k] = 1.0
         dV = skew(np.cross(e1, ek))
         dc = e1[k]
-        out[k] = dc * np.eye(3) + dV + (dV @ V + V @ dV) / (1 + c) - V @ V * dc / (1 + c) ** 2
+        out[k] = dV + (dV @ V + V @ dV) / (1 + c) - V @ V * dc / (1 + c) ** 2
     return out
 
 

@@ -122,6 +122,8 @@ class Model:
         self.nz = self.ndof - 6 + (1 if p.free_base_stretch else 0)
         # scale for mixing force and position residuals (N/m): axial stiffness of the whole actuator
         self._kscale = float(p.stiffness.EA(1.0)) / p.length
+        # default residual tolerance [N]: round-off of the generalized forces scales with EA
+        self.default_tol = 1e-9 + 1e-13 * float(p.stiffness.EA(1.0))
         self._droop: Optional[Equilibrium] = None
 
     # ----------------------------------------------------------------------------- coordinate maps
@@ -261,12 +263,14 @@ class Model:
 
     # ----------------------------------------------------------------------------- FK
     def fk(self, tensions=(0.0, 0.0, 0.0), pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
-           q0=None, *, tol: float = 1e-9, max_iter: int = 60, check_limits: bool = True) -> Equilibrium:
+           q0=None, *, tol: Optional[float] = None, max_iter: int = 60, check_limits: bool = True) -> Equilibrium:
         """Forward kinetostatics (T [N], p [Pa], F_e [N]) → equilibrium (paper Sec. III-A).
 
         ``q0`` (ndof,) warm-starts; default: the straight reference.  Converged when the free
-        generalized-force residual ‖Q‖₂ < ``tol`` [N, N m].  Raises ConvergenceError otherwise.
+        generalized-force residual ‖Q‖₂ < ``tol`` [N, N m] (default ``model.default_tol``, 1e-9 N plus
+        1e-13 EA).  Raises ConvergenceError otherwise.
         """
+        tol = self.default_tol if tol is None else tol
         if tensions is not None and np.ndim(tensions) == 1 and len(tensions) != self.m:
             raise InputError(f"tensions needs {self.m} values (one per tendon), got {len(tensions)}")
         T, pr, F = self._check_inputs(tensions, pressure, tip_force, check_limits)
@@ -291,31 +295,36 @@ class Model:
         return bool(np.all(np.isfinite(q)) and np.min(np.einsum("ij,ij->i", a, a)) > 0.04)
 
     def _fk_z(self, z0, T, pr, F, tol, max_iter):
+        """Newton from ``z0``; if that fails within a short budget, adaptive load stepping from the
+        unloaded reference with a secant predictor (robust cold start over the whole operating range)."""
         try:
-            return minimize_newton(self._fk_fun(T, pr, F), z0, tol=tol, max_iter=max_iter, name="fk")
-        except ConvergenceError as first:
-            pass
-        # load stepping from the unloaded reference (robust cold start)
-        z = self.to_free(self.q_ref)
-        s, ds, total_it, hist = 0.0, 0.25, 0, []
+            return minimize_newton(self._fk_fun(T, pr, F), z0, tol=tol, max_iter=min(max_iter, 25), name="fk")
+        except ConvergenceError as exc:
+            first = exc
+        z_prev = z = self.to_free(self.q_ref)
+        s_prev, s, ds, total_it, hist = 0.0, 0.0, 0.25, first.iterations, list(first.history)
         while s < 1.0:
             s_try = min(1.0, s + ds)
+            z_pred = z if s == 0.0 else z + (z - z_prev) * (s_try - s) / (s - s_prev)
             try:
-                z_try, info = minimize_newton(self._fk_fun(T, pr, F, s_try), z, tol=tol, max_iter=max_iter,
-                                              name="fk")
-                z, s = z_try, s_try
-                total_it += info.iterations
-                hist += info.history
-                ds = min(ds * 2, 1.0)
-            except ConvergenceError:
-                ds /= 4
-                if ds < 1e-4:
+                z_try, info = minimize_newton(self._fk_fun(T, pr, F, s_try), z_pred, tol=tol,
+                                              max_iter=max_iter if s_try == 1.0 else 15, name="fk")
+            except ConvergenceError as exc:
+                total_it += exc.iterations
+                ds /= 3
+                if ds < 1e-5:
                     raise ConvergenceError(
-                        f"load stepping stalled at load factor {s:.4f} (direct Newton: residual "
-                        f"{first.residual_norm:.3e})", solver="fk", iterations=total_it + first.iterations,
-                        residual_norm=first.residual_norm, tolerance=tol, history=first.history) from None
+                        f"load stepping stalled at load factor {s:.4f} of (T={T.tolist()} N, p={pr:g} Pa, "
+                        f"F={F.tolist()} N); the direct Newton solve ended at residual {first.residual_norm:.3e}",
+                        solver="fk", iterations=total_it, residual_norm=exc.residual_norm, tolerance=tol,
+                        history=hist + exc.history) from None
+                continue
+            z_prev, s_prev, z, s = z, s, z_try, s_try
+            total_it += info.iterations
+            hist += info.history
+            ds = min(ds * (2.0 if info.iterations <= 6 else 1.2), 1.0)
         from .solvers import SolveInfo
-        return z, SolveInfo(total_it, hist[-1] if hist else 0.0, hist)
+        return z, SolveInfo(total_it, hist[-1], hist)
 
     def droop(self, pressure: float = 0.0) -> Equilibrium:
         """Gravity-only equilibrium (T = 0, no tip force) — the stored warm start of the paper's LACC."""
@@ -325,15 +334,15 @@ class Model:
 
     # ----------------------------------------------------------------------------- IK
     def ik(self, target, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None, tensions0=None, *,
-           tol: float = 1e-9, tol_position: float = 1e-9, max_iter: int = 60,
-           tension_regularisation: float = 1e-6) -> Equilibrium:
+           tol: Optional[float] = None, tol_position: float = 1e-9, max_iter: int = 60) -> Equilibrium:
         """Inverse kinetostatics (p_d [m], p [Pa], F_e [N]) → (q, T) with T_min ≤ T ≤ T_max
         (paper Sec. III-A, eq. 2).
 
         Raises InfeasibleTargetError (naming the violated bound and giving the nearest reachable tip)
         when no tensions inside the bounds reach the target, ConvergenceError if a solve fails.
-        ``tension_regularisation`` [m²/N²] selects the least-tension solution with more than 3 tendons.
+        With more than 3 tendons the solution is not unique: the one with the least Σ T² is returned.
         """
+        tol = self.default_tol if tol is None else tol
         pd = check_finite("target", target, (3,))
         _, pr, F = self._check_inputs(None, pressure, tip_force, True)
         p = self.params
@@ -356,8 +365,7 @@ class Model:
                 return self._result(q, T, pr, F, info, ev, "ik")
         # bounded reduced solve over the tensions: feasible solution or nearest reachable point
         unconstrained = None if sol is None else sol[1]
-        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained,
-                                tension_regularisation if self.m > 3 else 0.0)
+        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained)
 
     def _ik_newton(self, z0, T0, pd, pr, F, tol, tol_position, max_iter):
         nz, m = self.nz, self.m
@@ -381,11 +389,10 @@ class Model:
                              weights=w)
         return x[:nz], x[nz:], info
 
-    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, reg):
+    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained):
         p = self.params
         state = {"z": z0}
         lo, hi = np.full(self.m, p.tension_min), np.full(self.m, p.tension_max)
-        sr = math.sqrt(reg)
 
         def solve_fk(T):
             z, info = self._fk_z(state["z"], T, pr, F, tol, 60)
@@ -394,8 +401,7 @@ class Model:
 
         def fun(T):
             z = solve_fk(T)
-            r = self.tip(self.to_full(z)) - pd
-            return np.concatenate([r, sr * T]) if reg else r
+            return self.tip(self.to_full(z)) - pd
 
         def jac(T):
             z = solve_fk(T)
@@ -403,23 +409,32 @@ class Model:
             ev = self.evaluate(q, T, pr, F)
             H = self.reduce_mat(ev.K)
             dz = -np.linalg.solve(H, self.reduce_vec(ev.J_l).T)
-            Jp = self.reduce_vec(self.tip_jacobian(q)) @ dz
-            return np.vstack([Jp, sr * np.eye(self.m)]) if reg else Jp
+            return self.reduce_vec(self.tip_jacobian(q)) @ dz
 
         x0 = np.clip(T0 if unconstrained is None else unconstrained, lo, hi)
         res = so.least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", xtol=1e-14, ftol=1e-15,
                                gtol=1e-15, max_nfev=200)
         T = res.x
+        nfev = int(res.nfev)
         z = solve_fk(T)
         q = self.to_full(z)
         err = float(np.linalg.norm(self.tip(q) - pd))
-        if err <= max(tol_position * 10, 1e-8):
-            if reg == 0.0:  # polish on the square system when interior
-                ev = self.evaluate(q, T, pr, F, hessian=False)
-            else:
-                ev = self.evaluate(q, T, pr, F, hessian=False)
+        feasible = err <= max(tol_position * 10, 1e-8)
+        if feasible and self.m > 3:
+            # redundant tendons: least total tension Σ T² on the solution manifold, inside the bounds
+            cons = {"type": "eq", "fun": fun, "jac": jac}
+            opt = so.minimize(lambda t: 0.5 * t @ t, T, jac=lambda t: t, bounds=list(zip(lo, hi)),
+                              constraints=[cons], method="SLSQP", options={"ftol": 1e-14, "maxiter": 100})
+            nfev += int(opt.nfev)
+            if opt.success and np.linalg.norm(fun(opt.x)) <= max(tol_position * 10, 1e-8):
+                T = np.clip(opt.x, lo, hi)
+                z = solve_fk(T)
+                q = self.to_full(z)
+                err = float(np.linalg.norm(self.tip(q) - pd))
+        if feasible:
+            ev = self.evaluate(q, T, pr, F, hessian=False)
             from .solvers import SolveInfo
-            info = SolveInfo(int(res.nfev), float(np.linalg.norm(self.reduce_vec(ev.Q))), [])
+            info = SolveInfo(nfev, float(np.linalg.norm(self.reduce_vec(ev.Q))), [])
             return self._result(q, T, pr, F, info, ev, "ik")
         violated = []
         for i in range(self.m):
@@ -443,10 +458,11 @@ class Model:
 
     # ----------------------------------------------------------------------------- locked FK
     def fk_locked(self, tendon_lengths, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None,
-                  tensions0=None, *, method: str = "active_set", tol: float = 1e-9, tol_length: float = 1e-10,
+                  tensions0=None, *, method: str = "active_set", tol: Optional[float] = None, tol_length: float = 1e-10,
                   max_iter: int = 60) -> Equilibrium:
         """FK with locked tendon lengths l⁰ [m] (paper eqs. 3–6): returns q, tensions T ≥ 0 and slack
         β = l⁰ − l(q) ≥ 0 with T_i β_i = 0.  ``method``: ``"active_set"`` (exact) or ``"gamma"`` (paper)."""
+        tol = self.default_tol if tol is None else tol
         l0 = check_finite("tendon_lengths", tendon_lengths, (self.m,))
         _, pr, F = self._check_inputs(None, pressure, tip_force, True)
         if q0 is None:

@@ -1,0 +1,90 @@
+"""Parameter object, TOML loading with explicit units, presets."""
+
+import math
+
+import numpy as np
+import pytest
+
+from ancf import ActuatorParams, ConfigError, StiffnessLaw, presets
+
+
+def test_paper_preset_values():
+    p = presets.paper()
+    assert p.length == pytest.approx(0.16)
+    assert p.n_elements == 6
+    assert p.D_eff == pytest.approx(26.05e-3)
+    assert p.tendon_distances == pytest.approx([27.5e-3] * 3)
+    assert p.tendon_angles == pytest.approx([0, 2 * math.pi / 3, 4 * math.pi / 3])
+    # EA = k(1) = a + b, EI = D_a² k(1) / 8 (DESIGN.md §3)
+    assert p.stiffness.EA(1.0) == pytest.approx(1336 - 568.8)
+    assert p.stiffness.EI(1.0) == pytest.approx(0.02959 ** 2 * (1336 - 568.8) / 8)
+    assert p.pressure_max == pytest.approx(120e3) and p.tension_max == pytest.approx(5.0)
+
+
+def test_linear_law_matches_paper_formula():
+    law = StiffnessLaw.linear(a=1336.0, b=-568.8, D_a=0.02959)
+    for lam in (0.9, 1.0, 1.1):
+        k = 1336 * lam - 568.8
+        assert law.EA(lam) == pytest.approx(k)
+        assert law.EI(lam) == pytest.approx(0.02959 ** 2 * lam * k / 8)
+        # W' = EA ε λ and W = ∫ W' (trapezoid check of the closed form)
+        x = np.linspace(1.0, lam, 2001)
+        assert law.axial_energy(lam) == pytest.approx(np.trapezoid(law.axial_force(x), x), rel=1e-6, abs=1e-12)
+
+
+def test_toml_round_trip_and_presets():
+    for p in (presets.paper(), presets.paper_constant(), presets.four_tendon()):
+        assert ActuatorParams.from_toml_string(p.to_toml()) == p
+    assert presets.four_tendon().n_tendons == 4
+
+
+def test_frozen_and_replace():
+    p = presets.paper()
+    with pytest.raises(Exception):
+        p.length = 0.2
+    q = p.replace(n_elements=8, length=0.2)
+    assert (q.n_elements, q.length, p.n_elements) == (8, 0.2, 6)
+    with pytest.raises(ConfigError, match="unknown parameter"):
+        p.replace(n_elemnts=8)
+
+
+@pytest.mark.parametrize("edit, match", [
+    (("length_m", "lenght_m"), "unknown key 'lenght_m'.*did you mean length_m"),
+    (("length_m = 0.16", "length = 0.16"), "needs an explicit unit"),
+    (("length_m = 0.16", "length_furlong = 0.16"), "unknown key"),
+    (("length_m = 0.16", "length_mm = 160\nlength_m = 0.16"), "given twice"),
+    (('law = "linear"', 'law = "cubic"'), "law must be"),
+    (("n_elements = 6", "n_elements = 0"), "n_elements"),
+    (("length_m = 0.16", "length_m = -1"), "length"),
+    (("length_m = 0.16", 'length_m = "long"'), "expected a number|length"),
+])
+def test_bad_toml_is_rejected_clearly(edit, match):
+    text = presets.paper().to_toml()
+    assert edit[0] in text
+    with pytest.raises(ConfigError, match=match):
+        ActuatorParams.from_toml_string(text.replace(edit[0], edit[1], 1))
+
+
+def test_units_are_converted():
+    text = presets.paper().to_toml().replace("length_m = 0.16", "length_mm = 160").replace(
+        "pressure_max_Pa = 120000.0", "pressure_max_kPa = 120")
+    p = ActuatorParams.from_toml_string(text)
+    assert p.length == pytest.approx(0.16) and p.pressure_max == pytest.approx(120e3)
+
+
+def test_invalid_frame_and_tendons():
+    p = presets.paper()
+    with pytest.raises(ConfigError, match="reference_direction"):
+        p.replace(reference_direction=(1.0, 0.0, 0.0))
+    with pytest.raises(ConfigError, match="at least 3 tendons"):
+        p.replace(tendons=p.tendons[:2])
+    with pytest.raises(ConfigError, match="D_a"):
+        StiffnessLaw.linear(a=1336, b=-568.8, D_a=29.59)   # millimetres by mistake
+
+
+def test_preset_lookup(tmp_path):
+    f = tmp_path / "mine.toml"
+    f.write_text(presets.paper().replace(name="mine").to_toml())
+    assert presets.get(str(f)).name == "mine"
+    with pytest.raises(ConfigError, match="unknown preset"):
+        presets.get("nope")

@@ -1,0 +1,174 @@
+"""FK / IK / locked-length FK: round trips, bounds, complementarity, robustness, error reporting."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from ancf import (ConvergenceError, InfeasibleTargetError, InputError, Model, presets)
+
+RNG = np.random.default_rng(3)
+
+
+def test_fk_operating_range_cold_start(paper_model):
+    """Cold starts over the corners of the operating range: 0–5 N per tendon, 0–120 kPa, 2 N tip loads
+    in ±x, ±y, ±z.  Every solve converges and its residual is verified independently."""
+    m = paper_model
+    loads = [(0, 0, 0)] + [tuple(2.0 * s * np.eye(3)[i]) for i in range(3) for s in (1, -1)]
+    for T in itertools.product((0.0, 5.0), repeat=3):
+        for p in (0.0, 120e3):
+            for F in loads:
+                eq = m.fk(T, p, F)
+                Q = m.reduce_vec(m.residual(eq.q, eq.tensions, p, F))
+                assert np.linalg.norm(Q) < m.default_tol
+                assert eq.converged and eq.iterations <= 25
+
+
+def test_fk_warm_start_is_cheaper(paper_model):
+    m = paper_model
+    cold = m.fk((2.0, 0.0, 1.0), 40e3, (0, 0, -0.5))
+    warm = m.fk((2.05, 0.0, 1.0), 40e3, (0, 0, -0.5), q0=cold.q)
+    assert warm.iterations < cold.iterations
+    assert np.linalg.norm(warm.tip - cold.tip) < 2e-3
+
+
+@pytest.mark.parametrize("k", range(6))
+def test_ik_fk_round_trip(paper_model, k):
+    """FK at random inputs → IK on its tip recovers the tensions (unique for 3 tendons) and the state."""
+    m = paper_model
+    T = RNG.uniform(0.0, 5.0, 3)
+    T[RNG.integers(3)] = 0.0                 # a slack tendon is the normal case
+    p = RNG.uniform(0, 120e3)
+    F = RNG.normal(size=3) * 0.3
+    fk = m.fk(T, p, F)
+    ik = m.ik(fk.tip, p, F)
+    assert np.linalg.norm(ik.tip - fk.tip) < 1e-9
+    assert ik.tensions == pytest.approx(T, abs=1e-6)
+    assert np.all(ik.tensions >= 0)
+    back = m.fk(ik.tensions, p, F)
+    assert np.linalg.norm(back.tip - fk.tip) < 1e-8
+
+
+def test_ik_infeasible_target_names_bound(paper_model):
+    """x = 158 mm at 30 kPa needs net compression beyond 3 × 5 N: a clear error with the nearest point."""
+    with pytest.raises(InfeasibleTargetError) as info:
+        paper_model.ik((0.158, 0.0, 0.012), 30e3)
+    err = info.value
+    assert err.violated and "T" in err.violated[0]
+    assert err.nearest is not None and np.all(err.tensions >= 0) and np.all(err.tensions <= 5)
+    # the nearest point is reachable: FK at the reported tensions lands on it
+    back = paper_model.fk(err.tensions, 30e3)
+    assert np.linalg.norm(back.tip - err.nearest) < 1e-8
+    assert "nearest reachable tip" in str(err)
+
+
+def test_ik_target_needing_negative_tension(paper_model):
+    """A target above the pressure-only extension needs a pushing tendon: T ≥ 0 is named."""
+    m = paper_model
+    straight = m.fk((0, 0, 0), 60e3)
+    with pytest.raises(InfeasibleTargetError, match=r"T\d >= 0 N"):
+        m.ik(straight.tip + np.array([0.004, 0.0, 0.0]), 60e3)
+
+
+@pytest.mark.parametrize("bad", [(np.nan, 0, 0), (0.1, np.inf, 0), (0.1, 0.0)])
+def test_ik_bad_target_rejected(paper_model, bad):
+    with pytest.raises(InputError):
+        paper_model.ik(bad, 0.0)
+
+
+def test_fk_bad_inputs(paper_model):
+    m = paper_model
+    with pytest.raises(InputError, match="outside the limits"):
+        m.fk((6.0, 0, 0))
+    with pytest.raises(InputError, match="pressure"):
+        m.fk((0, 0, 0), 30.0e6)
+    with pytest.raises(InputError, match="NaN"):
+        m.fk((0, 0, 0), 0.0, (0, np.nan, 0))
+    with pytest.raises(InputError, match="3 values"):
+        m.fk((1.0, 0.0))
+
+
+def test_nonconvergence_is_reported_not_returned(paper_model):
+    with pytest.raises(ConvergenceError) as info:
+        paper_model.fk((5.0, 0, 0), 0.0, (0, 0, -2.0), tol=1e-300)   # below round-off: cannot be met
+    e = info.value
+    assert e.solver == "fk" and e.residual_norm > e.tolerance and e.iterations >= 1 and e.history
+    assert "residual" in str(e) and "iterations" in str(e)
+
+
+def _locked_case(m, T, p, F_lock, F_load):
+    ik_state = m.fk(T, p, F_lock)
+    return ik_state, m.fk_locked(ik_state.tendon_lengths, p, F_load, q0=ik_state.q, tensions0=ik_state.tensions)
+
+
+def test_locked_without_load_change_reproduces_state(paper_model):
+    m = paper_model
+    base, lk = _locked_case(m, (2.0, 0.5, 0.0), 30e3, (0, 0, 0), (0, 0, 0))
+    assert np.linalg.norm(lk.tip - base.tip) < 1e-10
+    # slack tendon (T3 = 0) stays slack with zero slack length; the others carry their tensions
+    assert lk.tensions == pytest.approx([2.0, 0.5, 0.0], abs=1e-7)
+
+
+@pytest.mark.parametrize("F", [(0, 0, -0.49), (0, 0.4, 0.49), (-1.0, 0.0, 0.0), (0.0, -0.8, 0.3)])
+def test_locked_complementarity_and_methods_agree(paper_model, F):
+    m = paper_model
+    base, lk = _locked_case(m, (3.0, 0.5, 0.2), 30e3, (0, 0, 0), F)
+    assert np.all(lk.tensions >= 0) and np.all(lk.slack >= 0)
+    assert np.all(lk.tensions * lk.slack == 0)
+    # lengths never exceed the locked values; taut ones are met exactly
+    assert np.all(lk.tendon_lengths <= base.tendon_lengths + 1e-10)
+    for i in lk.active:
+        assert lk.tendon_lengths[i] == pytest.approx(base.tendon_lengths[i], abs=1e-10)
+    # equilibrium with the multiplier tensions
+    Q = m.reduce_vec(m.residual(lk.q, lk.tensions, 30e3, F))
+    assert np.linalg.norm(Q) < 1e-8
+    # paper's γ substitution gives the same state
+    g = m.fk_locked(base.tendon_lengths, 30e3, F, q0=base.q, tensions0=base.tensions, method="gamma")
+    assert np.linalg.norm(g.tip - lk.tip) < 1e-9
+    assert g.tensions == pytest.approx(lk.tensions, abs=1e-6)
+
+
+def test_locked_is_stiffer_than_constant_tension(paper_model):
+    """Locking the tendons adds constraints: the tip moves less under the same extra load."""
+    m = paper_model
+    base = m.fk((2.0, 0.0, 0.0), 0.0)
+    free = m.fk((2.0, 0.0, 0.0), 0.0, (0, 0, -0.49), q0=base.q)
+    lk = m.fk_locked(base.tendon_lengths, 0.0, (0, 0, -0.49), q0=base.q, tensions0=base.tensions)
+    d_free = np.linalg.norm(free.tip - base.tip)
+    d_lock = np.linalg.norm(lk.tip - base.tip)
+    assert d_lock < 0.8 * d_free
+
+
+def test_locked_cold_start_and_bad_method(paper_model):
+    m = paper_model
+    base = m.fk((1.0, 1.0, 1.0), 20e3)
+    lk = m.fk_locked(base.tendon_lengths, 20e3, (0, 0, -0.3))
+    assert np.all(lk.tensions >= 0)
+    with pytest.raises(InputError, match="method"):
+        m.fk_locked(base.tendon_lengths, 20e3, method="magic")
+
+
+def test_four_tendons_ik_is_feasible_and_consistent():
+    """More than three tendons: IK picks the least-tension solution inside the bounds."""
+    m = Model(presets.four_tendon())
+    T_ref = np.array([3.0, 1.5, 1.0, 1.0])          # opposing pairs both pulled: not the least tension
+    fk = m.fk(T_ref, 20e3, (0, 0, -0.2))
+    ik = m.ik(fk.tip, 20e3, (0, 0, -0.2))
+    assert np.linalg.norm(ik.tip - fk.tip) < 1e-8
+    assert np.all(ik.tensions >= 0) and np.all(ik.tensions <= 5.0)
+    # equal changes in opposite tendons keep force and moments: the solution family is T_ref + s n with
+    # n = (−1, 1, −1, 1) for the near-straight state; its least-norm member has s = −(n·T_ref)/|n|²
+    n = np.array([-1.0, 1.0, -1.0, 1.0])
+    expected = T_ref - (n @ T_ref) / (n @ n) * n
+    assert ik.tensions == pytest.approx(expected, abs=2e-3)
+    assert np.sum(ik.tensions ** 2) < np.sum(T_ref ** 2)
+    Q = m.reduce_vec(m.residual(ik.q, ik.tensions, 20e3, (0, 0, -0.2)))
+    assert np.linalg.norm(Q) < 1e-7
+
+
+def test_free_base_stretch_option():
+    p = presets.paper().replace(free_base_stretch=True)
+    m = Model(p)
+    eq = m.fk((0, 0, 0), 120e3)
+    assert np.linalg.norm(eq.q[3:6]) > 1.0          # the base section stretches too
+    assert np.allclose(np.cross(eq.q[3:6], p.base_axis), 0.0)   # but keeps its direction
