@@ -1,0 +1,179 @@
+"""``bellows fk | ik | locked | demo | params``: the ANCF model on the command line.
+
+Units are in the option names (``--pressure-kpa``, ``--tip-force-n``, ``--target-mm``); ``--json`` prints
+machine-readable output (SI units, unit in every key).
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import time
+from typing import Optional
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from . import presets
+from .errors import InputError
+from .export import equilibrium_summary, save_png, save_vtu, write_json
+from .model import Model
+
+console = Console(width=120)
+
+PRESET_HELP = "Preset name (paper, paper_constant, four_tendon) or a path to an actuator .toml file."
+
+
+def parse_vector(text: str, n: Optional[int], what: str) -> np.ndarray:
+    """'2,0,0' → array; clear error on a wrong count or a non-number."""
+    try:
+        v = np.array([float(x) for x in text.replace(" ", "").split(",") if x != ""])
+    except ValueError:
+        raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    if n is not None and v.size != n:
+        raise InputError(f"{what}: expected {n} values, got {v.size} ({text!r})")
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"{what}: values must be finite, got {text!r}")
+    return v
+
+
+def _table(rows: list[dict], title: str) -> Table:
+    t = Table(title=title)
+    cols = ["case", "T [N]", "p [kPa]", "F [N]", "tip x,y,z [mm]", "slack [mm]", "its", "time [ms]"]
+    for c in cols:
+        t.add_column(c, justify="right" if c not in ("case",) else "left")
+    for r in rows:
+        eq = r["eq"]
+        t.add_row(r["case"], " ".join(f"{x:.3f}" for x in eq.tensions), f"{eq.pressure / 1e3:.1f}",
+                  " ".join(f"{x:.2f}" for x in eq.tip_force), " ".join(f"{x * 1e3:.2f}" for x in eq.tip),
+                  "-" if eq.slack is None else " ".join(f"{x * 1e3:.3f}" for x in eq.slack),
+                  str(eq.iterations), f"{r['seconds'] * 1e3:.2f}")
+    return t
+
+
+def _emit(rows, title, as_json):
+    if as_json:
+        typer.echo(json.dumps({r["case"]: equilibrium_summary(r["eq"], r["seconds"]) for r in rows}, indent=2))
+    else:
+        console.print(_table(rows, title))
+        for r in rows:
+            if r.get("note"):
+                console.print(f"  {r['case']:>7}: {r['note']}")
+
+
+def _timed(fn, *a, **k):
+    t = time.perf_counter()
+    out = fn(*a, **k)
+    return out, time.perf_counter() - t
+
+
+def fk(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N], comma separated."),
+       pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+       tip_force_n: str = typer.Option("0,0,0", help="External tip force [N] (world frame)."),
+       preset: str = typer.Option("paper", help=PRESET_HELP),
+       n_elements: Optional[int] = typer.Option(None, help="Override the number of elements."),
+       vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
+       as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Forward kinetostatics: tensions, pressure, tip load → equilibrium shape and tip."""
+    model = _model(preset, n_elements)
+    T = parse_vector(tensions_n, model.m, "--tensions-n")
+    F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    eq, s = _timed(model.fk, T, pressure_kpa * 1e3, F)
+    if vtu:
+        save_vtu(vtu, model, eq)
+    _emit([{"case": "fk", "eq": eq, "seconds": s}], f"FK on '{model.params.name}'", as_json)
+
+
+def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z'."),
+       pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+       tip_force_n: str = typer.Option("0,0,0", help="Known tip force [N]."),
+       preset: str = typer.Option("paper", help=PRESET_HELP),
+       n_elements: Optional[int] = typer.Option(None, help="Override the number of elements."),
+       vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
+       as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Inverse kinetostatics: target tip position → tensions (within their limits) and shape."""
+    model = _model(preset, n_elements)
+    pd = parse_vector(target_mm, 3, "--target-mm") * 1e-3
+    F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    eq, s = _timed(model.ik, pd, pressure_kpa * 1e3, F)
+    if vtu:
+        save_vtu(vtu, model, eq)
+    _emit([{"case": "ik", "eq": eq, "seconds": s}], f"IK on '{model.params.name}'", as_json)
+
+
+def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm], comma separated."),
+           pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+           tip_force_n: str = typer.Option("0,0,0", help="External tip force [N]."),
+           method: str = typer.Option("active_set", help="'active_set' (exact) or 'gamma' (paper eq. 6)."),
+           preset: str = typer.Option("paper", help=PRESET_HELP),
+           as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Locked-tendon-length FK: tendon lengths, pressure, load → shape, tensions and slack."""
+    model = _model(preset, None)
+    l0 = parse_vector(lengths_mm, model.m, "--lengths-mm") * 1e-3
+    F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    eq, s = _timed(model.fk_locked, l0, pressure_kpa * 1e3, F, method=method)
+    _emit([{"case": "locked", "eq": eq, "seconds": s}], f"locked FK on '{model.params.name}'", as_json)
+
+
+def params(preset: str = typer.Option("paper", help=PRESET_HELP)):
+    """Print a preset as TOML (a starting point for your own actuator file)."""
+    typer.echo(presets.get(preset).to_toml())
+
+
+def demo(out: pathlib.Path = typer.Option(pathlib.Path("bellows_out"), help="Output folder."),
+         preset: str = typer.Option("paper", help=PRESET_HELP),
+         as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """A short tour on a preset: gravity droop, a bend, an IK target and a locked-tendon load case.
+
+    Prints a table and writes demo.png, one .vtu per case and demo.json to ``--out``."""
+    model = _model(preset, None)
+    rows = run_demo(model)
+    out.mkdir(parents=True, exist_ok=True)
+    for r in rows:
+        save_vtu(out / f"{r['case'].split()[0]}.vtu", model, r["eq"])
+    png = save_png(out / "demo.png", model, [(f"{r['case']}: {r['note']}", r["eq"]) for r in rows],
+                   title=f"bellows demo — preset '{model.params.name}'")
+    summary = {r["case"]: dict(equilibrium_summary(r["eq"], r["seconds"]), note=r["note"]) for r in rows}
+    write_json(out / "demo.json", {"preset": model.params.name, "cases": summary})
+    _emit(rows, f"bellows demo on '{model.params.name}' (n = {model.n})", as_json)
+    if not as_json:
+        console.print(f"wrote {png}, {out / 'demo.json'} and {len(rows)} .vtu files in {out}/")
+
+
+def run_demo(model: Model) -> list[dict]:
+    """The demo's four cases; returns rows {case, eq, seconds}."""
+    rows = []
+    droop, s = _timed(model.fk, np.zeros(model.m), 0.0, (0, 0, 0))
+    rows.append({"case": "droop", "eq": droop, "seconds": s, "note": "gravity only, T = 0, p = 0"})
+    T = np.zeros(model.m)
+    T[0] = 3.0
+    bend, s = _timed(model.fk, T, 30e3, (0, 0, 0))
+    rows.append({"case": "bend", "eq": bend, "seconds": s, "note": "T1 = 3 N at 30 kPa"})
+    # a target up and to the side, known to be inside the workspace: the tip at interior tensions,
+    # rounded to 0.1 mm (IK then has to find the tensions itself, from a cold start)
+    T_int = np.full(model.m, 0.5)
+    T_int[0], T_int[-1] = 3.0, 1.5
+    target = np.round(model.fk(T_int, 30e3, (0, 0, 0)).tip, 4)
+    ik_eq, s = _timed(model.ik, target, 30e3, (0, 0, 0))
+    rows.append({"case": "ik", "eq": ik_eq, "seconds": s,
+                 "note": f"IK to {np.round(target * 1e3, 1).tolist()} mm at 30 kPa (cold start)"})
+    lk, s = _timed(model.fk_locked, ik_eq.tendon_lengths, 30e3, (0, 0, -0.05 * 9.81), q0=ik_eq.q,
+                   tensions0=ik_eq.tensions)
+    rows.append({"case": "locked", "eq": lk, "seconds": s,
+                 "note": "motors locked at the IK state, then a 50 g tip load"})
+    return rows
+
+
+def _model(preset: str, n_elements: Optional[int]) -> Model:
+    p = presets.get(preset)
+    if n_elements is not None:
+        p = p.replace(n_elements=n_elements)
+    return Model(p)
+
+
+def register(app: typer.Typer) -> None:
+    """Attach this module's commands to the root ``bellows`` app."""
+    for fn in (demo, fk, ik, locked, params):
+        app.command(fn.__name__)(fn)

@@ -1,0 +1,104 @@
+"""Saving equilibria: VTU (centreline and tendon polylines, via meshio), PNG (matplotlib), JSON."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+from typing import Sequence
+
+import numpy as np
+
+
+def equilibrium_polylines(model, eq, per_element: int = 10):
+    """Centreline (k, 3) and tendon paths (m, k, 3) [m] of an equilibrium."""
+    return model.centreline(eq.q, per_element), model.tendon_paths(eq.q, per_element)
+
+
+def save_vtu(path, model, eq, per_element: int = 10) -> pathlib.Path:
+    """Write the centreline and tendons of ``eq`` as VTK polylines (cell data ``curve``: 0 = centreline,
+    i = tendon i; point data ``tension_N``)."""
+    import meshio
+
+    c, tendons = equilibrium_polylines(model, eq, per_element)
+    pts = [c] + [t for t in tendons]
+    points = np.vstack(pts)
+    cells, offs = [], 0
+    for p in pts:
+        cells.append(np.arange(offs, offs + len(p))[None, :])
+        offs += len(p)
+    curve = np.concatenate([[0], np.arange(1, len(tendons) + 1)])
+    tension = np.concatenate([np.zeros(len(c))] + [np.full(len(t), eq.tensions[i]) for i, t in enumerate(tendons)])
+    mesh = meshio.Mesh(points, [("line", np.column_stack([cl[0][:-1], cl[0][1:]])) for cl in cells],
+                       point_data={"tension_N": tension},
+                       cell_data={"curve": [np.full(len(cl[0]) - 1, curve[i]) for i, cl in enumerate(cells)]})
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    meshio.write(path, mesh)
+    return path
+
+
+def save_png(path, model, cases: Sequence[tuple[str, object]], title: str = "") -> pathlib.Path:
+    """3-D picture (plus side and top views) of several labelled equilibria: centreline thick, tendons thin."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(13, 4.6))
+    ax3 = fig.add_subplot(1, 3, 1, projection="3d")
+    axs = fig.add_subplot(1, 3, 2)
+    axt = fig.add_subplot(1, 3, 3)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, (label, eq) in enumerate(cases):
+        c, tendons = equilibrium_polylines(model, eq)
+        col = colors[k % len(colors)]
+        ax3.plot(*(c * 1e3).T, color=col, lw=2.5, label=label)
+        axs.plot(c[:, 0] * 1e3, c[:, 2] * 1e3, color=col, lw=2.5, label=label)
+        axt.plot(c[:, 0] * 1e3, c[:, 1] * 1e3, color=col, lw=2.5, label=label)
+        for t in tendons:
+            ax3.plot(*(t * 1e3).T, color=col, lw=0.8, alpha=0.7)
+            axs.plot(t[:, 0] * 1e3, t[:, 2] * 1e3, color=col, lw=0.8, alpha=0.6)
+            axt.plot(t[:, 0] * 1e3, t[:, 1] * 1e3, color=col, lw=0.8, alpha=0.6)
+        ax3.scatter(*(eq.tip * 1e3), color=col, s=15)
+    ax3.set_xlabel("x [mm]"), ax3.set_ylabel("y [mm]"), ax3.set_zlabel("z [mm]")
+    axs.set_xlabel("x [mm]"), axs.set_ylabel("z [mm]"), axs.set_title("side view (x–z)")
+    axt.set_xlabel("x [mm]"), axt.set_ylabel("y [mm]"), axt.set_title("top view (x–y)")
+    for a in (axs, axt):
+        a.set_aspect("equal", adjustable="datalim")
+        a.grid(alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
+    handles, labels = axs.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=2, fontsize=8, frameon=False)
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def equilibrium_summary(eq, seconds: float | None = None) -> dict:
+    """Flat JSON-friendly summary with units in the key names."""
+    out = {
+        "tip_m": eq.tip.tolist(),
+        "tensions_N": eq.tensions.tolist(),
+        "pressure_Pa": eq.pressure,
+        "tip_force_N": eq.tip_force.tolist(),
+        "tendon_lengths_m": eq.tendon_lengths.tolist(),
+        "iterations": eq.iterations,
+        "residual_norm": eq.residual_norm,
+        "solver": eq.solver,
+        "converged": eq.converged,
+    }
+    if eq.slack is not None:
+        out["slack_m"] = eq.slack.tolist()
+        out["active"] = list(eq.active)
+    if seconds is not None:
+        out["solve_time_s"] = seconds
+    return out
+
+
+def write_json(path, data) -> pathlib.Path:
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(data, indent=2))
+    return path

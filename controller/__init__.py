@@ -1,0 +1,1 @@
+"""Placeholder package (see DESIGN.md §1); filled by later issues."""

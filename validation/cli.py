@@ -1,0 +1,37 @@
+"""The ``bellows`` console command: one entry point, subcommands from each package.
+
+``bellows demo | fk | ik | locked | params`` come from :mod:`ancf.cli`; ``bellows fem ...`` from
+:mod:`fem_reference.cli` (needs scikit-fem).  Errors of the product are printed as one clear line and
+exit with status 2; nothing is returned silently wrong.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from ancf import cli as ancf_cli
+from ancf.errors import BellowsError
+
+app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM reference, compliance control.",
+                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
+ancf_cli.register(app)
+
+try:  # the FEM reference is optional at run time (scikit-fem)
+    from fem_reference.cli import app as fem_app
+    app.add_typer(fem_app, name="fem", help="3-D hyperelastic FEM reference of the bellows.")
+except ImportError:  # pragma: no cover - depends on the installation
+    pass
+
+
+def main() -> None:
+    try:
+        app()
+    except BellowsError as exc:
+        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()
