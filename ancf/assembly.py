@@ -42,7 +42,7 @@ def _scatter(q_off, Nk, g9, H9, G, H, want_H):
 
 
 @njit(cache=True)
-def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H):
+def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H, need_lengths):
     """Total potential Π, its gradient Q (ndof,) and Hessian (ndof, ndof) at the full coordinates q.
 
     Also returns the tendon lengths l_c (m,), their gradients J_l (m, ndof) [= ∂Q/∂T], the deformed
@@ -50,7 +50,8 @@ def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H):
 
     Parameters: N (nq, 3, 4) shape table, wq (nq,) weights in x [m]; ea, ei stiffness coefficients;
     pA = p A_eff [N]; mg = m' g [N/m]; E actuator frame (3, 3); d, co, so (m,) tendon distance [m] and
-    cos/sin θ; T (m,) tensions [N]; h tool offset [m]; F (3,) total tip load [N].
+    cos/sin θ; T (m,) tensions [N]; h tool offset [m]; F (3,) total tip load [N].  With
+    ``need_lengths`` False, slack tendons (T_i = 0) are skipped and l_c, J_l, J_arc are left at zero.
     """
     ndof = q.size
     m = d.size
@@ -66,6 +67,10 @@ def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H):
     a = np.empty(3)
     b = np.empty(3)
     zero9 = np.zeros((9, 9))
+    g9 = np.zeros(9)
+    H9 = np.zeros((9, 9))
+    ga = np.zeros(9)
+    gl = np.zeros(9)
     for e in range(n_el):
         off = 6 * e
         for k in range(nq):
@@ -75,22 +80,30 @@ def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H):
                 a[c] = Nk[1, 0] * q[off + c] + Nk[1, 1] * q[off + 3 + c] + Nk[1, 2] * q[off + 6 + c] + Nk[1, 3] * q[off + 9 + c]
                 b[c] = Nk[2, 0] * q[off + c] + Nk[2, 1] * q[off + 3 + c] + Nk[2, 2] * q[off + 6 + c] + Nk[2, 3] * q[off + 9 + c]
             sc = wq[k]
-            g9 = np.zeros(9)
-            H9 = np.zeros((9, 9))
+            if a[0] * a[0] + a[1] * a[1] + a[2] * a[2] < 0.04:
+                # inadmissible state (|r_x| < 0.2: a collapsed section); line searches back off on inf
+                return np.inf, G, H, lc, Jl, arc, Jarc
+            g9[:] = 0.0
+            if want_H:
+                H9[:, :] = 0.0
             energy += add_axial(a, ea, sc, g9, H9)
             energy += add_bending(a, b, ei, sc, g9, H9)
             if pA != 0.0:
                 energy += add_pressure(a, pA, sc, g9, H9)
             energy += add_gravity(r, mg, sc, g9)
-            ga = np.zeros(9)
-            arc += add_stretch_length(a, sc, ga)
-            _scatter(off, Nk, ga, zero9, Jarc, H, False)
+            if need_lengths:
+                ga[:] = 0.0
+                arc += add_stretch_length(a, sc, ga)
+                _scatter(off, Nk, ga, zero9, Jarc, H, False)
             for i in range(m):
-                gl = np.zeros(9)
+                if T[i] == 0.0 and not need_lengths:
+                    continue
+                gl[:] = 0.0
                 li = add_tendon(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H)
                 lc[i] += li
                 energy += T[i] * li
-                _scatter(off, Nk, gl, zero9, Jl[i], H, False)
+                if need_lengths:
+                    _scatter(off, Nk, gl, zero9, Jl[i], H, False)
             _scatter(off, Nk, g9, H9, G, H, want_H)
     energy += add_tip_load(q, h, F, G, H, want_H)
     return energy, G, H, lc, Jl, arc, Jarc

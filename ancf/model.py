@@ -176,14 +176,17 @@ class Model:
         return np.asarray(tip_force, float) + self.params.tip_mass * self._g
 
     def evaluate(self, q, tensions=None, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
-                 hessian: bool = True, gravity_scale: float = 1.0) -> Evaluation:
-        """Potential, generalized force Q = ∂Π/∂q and tangent at full coordinates ``q`` (ndof,)."""
+                 hessian: bool = True, gravity_scale: float = 1.0, lengths: bool = True) -> Evaluation:
+        """Potential, generalized force Q = ∂Π/∂q and tangent at full coordinates ``q`` (ndof,).
+
+        ``lengths=False`` skips what only the tendon lengths need (faster inside Newton loops); the
+        returned ``lengths``, ``J_l``, ``J_arc`` are then zero."""
         T = np.zeros(self.m) if tensions is None else np.ascontiguousarray(tensions, dtype=float)
         F = self.params.tip_mass * self._g * gravity_scale + np.asarray(tip_force, float)
         E, Q, K, lc, Jl, arc, Jarc = assemble(
             np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, self._ea, self._ei,
             float(pressure) * self.params.A_eff, self._mg * gravity_scale, self._E, self._d, self._co,
-            self._so, T, self.params.tool_offset, np.ascontiguousarray(F), hessian)
+            self._so, T, self.params.tool_offset, np.ascontiguousarray(F), hessian, lengths)
         return Evaluation(E, Q, K if hessian else None, lc, Jl, arc, Jarc)
 
     # convenience accessors (full coordinates) ---------------------------------------------------
@@ -281,18 +284,26 @@ class Model:
         return self._result(q, T, pr, F, info, ev, "fk")
 
     def _fk_fun(self, T, pr, F, load=1.0):
+        """Potential, free gradient and free Hessian at free coordinates z (lean path for Newton)."""
+        Ts = np.ascontiguousarray(T * load, dtype=float)
+        Ftot = np.ascontiguousarray(self.params.tip_mass * self._g * load + F * load, dtype=float)
+        pA = float(pr * load) * self.params.A_eff
+        mg = self._mg * load
+        p = self.params
+
         def fun(z, hessian):
             q = self.to_full(z)
-            if not self._admissible(q):
+            E, Q, K, *_ = assemble(q, self.n, self._N, self._wq, self._ea, self._ei, pA, mg, self._E, self._d,
+                                   self._co, self._so, Ts, p.tool_offset, Ftot, hessian, False)
+            if not np.isfinite(E):
                 return np.inf, None, None
-            ev = self.evaluate(q, T * load, pr * load, F * load, hessian=hessian, gravity_scale=load)
-            return ev.energy, self.reduce_vec(ev.Q), (self.reduce_mat(ev.K) if hessian else None)
+            return E, self.reduce_vec(Q), (self.reduce_mat(K) if hessian else None)
         return fun
 
-    def _admissible(self, q) -> bool:
-        """Reject states with a nearly collapsed slope (|r_x| < 0.2) at the nodes."""
-        a = q.reshape(-1, 6)[:, 3:]
-        return bool(np.all(np.isfinite(q)) and np.min(np.einsum("ij,ij->i", a, a)) > 0.04)
+    @staticmethod
+    def _admissible(ev: "Evaluation") -> bool:
+        """False for states the assembly rejected (|r_x| < 0.2 somewhere: a collapsed section)."""
+        return bool(np.isfinite(ev.energy))
 
     def _fk_z(self, z0, T, pr, F, tol, max_iter):
         """Newton from ``z0``; if that fails within a short budget, adaptive load stepping from the
@@ -373,9 +384,9 @@ class Model:
         def fun(x):
             z, T = x[:nz], x[nz:]
             q = self.to_full(z)
-            if not self._admissible(q):
-                return np.full(nz + 3, np.nan), None
             ev = self.evaluate(q, T, pr, F)
+            if not self._admissible(ev):
+                return np.full(nz + 3, np.nan), None
             R = np.concatenate([self.reduce_vec(ev.Q), self.tip(q) - pd])
             J = np.zeros((nz + 3, nz + m))
             J[:nz, :nz] = self.reduce_mat(ev.K)
@@ -487,9 +498,9 @@ class Model:
             T = np.zeros(self.m)
             T[A] = TA
             q = self.to_full(z)
-            if not self._admissible(q):
-                return np.full(nz + len(A), np.nan), None
             ev = self.evaluate(q, T, pr, F)
+            if not self._admissible(ev):
+                return np.full(nz + len(A), np.nan), None
             JlA = self.reduce_vec(ev.J_l[A])
             R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths[A] - l0[A]])
             J = np.zeros((nz + len(A), nz + len(A)))
@@ -550,9 +561,9 @@ class Model:
             T = np.where(gam > 0, gam ** 2, 0.0)
             beta = np.where(gam > 0, 0.0, gam ** 2)
             q = self.to_full(z)
-            if not self._admissible(q):
-                return np.full(nz + m, np.nan), None
             ev = self.evaluate(q, T, pr, F)
+            if not self._admissible(ev):
+                return np.full(nz + m, np.nan), None
             Jl = self.reduce_vec(ev.J_l)
             R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths + beta - l0])
             J = np.zeros((nz + m, nz + m))

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-import scipy.linalg as sla
+from numba import njit
 
 from .errors import ConvergenceError
 
@@ -27,13 +27,42 @@ class SolveInfo:
     history: list[float] = field(default_factory=list)
 
 
-def _chol_solve(H: np.ndarray, g: np.ndarray):
-    """Solve H x = g by Cholesky; None if H is not positive definite."""
-    try:
-        c = sla.cho_factor(H, lower=True, check_finite=False)
-    except (np.linalg.LinAlgError, sla.LinAlgError):
-        return None
-    return sla.cho_solve(c, g, check_finite=False)
+@njit(cache=True)
+def _chol_solve_kernel(H, g, shift):
+    """Solve (H + shift I) x = g by Cholesky; returns (ok, x).  ok is False if not positive definite."""
+    n = H.shape[0]
+    Lm = np.zeros((n, n))
+    x = np.zeros(n)
+    for j in range(n):
+        s = H[j, j] + shift
+        for k in range(j):
+            s -= Lm[j, k] * Lm[j, k]
+        if not (s > 0.0):
+            return False, x
+        Lm[j, j] = np.sqrt(s)
+        for i in range(j + 1, n):
+            s = H[i, j]
+            for k in range(j):
+                s -= Lm[i, k] * Lm[j, k]
+            Lm[i, j] = s / Lm[j, j]
+    y = np.empty(n)
+    for i in range(n):
+        s = g[i]
+        for k in range(i):
+            s -= Lm[i, k] * y[k]
+        y[i] = s / Lm[i, i]
+    for i in range(n - 1, -1, -1):
+        s = y[i]
+        for k in range(i + 1, n):
+            s -= Lm[k, i] * x[k]
+        x[i] = s / Lm[i, i]
+    return True, x
+
+
+def _chol_solve(H: np.ndarray, g: np.ndarray, shift: float = 0.0):
+    """Solve (H + shift I) x = g by Cholesky; None if that matrix is not positive definite."""
+    ok, x = _chol_solve_kernel(np.ascontiguousarray(H), np.ascontiguousarray(g), float(shift))
+    return x if ok else None
 
 
 def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
@@ -59,7 +88,7 @@ def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int 
             shift = max(shift * 10.0, 1e-8 * scale) if shift else 1e-8 * scale
             if shift > 1e8 * scale:
                 break
-            dx = _chol_solve(H + shift * np.eye(len(x)), -g)
+            dx = _chol_solve(H, -g, shift)
         if dx is None:
             break
         slope = float(g @ dx)

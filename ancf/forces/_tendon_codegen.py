@@ -56,6 +56,12 @@ def build() -> str:
         Hu.append(Hk)
     outs = list(u) + list(Ju) + [Hu[k][i, j] for k in range(3) for i in range(6) for j in range(i, 6)]
     t0 = time.time()
+    # gradient-only variant (u, Ju): lengths and length Jacobians of slack tendons
+    repl1, red1 = sp.cse(list(u) + list(Ju), optimizations="basic")
+    lines1 = [f"    {s} = {sp.pycode(e)}" for s, e in repl1]
+    lines1 += [f"    u[{i}] = {sp.pycode(red1[i])}" for i in range(3)]
+    lines1 += [f"    Ju[{k // 6}, {k % 6}] = {sp.pycode(red1[3 + k])}" for k in range(18)]
+    body1 = "\n".join(lines1).replace("math.", "")
     repl, red = sp.cse(outs, optimizations="basic")
     lines = []
     for s, e in repl:
@@ -93,7 +99,14 @@ from numba import njit
 @njit(cache=True, fastmath=False)
 def tendon_u(a0, a1, a2, b0, b1, b2, d, co, so, u, Ju, Hu):  # pragma: no cover - compiled
 '''
-    return header + body.replace("sqrt(", "sqrt(") + "\n"
+    second = """
+
+
+@njit(cache=True, fastmath=False)
+def tendon_uJ(a0, a1, a2, b0, b1, b2, d, co, so, u, Ju):  # pragma: no cover - compiled
+    \"\"\"Like ``tendon_u`` without the second derivatives (u and Ju only).\"\"\"
+"""
+    return header + body + second + body1 + "\n"
 
 
 if __name__ == "__main__":

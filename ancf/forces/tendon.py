@@ -21,7 +21,7 @@ with E = [e1 e2 e3], a_loc = Eᵀ a and the derivatives rotate back blockwise (g
 import numpy as np
 from numba import njit
 
-from ._tendon_generated import tendon_u
+from ._tendon_generated import tendon_u, tendon_uJ
 
 
 @njit(cache=True)
@@ -71,15 +71,40 @@ def tendon_density(a, b, E, d, co, so):
 
 
 @njit(cache=True)
+def tendon_length_gradient(a, b, E, d, co, so):
+    """Length density |r_c,x| and its gradient (6,) w.r.t. (a, b), world frame (no second derivatives)."""
+    al = np.empty(3)
+    bl = np.empty(3)
+    for i in range(3):
+        al[i] = E[0, i] * a[0] + E[1, i] * a[1] + E[2, i] * a[2]
+        bl[i] = E[0, i] * b[0] + E[1, i] * b[1] + E[2, i] * b[2]
+    u = np.empty(3)
+    Ju = np.empty((3, 6))
+    tendon_uJ(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u, Ju)
+    w = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    g = np.empty(6)
+    for I in range(2):
+        gl0 = (Ju[0, 3 * I] * u[0] + Ju[1, 3 * I] * u[1] + Ju[2, 3 * I] * u[2]) / w
+        gl1 = (Ju[0, 3 * I + 1] * u[0] + Ju[1, 3 * I + 1] * u[1] + Ju[2, 3 * I + 1] * u[2]) / w
+        gl2 = (Ju[0, 3 * I + 2] * u[0] + Ju[1, 3 * I + 2] * u[1] + Ju[2, 3 * I + 2] * u[2]) / w
+        for c in range(3):
+            g[3 * I + c] = E[c, 0] * gl0 + E[c, 1] * gl1 + E[c, 2] * gl2
+    return w, g
+
+
+@njit(cache=True)
 def add_tendon(a, b, E, d, co, so, T, scale, g, H, gl, want_H):
     """Add T × scale × (gradient, Hessian) of the length density into the (a, b) blocks (3:9) of g, H and
-    scale × gradient into gl (9,), the tendon's own length gradient.  Returns scale × density."""
-    w, gw, Hw = tendon_density(a, b, E, d, co, so)
-    for i in range(6):
-        gl[3 + i] += scale * gw[i]
-        g[3 + i] += T * scale * gw[i]
+    scale × gradient into gl (9,), the tendon's own length gradient.  Returns scale × density.
+    The Hessian kernel runs only when ``want_H`` and T ≠ 0."""
     if want_H and T != 0.0:
+        w, gw, Hw = tendon_density(a, b, E, d, co, so)
         for i in range(6):
             for j in range(6):
                 H[3 + i, 3 + j] += T * scale * Hw[i, j]
+    else:
+        w, gw = tendon_length_gradient(a, b, E, d, co, so)
+    for i in range(6):
+        gl[3 + i] += scale * gw[i]
+        g[3 + i] += T * scale * gw[i]
     return scale * w
