@@ -1,0 +1,200 @@
+"""Tip compliance matrices (paper Sec. III-C/D, eqs. 7–16) and stiffness along a direction.
+
+Notation at an equilibrium (free coordinates z, see :class:`ancf.Model`): H = ∂Q/∂q (symmetric, includes
+the tension, pressure and tip-offset load stiffness), J_p = ∂p_end/∂q (3 × nz), J_l = ∂l_c/∂q (m × nz),
+and ∂Q/∂F_e = −J_pᵀ.
+
+Constant tension and pressure (eqs. 7–10)
+    H δq = J_pᵀ δF      ⇒   C_q = H⁻¹ J_pᵀ,     C_p = J_p C_q   (symmetric: C_p = J_p H⁻¹ J_pᵀ).
+
+Locked tendon lengths, active set A (Sec. III-D).  The taut tendons are those whose length the load
+would increase: δl = J_l δq_est > 0 with δq_est = C_q δF (the paper's rule, for a given load direction).
+Three forms of C'_p:
+
+* ``"exact"`` — the linearisation of the locked equilibrium, with the tension changes as multipliers:
+      H δq + J_Aᵀ δT_A = J_pᵀ δF,   J_A δq = 0
+      ⇒ C'_q = [H⁻¹ − H⁻¹ J_Aᵀ (J_A H⁻¹ J_Aᵀ)⁻¹ J_A H⁻¹] J_pᵀ,   δT_A = (J_A H⁻¹ J_Aᵀ)⁻¹ J_A H⁻¹ J_pᵀ δF.
+  Exact for small loads when A is the true set of taut tendons (checked against finite differences of
+  the nonlinear locked FK in the tests).
+* ``"paper"`` — eq. (13): δT_A ≈ 0 and the stacked, over-determined system [H; J_A] δq = [J_pᵀ; 0] δF
+  solved with the SVD pseudo-inverse (least squares).  The rows are used as the paper writes them
+  (force rows in N, length rows dimensionless, no weighting): an approximation.
+* ``"ik"`` — eqs. (15)/(16): the stack H_IK = [H; J_p; J_A] (the Jacobian of the IK-with-locked-length
+  system (14)), again by pseudo-inverse, δq = H_IK⁺ [J_pᵀ; 0; 0] δF.  An approximation; the paper uses it
+  as the gradient of LACC's load observer.
+
+Stiffness along a unit direction u: k(u) = 1 / (uᵀ C u)  [N/m].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from .errors import InputError, check_finite
+from .model import Equilibrium, Model
+
+METHODS = ("exact", "paper", "ik")
+
+
+@dataclass
+class Compliance:
+    """A compliance evaluation.
+
+    C_p : (3, 3) task-space compliance [m/N]
+    C_q : (ndof, 3) configuration-space compliance (full coordinates; zero rows for the clamped base)
+    active : tuple of tendon indices treated as taut (locked modes; all tendons' tension constant in
+             ``tension`` mode: empty)
+    dT_dF : (m, 3) tension change per unit tip force [N/N] (``exact`` locked mode), else None
+    mode, method : how it was computed
+    """
+    C_p: np.ndarray
+    C_q: np.ndarray
+    active: tuple
+    mode: str
+    method: str
+    dT_dF: Optional[np.ndarray] = None
+
+    @property
+    def stiffness(self) -> np.ndarray:
+        """K_p = C_p⁻¹ [N/m]."""
+        return np.linalg.inv(self.C_p)
+
+
+def _parts(model: Model, eq: Equilibrium):
+    ev = model.evaluate(eq.q, eq.tensions, eq.pressure, eq.tip_force)
+    H = model.reduce_mat(ev.K)
+    Jp = model.reduce_vec(model.tip_jacobian(eq.q))
+    Jl = model.reduce_vec(ev.J_l)
+    return H, Jp, Jl
+
+
+def _full(model: Model, Cz: np.ndarray) -> np.ndarray:
+    """Map free-coordinate sensitivities (nz, 3) to full coordinates (ndof, 3)."""
+    if model._P is None:
+        out = np.zeros((model.ndof, Cz.shape[1]))
+        out[6:] = Cz
+        return out
+    return model._P @ Cz
+
+
+def tension(model: Model, eq: Equilibrium) -> Compliance:
+    """Constant-tension, constant-pressure compliance (eqs. 8–10)."""
+    H, Jp, _ = _parts(model, eq)
+    Cq = np.linalg.solve(H, Jp.T)
+    return Compliance(C_p=Jp @ Cq, C_q=_full(model, Cq), active=(), mode="tension", method="exact")
+
+
+def _kkt(H, Jp, JA):
+    """Exact locked sensitivities for the taut set with rows JA: (δq per δF (nz, 3), δT_A per δF)."""
+    HiJp = np.linalg.solve(H, Jp.T)
+    if JA.shape[0] == 0:
+        return HiJp, np.zeros((0, 3))
+    HiJA = np.linalg.solve(H, JA.T)
+    dTA = np.linalg.solve(JA @ HiJA, JA @ HiJp)
+    return HiJp - HiJA @ dTA, dTA
+
+
+def active_set(model: Model, eq: Equilibrium, load_direction=None, rule: str = "exact",
+               tol: float = 1e-9) -> tuple:
+    """Taut tendons under a small extra tip load along ``load_direction`` (3,) (default: gravity).
+
+    * ``rule="paper"`` (Sec. III-D): i ∈ A iff δl_i = J_l,i C_q δF > 0 with the constant-tension response.
+    * ``rule="exact"``: the solution of the linear complementarity problem of the locked linearisation —
+      tendons with T_i > tol stay taut; a slack one (T_i = 0) is taut iff it would otherwise be stretched
+      (δl_i > 0) and its tension increment is ≥ 0.  Found by an active-set loop started from the paper's
+      rule (a slack tendon can become taut only after another one is constrained).
+    """
+    H, Jp, Jl = _parts(model, eq)
+    dF = np.asarray(model.params.gravity if load_direction is None else load_direction, float)
+    if dF.shape != (3,) or not np.all(np.isfinite(dF)) or np.linalg.norm(dF) == 0:
+        raise InputError(f"load_direction must be a finite non-zero 3-vector, got {dF}")
+    u = dF / np.linalg.norm(dF)
+    dl = Jl @ np.linalg.solve(H, Jp.T @ u)
+    paper = tuple(int(i) for i in np.flatnonzero(dl > 0))
+    if rule == "paper":
+        return paper
+    if rule != "exact":
+        raise InputError(f"active-set rule must be 'paper' or 'exact', got {rule!r}")
+    taut = {i for i in range(model.m) if eq.tensions[i] > tol}
+    A = sorted(taut | set(paper))
+    seen = set()
+    while tuple(A) not in seen:
+        seen.add(tuple(A))
+        dq, dTA = _kkt(H, Jp, Jl[A])
+        dT = dict(zip(A, dTA @ u))
+        dl = Jl @ (dq @ u)
+        drop = [i for i in A if i not in taut and dT[i] < -1e-12 * max(1.0, abs(dT[i]))]
+        add = [i for i in range(model.m) if i not in A and dl[i] > 1e-14]
+        if not drop and not add:
+            return tuple(A)
+        if drop:
+            A.remove(min(drop, key=lambda i: dT[i]))
+        else:
+            A = sorted(A + [max(add, key=lambda i: dl[i])])
+    raise InputError("active-set iteration of the locked compliance cycled (degenerate state)")
+
+
+def locked(model: Model, eq: Equilibrium, method: str = "exact", active: Optional[Sequence[int]] = None,
+           load_direction=None, constraint_weight: float = 1.0) -> Compliance:
+    """Locked-tendon-length compliance C'_p by the ``method`` "exact" | "paper" | "ik" (module docstring).
+
+    ``active``: indices of taut tendons; default from :func:`active_set` along ``load_direction`` with
+    the paper's rule for the paper/ik forms and the exact complementarity rule for the exact form.
+    ``constraint_weight`` [N] scales the constraint rows (J_A, and J_p for "ik") of the stacked
+    least-squares forms; 1.0 is the paper's literal, unweighted stack.  (Flagged interpretation: the paper
+    does not state a weighting; unweighted, the force rows dominate and the locked forms come out close to
+    the constant-tension compliance.)
+    """
+    if method not in METHODS:
+        raise InputError(f"compliance method must be one of {METHODS}, got {method!r}")
+    if active is None:
+        active = active_set(model, eq, load_direction, rule="exact" if method == "exact" else "paper")
+    A = sorted(int(i) for i in active)
+    if any(i < 0 or i >= model.m for i in A):
+        raise InputError(f"active tendon indices must be in 0..{model.m - 1}, got {A}")
+    H, Jp, Jl = _parts(model, eq)
+    JA = Jl[A]
+    dT = None
+    if method == "exact":
+        Cq, dTA = _kkt(H, Jp, JA)
+        dT = np.zeros((model.m, 3))
+        dT[A] = dTA
+    elif method == "paper":
+        stack = np.vstack([H, constraint_weight * JA])
+        rhs = np.vstack([Jp.T, np.zeros((len(A), 3))])
+        Cq = np.linalg.pinv(stack) @ rhs
+    else:  # "ik"
+        stack = np.vstack([H, constraint_weight * Jp, constraint_weight * JA])
+        rhs = np.vstack([Jp.T, np.zeros((3 + len(A), 3))])
+        Cq = np.linalg.pinv(stack) @ rhs
+    return Compliance(C_p=Jp @ Cq, C_q=_full(model, Cq), active=tuple(A), mode="locked", method=method,
+                      dT_dF=dT)
+
+
+def directional_stiffness(C: np.ndarray, direction) -> float:
+    """k(u) = 1 / (uᵀ C u) [N/m] along the unit vector of ``direction`` (3,)."""
+    u = check_finite("direction", direction, (3,))
+    nu = np.linalg.norm(u)
+    if nu == 0:
+        raise InputError("direction must be non-zero")
+    u = u / nu
+    c = float(u @ np.asarray(C, float) @ u)
+    if c <= 0:
+        raise InputError(f"compliance along {u} is not positive ({c:g} m/N)")
+    return 1.0 / c
+
+
+def stiffness_ellipsoid(C: np.ndarray, n: int = 24):
+    """Surface of directional stiffness: points k(u) u [N/m] on a (n, 2n) grid of directions u, plus the
+    principal stiffnesses and axes of the symmetric part of C (for plots)."""
+    Cs = 0.5 * (np.asarray(C, float) + np.asarray(C, float).T)
+    th = np.linspace(0, np.pi, n)
+    ph = np.linspace(0, 2 * np.pi, 2 * n)
+    U = np.stack([np.outer(np.sin(th), np.cos(ph)), np.outer(np.sin(th), np.sin(ph)),
+                  np.outer(np.cos(th), np.ones_like(ph))], axis=-1)
+    k = 1.0 / np.einsum("...i,ij,...j->...", U, Cs, U)
+    w, V = np.linalg.eigh(Cs)
+    return {"points": U * k[..., None], "principal_stiffness": 1.0 / w, "principal_axes": V}
