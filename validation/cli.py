@@ -18,6 +18,12 @@ app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM refe
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
 ancf_cli.register(app)
 
+try:  # the paper's studies (workspace, stiffness, Table I, loading)
+    from validation.paper_cli import app as paper_app
+    app.add_typer(paper_app, name="paper", help="Reproduce the paper's studies, beside the paper's numbers.")
+except ImportError:  # pragma: no cover - during development of the studies
+    pass
+
 try:  # the FEM reference is optional at run time (scikit-fem)
     from fem_reference.cli import app as fem_app
     app.add_typer(fem_app, name="fem", help="3-D hyperelastic FEM reference of the bellows.")
