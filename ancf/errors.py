@@ -16,7 +16,6 @@ with one ``except``.  Each subclass also derives from the matching builtin (``Va
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np

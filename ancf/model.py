@@ -24,9 +24,8 @@ Solvers:
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field, asdict
-from typing import Optional, Sequence
+from typing import Optional
 
 import numpy as np
 import scipy.optimize as so
@@ -35,7 +34,7 @@ from . import kinematics as kin
 from .assembly import assemble
 from .errors import ConvergenceError, InfeasibleTargetError, InputError, check_finite
 from .params import ActuatorParams
-from .solvers import minimize_newton, solve_root
+from .solvers import SolveInfo, minimize_newton, solve_root
 
 
 @dataclass
@@ -334,7 +333,6 @@ class Model:
             total_it += info.iterations
             hist += info.history
             ds = min(ds * (2.0 if info.iterations <= 6 else 1.2), 1.0)
-        from .solvers import SolveInfo
         return z, SolveInfo(total_it, hist[-1], hist)
 
     def droop(self, pressure: float = 0.0) -> Equilibrium:
@@ -444,18 +442,16 @@ class Model:
                 err = float(np.linalg.norm(self.tip(q) - pd))
         if feasible:
             ev = self.evaluate(q, T, pr, F, hessian=False)
-            from .solvers import SolveInfo
             info = SolveInfo(nfev, float(np.linalg.norm(self.reduce_vec(ev.Q))), [])
             return self._result(q, T, pr, F, info, ev, "ik")
         violated = []
         for i in range(self.m):
             need = None if unconstrained is None else unconstrained[i]
+            note = "" if need is None else f" (unconstrained solution needs {need:.3g} N)"
             if T[i] <= lo[i] + 1e-9 and (need is None or need < lo[i]):
-                violated.append(f"T{i + 1} >= {lo[i]:g} N" + (f" (unconstrained solution needs {need:.3g} N)"
-                                                              if need is not None else ""))
+                violated.append(f"T{i + 1} >= {lo[i]:g} N{note}")
             elif T[i] >= hi[i] - 1e-9 and (need is None or need > hi[i]):
-                violated.append(f"T{i + 1} <= {hi[i]:g} N" + (f" (unconstrained solution needs {need:.3g} N)"
-                                                              if need is not None else ""))
+                violated.append(f"T{i + 1} <= {hi[i]:g} N{note}")
         if not violated:
             violated = [f"T{i + 1} at {'lower' if T[i] <= lo[i] + 1e-9 else 'upper'} bound"
                         for i in range(self.m) if T[i] <= lo[i] + 1e-9 or T[i] >= hi[i] - 1e-9]

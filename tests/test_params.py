@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 
 from ancf import ActuatorParams, ConfigError, StiffnessLaw, presets
 
@@ -40,7 +41,7 @@ def test_toml_round_trip_and_presets():
 
 def test_frozen_and_replace():
     p = presets.paper()
-    with pytest.raises(Exception):
+    with pytest.raises(ValidationError, match="frozen"):
         p.length = 0.2
     q = p.replace(n_elements=8, length=0.2)
     assert (q.n_elements, q.length, p.n_elements) == (8, 0.2, 6)
