@@ -547,10 +547,16 @@ class Model:
                                iterations=total, residual_norm=float("nan"), tolerance=tol)
 
     def _locked_gamma(self, z0, T0, l0, pr, F, tol, tol_length, max_iter):
+        """Paper eq. (6): T = γ², β = 0 for γ > 0; T = 0, β = γ² for γ ≤ 0, Newton/LM on (z, γ).
+
+        The γ column of the Jacobian vanishes at γ = 0, so a tendon that has to change from taut to
+        slack (or back) can stall there; the solve is then restarted with the initial sign of γ flipped
+        for the tendons that started at zero tension (at most 2^m starts)."""
         nz, m = self.nz, self.m
         l_start = self.evaluate(self.to_full(z0), hessian=False).lengths
-        g0 = np.where(T0 > 0, np.sqrt(np.maximum(T0, 0)), -np.sqrt(np.maximum(l0 - l_start, 0)))
-        g0 = np.where(g0 == 0, 1e-3, g0)
+        g_base = np.where(T0 > 0, np.sqrt(np.maximum(T0, 0)), -np.sqrt(np.maximum(l0 - l_start, 0)))
+        undecided = [i for i in range(m) if g_base[i] == 0.0]
+        g_base = np.where(g_base == 0, 1e-3, g_base)
 
         def fun(x):
             z, gam = x[:nz], x[nz:]
@@ -570,9 +576,21 @@ class Model:
             return R, J
 
         w = np.concatenate([np.ones(nz), np.full(m, self._kscale * self.params.length)])
-        x, info = solve_root(fun, np.concatenate([z0, g0]), tol=min(tol, self._kscale * self.params.length
-                                                                  * tol_length), max_iter=max_iter * 3,
-                             name="fk_locked(gamma)", weights=w)
+        tol_w = min(tol, self._kscale * self.params.length * tol_length)
+        first = None
+        for flips in range(2 ** len(undecided)):
+            g0 = g_base.copy()
+            for k, i in enumerate(undecided):
+                if flips >> k & 1:
+                    g0[i] = -1e-2
+            try:
+                x, info = solve_root(fun, np.concatenate([z0, g0]), tol=tol_w, max_iter=max_iter * 3,
+                                     name="fk_locked(gamma)", weights=w)
+                break
+            except ConvergenceError as exc:
+                first = first or exc
+        else:
+            raise first
         z, gam = x[:nz], x[nz:]
         T = np.where(gam > 0, gam ** 2, 0.0)
         slack = np.where(gam > 0, 0.0, gam ** 2)

@@ -172,3 +172,24 @@ def test_free_base_stretch_option():
     eq = m.fk((0, 0, 0), 120e3)
     assert np.linalg.norm(eq.q[3:6]) > 1.0          # the base section stretches too
     assert np.allclose(np.cross(eq.q[3:6], p.base_axis), 0.0)   # but keeps its direction
+
+
+def test_random_states_over_operating_range(paper_model):
+    """Random T ∈ [0, 5]³ N (with slack tendons), p ∈ [0, 120] kPa, |F| ≤ 2 N in any direction: cold FK
+    converges, cold IK on its tip recovers the tensions, and after an extra load both locked-length
+    solvers (exact active set, paper's γ substitution) find the same complementary state."""
+    m = paper_model
+    rng = np.random.default_rng(11)
+    for _ in range(40):
+        T = rng.uniform(0, 5, 3)
+        T[rng.random(3) < 0.3] = 0.0
+        p = rng.uniform(0, 120e3)
+        F = rng.normal(size=3)
+        F *= rng.uniform(0, 2) / np.linalg.norm(F)
+        e = m.fk(T, p, F)
+        assert m.ik(e.tip, p, F).tensions == pytest.approx(T, abs=1e-5)
+        F2 = F + rng.normal(size=3) * 0.5
+        a = m.fk_locked(e.tendon_lengths, p, F2, q0=e.q, tensions0=e.tensions)
+        g = m.fk_locked(e.tendon_lengths, p, F2, q0=e.q, tensions0=e.tensions, method="gamma")
+        assert np.linalg.norm(a.tip - g.tip) < 1e-8
+        assert np.all(a.tensions >= 0) and np.all(a.slack >= 0) and np.all(a.tensions * a.slack == 0)
