@@ -117,6 +117,42 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
     _emit([{"case": "locked", "eq": eq, "seconds": s}], f"locked FK on '{model.params.name}'", as_json)
 
 
+def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] at the state."),
+               pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+               tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] at the state."),
+               load_direction: str = typer.Option("0,0,-1", help="Direction of the extra load (locked active set)."),
+               preset: str = typer.Option("paper", help=PRESET_HELP),
+               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Tip compliance [mm/N] and stiffness [N/m] at an FK state: constant tension and locked tendons
+    (exact KKT form, paper eq. 13, paper eq. 15)."""
+    from . import compliance as cp
+    model = _model(preset, None)
+    T = parse_vector(tensions_n, model.m, "--tensions-n")
+    F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    u = parse_vector(load_direction, 3, "--load-direction")
+    eq = model.fk(T, pressure_kpa * 1e3, F)
+    forms = {"tension": cp.tension(model, eq)}
+    for method in ("exact", "paper", "ik"):
+        forms[f"locked/{method}"] = cp.locked(model, eq, method, load_direction=u)
+    axes = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}
+    data = {name: {"C_p_m_per_N": c.C_p.tolist(), "active": list(c.active),
+                   "stiffness_N_per_m": {a: cp.directional_stiffness(c.C_p, v) for a, v in axes.items()}}
+            for name, c in forms.items()}
+    if as_json:
+        typer.echo(json.dumps({"tip_m": eq.tip.tolist(), "forms": data}, indent=2))
+        return
+    t = Table(title=f"tip compliance at T = {T.tolist()} N, p = {pressure_kpa:g} kPa (tip {np.round(eq.tip * 1e3, 2).tolist()} mm)")
+    for c in ("form", "active", "C_p [mm/N] rows", "k_x [N/m]", "k_y [N/m]", "k_z [N/m]"):
+        t.add_column(c)
+    for name, d in data.items():
+        C = np.array(d["C_p_m_per_N"]) * 1e3
+        t.add_row(name, str(d["active"]), "\n".join(" ".join(f"{x:8.3f}" for x in r) for r in C),
+                  *(f"{d['stiffness_N_per_m'][a]:.1f}" for a in axes))
+    console.print(t)
+    console.print("  'exact' is the exact locked linearisation; 'paper'/'ik' are the paper's stacked "
+                  "least-squares forms (see validation/compliance_check.py for their error).")
+
+
 def params(preset: str = typer.Option("paper", help=PRESET_HELP)):
     """Print a preset as TOML (a starting point for your own actuator file)."""
     typer.echo(presets.get(preset).to_toml())
@@ -185,5 +221,5 @@ def _model(preset: str, n_elements: Optional[int]) -> Model:
 
 def register(app: typer.Typer) -> None:
     """Attach this module's commands to the root ``bellows`` app."""
-    for fn in (demo, fk, ik, locked, params):
+    for fn in (demo, fk, ik, locked, compliance, params):
         app.command(fn.__name__)(fn)
