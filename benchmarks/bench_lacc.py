@@ -1,0 +1,92 @@
+"""Speed of one LACC step (Algorithm 1 lines 6–12: IK + two compliance evaluations) at n = 6.
+
+Run:  python benchmarks/bench_lacc.py [--repeats 200]
+
+One step = constant-tension compliance C_q (eq. 8) + taut set + locked compliance C'_p + the load update
++ a warm-started IK + the tendon lengths, i.e. ``LACC.step`` exactly as the loop calls it (the plant's
+solve is not part of the controller's time).  Each repeat starts from the same converged controller state
+with a fresh tip error of ≈ 0.5 mm, so every step does real work.  An FK solve of the same preset (warm
+start from a neighbouring state, and cold from the straight reference) is timed in the same run,
+interleaved, and the ratio printed.  Target: ≤ 10 ms per step (≥ 50× under the paper's ≈ 0.5 s loop).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import statistics
+import time
+
+import numpy as np
+
+from ancf import Model, presets
+from ancf import compliance as cp
+from controller import LACC
+
+P = 60e3
+TENSIONS = (2.2, 1.6, 1.6)
+LOAD = np.array([0.0, 0.02, -0.4])
+
+
+def timed(fn, *a, **k):
+    t = time.perf_counter()
+    out = fn(*a, **k)
+    return out, time.perf_counter() - t
+
+
+def main(repeats: int = 200, seed: int = 0) -> dict:
+    m = Model(presets.paper())
+    ref = m.fk(TENSIONS, P, (0, 0, 0))
+    target = ref.tip
+    rng = np.random.default_rng(seed)
+    ctrls = {meth: LACC(m, P, compliance=meth, tolerance=0.0) for meth in ("ik", "paper", "exact")}
+    for c in ctrls.values():
+        c.start(target, initial_load=0.5 * LOAD)
+    saved = {k: (copy.deepcopy(c.state), c.estimate, c.mode, c.command_target.copy()) for k, c in ctrls.items()}
+    t = {k: [] for k in ("step_ik", "step_paper", "step_exact", "ik_warm", "C_tension", "active_set",
+                         "C_locked_ik", "C_locked_exact", "fk_warm", "fk_cold")}
+    for k, c in ctrls.items():                      # compile/warm up
+        c.step(target + np.array([0, 0, -5e-4]))
+    for _ in range(repeats):
+        e = np.array([0.0, *rng.normal(size=2)]) * 3e-4       # lateral/vertical error (axis: stiff)
+        dF = np.array([0.0, *rng.normal(size=2)]) * 0.05      # the kind of load update a step makes
+        for k, c in ctrls.items():
+            st, F, mode, ct = saved[k]
+            c.state, c._F, c.mode, c.command_target = st, F.copy(), mode, ct.copy()
+            _, s = timed(c.step, target + e)
+            t[f"step_{k}"].append(s)
+        st = saved["ik"][0]
+        _, s = timed(m.ik, target, P, st.tip_force + dF, q0=st.q, tensions0=st.tensions)
+        t["ik_warm"].append(s)
+        _, s = timed(cp.tension, m, st)
+        t["C_tension"].append(s)
+        _, s = timed(cp.active_set, m, st, LOAD, "paper")
+        t["active_set"].append(s)
+        _, s = timed(cp.locked, m, st, "ik")
+        t["C_locked_ik"].append(s)
+        _, s = timed(cp.locked, m, st, "exact")
+        t["C_locked_exact"].append(s)
+        _, s = timed(m.fk, st.tensions, P, LOAD, q0=ref.q)
+        t["fk_warm"].append(s)
+        _, s = timed(m.fk, st.tensions, P, LOAD)
+        t["fk_cold"].append(s)
+    med = {k: statistics.median(v) * 1e3 for k, v in t.items()}
+    print(f"LACC step at n = {m.n} (median of {repeats}, milliseconds)")
+    for k in ("step_ik", "step_paper", "step_exact"):
+        print(f"  LACC step, compliance={k[5:]:<6}          {med[k]:8.3f}   = {med[k] / med['fk_warm']:5.2f} × FK warm"
+              f"   = {med[k] / med['fk_cold']:5.2f} × FK cold")
+    print("  parts:")
+    for k in ("ik_warm", "C_tension", "active_set", "C_locked_ik", "C_locked_exact"):
+        print(f"    {k:<32} {med[k]:8.3f}")
+    print(f"  FK warm (neighbouring state)            {med['fk_warm']:8.3f}")
+    print(f"  FK cold (straight reference)            {med['fk_cold']:8.3f}")
+    ok = med["step_ik"] <= 10.0
+    print(f"target ≤ 10 ms per step: {'met' if ok else 'NOT met'} ({med['step_ik']:.2f} ms; paper loop ≈ 500 ms → "
+          f"{500 / med['step_ik']:.0f}× faster)")
+    return med
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=200)
+    main(ap.parse_args().repeats)

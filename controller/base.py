@@ -1,0 +1,107 @@
+"""What every controller shares: the step report and the abstract interface the loop drives.
+
+A controller is a small state machine driven by tip measurements (all SI: m, N, Pa, s)::
+
+    lengths = ctrl.start(target)          # first IK; tendon lengths [m] to send to the motors
+    while True:
+        rep = ctrl.step(plant.measure())  # one correction; rep.command is None once ‖p_m − p_d‖ < tol
+        if rep.command is None: break
+        plant.command(rep.command)
+
+It never sees the plant's state or load: only the measured tip position.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from ancf import Equilibrium, Model
+from ancf.errors import InputError, check_finite
+
+
+@dataclass
+class StepReport:
+    """One controller iteration.
+
+    error : (3,) p_m − p_d [m] that the step reacted to;  error_norm [m]
+    converged : True when ‖p_m − p_d‖ < tolerance (no correction was made, ``command`` is None)
+    command : (m,) tendon lengths to send [m], or None
+    estimate : (3,) load estimate F̂ after the step [N] (VF-CC: the virtual force)
+    mode : "lacc" | "fallback" | "vfcc" | "idle"
+    compute_time : wall-clock seconds spent inside the step (IK + compliance + bookkeeping)
+    compliance : (3, 3) C'_p used for the update [m/N] (LACC only), active : taut set used (LACC only)
+    ik_iterations : Newton iterations of the IK solve (or function evaluations of the bounded IK)
+    backtracks : how often the load step was halved because the IK became infeasible
+    """
+    error: np.ndarray
+    error_norm: float
+    converged: bool
+    command: Optional[np.ndarray]
+    estimate: np.ndarray
+    mode: str
+    compute_time: float
+    compliance: Optional[np.ndarray] = None
+    active: tuple = ()
+    ik_iterations: int = 0
+    backtracks: int = 0
+    notes: list = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        out = {}
+        for k, v in self.__dict__.items():
+            out[k] = v.tolist() if isinstance(v, np.ndarray) else v
+        return out
+
+
+class Controller(abc.ABC):
+    """Base of the quasi-static tip-position controllers (LACC, VF-CC).
+
+    Parameters
+    ----------
+    model : the controller's own :class:`ancf.Model` (may differ from the plant's)
+    pressure : chamber pressure p [Pa], held constant by the controller
+    tolerance : stop when ‖p_m − p_d‖ < tolerance [m] (paper: 0.2 mm)
+    """
+
+    name = "controller"
+
+    def __init__(self, model: Model, pressure: float, *, tolerance: float = 2e-4):
+        if not isinstance(model, Model):
+            raise InputError(f"controller needs an ancf.Model, got {type(model).__name__}")
+        self.model = model
+        self.pressure = float(check_finite("pressure", pressure, ()))
+        if not (tolerance >= 0 and np.isfinite(tolerance)):
+            raise InputError(f"tolerance must be a finite number >= 0 m, got {tolerance}")
+        self.tolerance = float(tolerance)
+        self.target: Optional[np.ndarray] = None
+        self.state: Optional[Equilibrium] = None      # the controller's last IK solution
+
+    # ---------------------------------------------------------------------------------------- API
+    @abc.abstractmethod
+    def start(self, target, initial_load=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """First IK for the desired tip ``target`` (3,) [m]; returns the tendon lengths (m,) [m]."""
+
+    @abc.abstractmethod
+    def step(self, measured_tip) -> StepReport:
+        """One correction from the measured tip position (3,) [m]."""
+
+    @property
+    @abc.abstractmethod
+    def estimate(self) -> np.ndarray:
+        """Current load estimate / virtual force (3,) [N]."""
+
+    # ---------------------------------------------------------------------------------------- helpers
+    def _check_started(self):
+        if self.target is None or self.state is None:
+            raise InputError(f"{self.name}: call start(target) before step()")
+
+    def _measured(self, measured_tip) -> np.ndarray:
+        return check_finite("measured tip position", measured_tip, (3,))
+
+    def _warm_start(self) -> Equilibrium:
+        """The stored gravity-only droop state at the controller's pressure (paper Sec. III-E)."""
+        return self.model.droop(self.pressure)

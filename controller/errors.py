@@ -1,0 +1,45 @@
+"""Typed errors of the controller package.
+
+::
+
+    ancf.errors.BellowsError
+    └── ControllerError (RuntimeError)         a controller could not do what it was asked
+        └── NotConvergedError                  the loop did not reach its tolerance in its budget
+
+Invalid arguments (NaN target, wrong shape) raise :class:`ancf.errors.InputError`; a target (or a load
+estimate) that needs tensions outside their bounds propagates :class:`ancf.errors.InfeasibleTargetError`
+from the IK, unchanged.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+from ancf.errors import BellowsError
+
+
+class ControllerError(BellowsError, RuntimeError):
+    """A controller or the simulated plant failed (bad measurement, plant solve failure, ...)."""
+
+
+class NotConvergedError(ControllerError):
+    """The control loop did not bring ‖p_m − p_d‖ below its tolerance.
+
+    Attributes
+    ----------
+    iterations : int        control iterations spent
+    error : float           final tip error ‖p_m − p_d‖ [m]
+    tolerance : float       required tip error [m]
+    history : list[float]   tip error per iteration [m] (index 0: before the first correction)
+    """
+
+    def __init__(self, message: str, *, iterations: int, error: float, tolerance: float,
+                 history: Sequence[float] = ()):
+        self.iterations = int(iterations)
+        self.error = float(error)
+        self.tolerance = float(tolerance)
+        self.history = [float(h) for h in history]
+        super().__init__(
+            f"{message}: tip error {self.error * 1e3:.4f} mm > tolerance {self.tolerance * 1e3:.4f} mm after "
+            f"{self.iterations} iterations ({self.error / self.tolerance:.2f}× the tolerance; "
+            f"history [mm]: {[round(h * 1e3, 4) for h in self.history]})")

@@ -1,0 +1,212 @@
+r"""Load-aware compliance controller (LACC), paper Sec. III-E, Algorithm 1.
+
+Per episode (desired tip p_d [m], pressure p [Pa], initial estimate F̂⁰ [N])::
+
+    [q, T] ← IK(p_d, p, F̂⁰)                      warm start: stored gravity-droop state m.droop(p)
+    while ‖p_m − p_d‖ ≥ tol (0.2 mm):
+        p_m  ← measure
+        C_q  ← constant-tension compliance at (q, T, p)                        eq. (8)
+        A    ← taut set from δl = J_l C_q δF̂  (δF̂ = C_p⁻¹ e, the constant-
+                tension estimate of the load increment, gives the direction)   Sec. III-D
+        C'_p ← locked compliance with A (``compliance=``: "ik" eq. 15/16, "paper" eq. 13, "exact" KKT)
+        F̂    ← F̂ + C'_p⁻¹ (p_m − p_d)                                          line 10
+        [q, T] ← IK(p_d, p, F̂)   warm-started from the previous IK solution
+        send l_c(q)                                                              eq. (5)
+
+The controller only sees the measured tip; its model need not be the plant's.
+
+Load-estimate safeguards (all explicit, all parameters):
+
+1. **Regularised inverse.**  ΔF̂ = C'_p⁺ e with the SVD pseudo-inverse, singular values below
+   ``rcond`` × σ_max discarded (default 0.05).  A locked actuator is nearly rigid along its axis (C'_p's
+   smallest singular value is ≈ 0.5–2 % of the largest), so that direction is cut: an axial position error
+   — typically model mismatch, not load — would otherwise be read as a large axial force (measured: with
+   the stacked forms and a mismatched plant, ≈ 1.8 N of spurious axial estimate in four steps, leading to
+   infeasible IKs).  What is lost is small: an unestimated axial load of 0.1 N leaves ≈ 0.01 mm of error.
+   ``rcond=1e-3`` gives the literal inverse.
+2. **Trust region.**  ‖ΔF̂‖ ≤ ``max_step_force`` [N] per iteration (default 1.0 N ≈ 100 g); larger steps
+   are scaled down along their direction.
+3. **Validity range and fallback.**  If the updated estimate would leave ‖F̂‖ ≤ ``validity_force``
+   (default 0.2 kg · 9.81 m/s² = 1.962 N, the paper's ≈ 200 g), the estimate is frozen at its last valid
+   value and the controller switches — for the rest of the episode — to plain IK position correction:
+   the IK target is shifted against the error, p_cmd ← p_cmd − ``fallback_gain`` · (p_m − p_d), with F̂
+   unchanged.  That is an integral law on position, effective irrespective of the load magnitude.
+4. **Feasibility back-tracking.**  If the IK with the new estimate needs tensions outside their bounds,
+   the load step is halved (up to ``backtracks`` times); if it is still infeasible the estimate is not
+   trusted either: it is frozen and the controller falls back to IK position correction as in 3
+   (``on_infeasible="raise"`` propagates instead).  If the position-correcting IK is infeasible too, the
+   :class:`~ancf.errors.InfeasibleTargetError` propagates: the load cannot be carried within the tension
+   limits.  (An infeasible *initial* target always propagates from :meth:`LACC.start`.)
+5. **Gain.**  ``gain`` multiplies ΔF̂ (default 1.0 = Algorithm 1).
+
+Compliance choices (``compliance=``): ``"ik"`` is the paper's default (eq. 15/16, the stacked IK Jacobian
+by pseudo-inverse), ``"paper"`` the FK-derived eq. (13), ``"exact"`` the exact locked linearisation (KKT).
+With the literal unweighted stacks (``constraint_weight=1``) the two paper forms come out close to the
+constant-tension compliance — about 3× the plant's locked compliance — so LACC with them is a stable but
+slow integral law (measured error ratio ≈ 0.74 per step for "ik", 0.77 for "paper": 7–8 iterations to
+0.2 mm from ≈ 2 mm), with ``"exact"`` it is a Newton-like iteration (1 iteration).
+``validation.control_studies.compliance_ablation`` measures this.  The stacked forms also misjudge the
+axial compliance, so with the literal inverse an axial error (e.g. from model mismatch) builds a spurious
+axial load estimate; safeguard 1 prevents it.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Optional
+
+import numpy as np
+
+from ancf import InfeasibleTargetError, Model
+from ancf import compliance as cp
+from ancf.errors import InputError, check_finite
+
+from .base import Controller, StepReport
+
+G = 9.81
+COMPLIANCE_METHODS = ("ik", "paper", "exact")
+
+
+def regularised_solve(C: np.ndarray, e: np.ndarray, rcond: float) -> np.ndarray:
+    """ΔF = C⁺ e with singular values below ``rcond`` σ_max discarded.  C (3, 3) [m/N], e (3,) [m] → [N]."""
+    U, s, Vt = np.linalg.svd(C)
+    keep = s > rcond * s[0]
+    return Vt[keep].T @ ((U[:, keep].T @ e) / s[keep])
+
+
+class LACC(Controller):
+    """Load-aware compliance controller (Algorithm 1).
+
+    Parameters (SI)
+    ----------
+    model : controller's :class:`ancf.Model`;  pressure : p [Pa]
+    compliance : "ik" (paper default, eq. 15/16) | "paper" (eq. 13, FK-derived) | "exact" (KKT)
+    constraint_weight : weight of the constraint rows of the stacked "ik"/"paper" forms [N/m]; 1 = literal
+    active_rule : "paper" (δl > 0) | "exact" (complementarity) for the taut set; default "paper" for the
+        stacked forms, "exact" for ``compliance="exact"``
+    tolerance : stop when ‖p_m − p_d‖ < tolerance [m] (0.2 mm)
+    validity_force : ‖F̂‖ beyond which the estimate is not trusted [N] (1.962 N = 200 g)
+    max_step_force : trust region on ‖ΔF̂‖ per step [N] (None: off)
+    rcond : SVD cut-off of the C'_p inverse, relative to σ_max (0.05: the stiff axial direction is cut)
+    gain : multiplier of ΔF̂ (1 = Algorithm 1)
+    fallback_gain : gain of the IK position correction once in fallback (1 = full correction)
+    backtracks : how many times a load step is halved when the IK becomes infeasible
+    on_infeasible : after the halvings, "fallback" (freeze F̂, IK position correction) or "raise"
+    """
+
+    name = "LACC"
+
+    def __init__(self, model: Model, pressure: float, *, compliance: str = "ik", constraint_weight: float = 1.0,
+                 active_rule: Optional[str] = None, tolerance: float = 2e-4, validity_force: float = 0.2 * G,
+                 max_step_force: Optional[float] = 1.0, rcond: float = 0.05, gain: float = 1.0,
+                 fallback_gain: float = 1.0, backtracks: int = 3, on_infeasible: str = "fallback"):
+        super().__init__(model, pressure, tolerance=tolerance)
+        if compliance not in COMPLIANCE_METHODS:
+            raise InputError(f"LACC compliance must be one of {COMPLIANCE_METHODS}, got {compliance!r}")
+        self.compliance = compliance
+        self.constraint_weight = float(constraint_weight)
+        self.active_rule = active_rule or ("exact" if compliance == "exact" else "paper")
+        if self.active_rule not in ("paper", "exact"):
+            raise InputError(f"active_rule must be 'paper' or 'exact', got {active_rule!r}")
+        for nm, v in (("validity_force", validity_force), ("rcond", rcond), ("gain", gain),
+                      ("fallback_gain", fallback_gain)):
+            if not (np.isfinite(v) and v > 0):
+                raise InputError(f"{nm} must be a finite positive number, got {v}")
+        if max_step_force is not None and not (np.isfinite(max_step_force) and max_step_force > 0):
+            raise InputError(f"max_step_force must be positive [N] or None, got {max_step_force}")
+        self.validity_force = float(validity_force)
+        self.max_step_force = None if max_step_force is None else float(max_step_force)
+        self.rcond = float(rcond)
+        self.gain = float(gain)
+        self.fallback_gain = float(fallback_gain)
+        self.backtracks = int(backtracks)
+        if on_infeasible not in ("fallback", "raise"):
+            raise InputError(f"on_infeasible must be 'fallback' or 'raise', got {on_infeasible!r}")
+        self.on_infeasible = on_infeasible
+        self._F = np.zeros(3)
+        self.mode = "lacc"
+        self.command_target: Optional[np.ndarray] = None     # IK target (differs from p_d in fallback)
+
+    @property
+    def estimate(self) -> np.ndarray:
+        """F̂ [N] (3,): the external tip load the controller believes acts (beyond the model's own weight)."""
+        return self._F.copy()
+
+    @property
+    def in_fallback(self) -> bool:
+        return self.mode == "fallback"
+
+    def start(self, target, initial_load=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """Algorithm 1 lines 3–4: IK for (p_d, p, F̂⁰) from the stored droop state; returns l_c [m]."""
+        pd = check_finite("target", target, (3,))
+        F0 = check_finite("initial_load", initial_load, (3,))
+        if np.linalg.norm(F0) > self.validity_force:
+            raise InputError(f"initial load estimate {np.linalg.norm(F0):.3g} N is outside the validity range "
+                             f"{self.validity_force:.3g} N of the compliance linearisation")
+        droop = self._warm_start()
+        eq = self.model.ik(pd, self.pressure, F0, q0=droop.q, tensions0=droop.tensions)   # may raise Infeasible
+        self.target, self.command_target = pd, pd.copy()
+        self._F = F0.copy()
+        self.state = eq
+        self.mode = "lacc"
+        return eq.tendon_lengths.copy()
+
+    def load_increment(self, e: np.ndarray):
+        """Lines 7–10 without the IK: (ΔF̂ [N], C'_p [m/N], active set) for the tip error e = p_m − p_d [m]."""
+        m, eq = self.model, self.state
+        Ct = cp.tension(m, eq)                                           # C_q, eq. (8)
+        dF_dir = regularised_solve(Ct.C_p, e, self.rcond)                # constant-tension load increment
+        direction = dF_dir if np.linalg.norm(dF_dir) > 0 else None
+        A = cp.active_set(m, eq, direction, rule=self.active_rule)       # Sec. III-D
+        L = cp.locked(m, eq, method=self.compliance, active=A, constraint_weight=self.constraint_weight)
+        dF = self.gain * regularised_solve(L.C_p, e, self.rcond)         # line 10
+        return dF, L.C_p, tuple(A)
+
+    def step(self, measured_tip) -> StepReport:
+        """Algorithm 1 lines 5–13 for one measurement p_m [m]."""
+        self._check_started()
+        pm = self._measured(measured_tip)
+        t0 = time.perf_counter()
+        e = pm - self.target
+        en = float(np.linalg.norm(e))
+        if en < self.tolerance:
+            return StepReport(e, en, True, None, self.estimate, "idle", time.perf_counter() - t0)
+        notes: list = []
+        Cp, A = None, ()
+        backtracks = 0
+        if self.mode == "lacc":
+            dF, Cp, A = self.load_increment(e)
+            if self.max_step_force is not None and np.linalg.norm(dF) > self.max_step_force:
+                notes.append(f"load step {np.linalg.norm(dF):.3g} N clipped to {self.max_step_force:g} N")
+                dF *= self.max_step_force / np.linalg.norm(dF)
+            if np.linalg.norm(self._F + dF) > self.validity_force:
+                notes.append(f"estimate {np.linalg.norm(self._F + dF):.3g} N left the validity range "
+                             f"{self.validity_force:.3g} N: IK position correction from now on")
+                self.mode = "fallback"
+        eq = None
+        if self.mode == "lacc":
+            while True:
+                F_new = self._F + dF
+                try:
+                    eq = self.model.ik(self.command_target, self.pressure, F_new, q0=self.state.q,
+                                       tensions0=self.state.tensions)
+                    self._F = F_new
+                    break
+                except InfeasibleTargetError as exc:
+                    if backtracks >= self.backtracks:
+                        if self.on_infeasible == "raise":
+                            raise
+                        notes.append(f"IK infeasible with the estimate after {backtracks} halvings "
+                                     f"({exc.violated}): IK position correction from now on")
+                        self.mode = "fallback"
+                        break
+                    backtracks += 1
+                    dF = 0.5 * dF
+        if eq is None:
+            self.command_target = self.command_target - self.fallback_gain * e
+            eq = self.model.ik(self.command_target, self.pressure, self._F, q0=self.state.q,
+                               tensions0=self.state.tensions)
+        self.state = eq
+        cmd = eq.tendon_lengths.copy()
+        return StepReport(e, en, False, cmd, self.estimate, self.mode, time.perf_counter() - t0, compliance=Cp,
+                          active=A, ik_iterations=eq.iterations, backtracks=backtracks, notes=notes)

@@ -1,0 +1,224 @@
+r"""Control loops: the iteration protocol of Table I and an event-driven timed loop for time-varying loads.
+
+``run_iterations`` — the quasi-static protocol of Algorithm 1 / Table I: command, wait until the motors
+stop, measure, correct; the tip error is recorded after every completed move.
+
+``run_timed`` — the loop in time (Sec. V-E): the load F(t) changes while the controller computes and the
+motors move.  One cycle is
+
+    measure p_m(t) → compute (wall-clock time of the real solver × ``compute_scale``, or a fixed time)
+    → motors move at their rate limit (``PlantOptions.length_rate``) plus ``actuation_latency``
+    → ``settle_time`` (wait for the zero-velocity lock / a fresh tracker frame) → next measurement,
+
+and while idle (error below the tolerance) the loop re-measures every ``idle_period``.  The actuator is
+quasi-static (no inertia: paper's assumption); the true tip error is sampled every ``sample_dt`` seconds
+through all phases, so the reported maximum includes the error that builds up between corrections.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional, Union
+
+import numpy as np
+
+from ancf.errors import BellowsError, InputError, check_finite
+
+from .base import Controller, StepReport
+from .errors import NotConvergedError
+from .plant import Plant, SimulatedPlant
+
+
+@dataclass
+class EpisodeResult:
+    """Result of :func:`run_iterations`.
+
+    errors : true tip error ‖p − p_d‖ [m] after the initial IK (index 0) and after each correction
+    measured_errors : what the controller saw [m]
+    estimates : (k+1, 3) load estimate / virtual force after each step [N]
+    reports : the controller's step reports;  converged : error < tolerance at the end
+    iterations : corrections made;  compute_times : seconds per step (wall clock)
+    true_load : (3,) [N]
+    """
+    controller: str
+    target: np.ndarray
+    true_load: np.ndarray
+    errors: list
+    measured_errors: list
+    estimates: list
+    reports: list
+    converged: bool
+    iterations: int
+    compute_times: list
+    tolerance: float
+    failure: Optional[str] = None
+
+
+    @property
+    def final_error(self) -> float:
+        return self.errors[-1]
+
+    def iterations_to(self, tol: float) -> Optional[int]:
+        """First iteration index whose true error is below ``tol`` [m] (None if never)."""
+        for k, e in enumerate(self.errors):
+            if e < tol:
+                return k
+        return None
+
+    def to_dict(self) -> dict:
+        return {"controller": self.controller, "target": self.target.tolist(), "true_load": self.true_load.tolist(),
+                "errors": list(map(float, self.errors)), "measured_errors": list(map(float, self.measured_errors)),
+                "estimates": [list(map(float, e)) for e in self.estimates], "converged": self.converged,
+                "iterations": self.iterations, "compute_times": list(map(float, self.compute_times)),
+                "tolerance": self.tolerance, "modes": [r.mode for r in self.reports], "failure": self.failure}
+
+
+def run_iterations(controller: Controller, plant: Plant, target, *, iterations: int = 5,
+                   initial_load=(0.0, 0.0, 0.0), stop_at_tolerance: bool = True,
+                   require_convergence: bool = False, on_error: str = "raise") -> EpisodeResult:
+    """Run Algorithm 1's loop (or VF-CC's) for at most ``iterations`` corrections.
+
+    With ``stop_at_tolerance`` the loop ends when the controller reports ‖p_m − p_d‖ < its tolerance (the
+    paper's while-condition); otherwise all iterations are made (controllers with tolerance 0 never stop
+    early).  ``require_convergence`` raises :class:`NotConvergedError` if the final error is not below the
+    controller's tolerance.  ``on_error="stop"`` ends the episode when a correction step raises a
+    :class:`~ancf.errors.BellowsError` (e.g. the load estimate needs tensions beyond their limits) and
+    records the message in ``failure`` instead of raising; the initial IK always raises.
+    """
+    pd = check_finite("target", target, (3,))
+    truth = getattr(plant, "true_tip", None) or plant.measure     # a real rig only has its measurement
+    if iterations < 0:
+        raise InputError(f"iterations must be >= 0, got {iterations}")
+    plant.command(controller.start(pd, initial_load))
+    plant.advance(None)
+    errors = [float(np.linalg.norm(truth() - pd))]
+    measured, estimates, reports, times = [], [controller.estimate.tolist()], [], []
+    converged = False
+    failure = None
+    k = 0
+    if on_error not in ("raise", "stop"):
+        raise InputError(f"on_error must be 'raise' or 'stop', got {on_error!r}")
+    while k < iterations:
+        pm = plant.measure()
+        try:
+            rep = controller.step(pm)
+        except BellowsError as exc:
+            if on_error != "stop":
+                raise
+            failure = f"iteration {k + 1}: {type(exc).__name__}: {exc}"
+            break
+        measured.append(rep.error_norm)
+        if rep.converged:
+            converged = True
+            if stop_at_tolerance:
+                break
+            reports.append(rep)
+            k += 1
+            errors.append(errors[-1])
+            estimates.append(rep.estimate.tolist())
+            times.append(rep.compute_time)
+            continue
+        reports.append(rep)
+        times.append(rep.compute_time)
+        plant.command(rep.command)
+        plant.advance(None)
+        k += 1
+        errors.append(float(np.linalg.norm(truth() - pd)))
+        estimates.append(rep.estimate.tolist())
+    if not converged:
+        pm = plant.measure()
+        e = float(np.linalg.norm(pm - pd))
+        measured.append(e)
+        converged = e < controller.tolerance
+    true_load = plant.load() if hasattr(plant, "load") else np.full(3, np.nan)
+    res = EpisodeResult(controller.name, pd, true_load, errors, measured, estimates, reports, converged, k,
+                        times, controller.tolerance, failure)
+    if require_convergence and not converged:
+        raise NotConvergedError(f"{controller.name} did not converge", iterations=k, error=measured[-1],
+                                tolerance=controller.tolerance, history=errors)
+    return res
+
+
+@dataclass
+class TimedResult:
+    """Result of :func:`run_timed` (arrays over the sample grid, SI)."""
+    controller: str
+    t: np.ndarray                 # sample times [s]
+    load: np.ndarray              # (k, 3) true load [N]
+    error: np.ndarray             # (k, 3) true tip p − p_d [m]
+    estimate: np.ndarray          # (k, 3) controller estimate [N]
+    cycle_times: list             # (t_measure, compute [s], move [s], settle [s]) per correction
+    corrections: int
+    compute_times: list           # wall-clock compute of each correcting step [s]
+    idle_checks: int = 0          # measurements that found the error below the tolerance
+
+    @property
+    def error_norm(self) -> np.ndarray:
+        return np.linalg.norm(self.error, axis=1)
+
+    def max_error(self, after: float = 0.0) -> float:
+        """Largest ‖p − p_d‖ [m] at t ≥ after [s]."""
+        sel = self.t >= after
+        return float(np.max(self.error_norm[sel]))
+
+    def to_dict(self) -> dict:
+        return {"controller": self.controller, "t": self.t.tolist(), "load": self.load.tolist(),
+                "error": self.error.tolist(), "estimate": self.estimate.tolist(),
+                "cycle_times": [list(map(float, c)) for c in self.cycle_times], "corrections": self.corrections,
+                "compute_times": list(map(float, self.compute_times)),
+                "idle_checks": self.idle_checks}
+
+
+def run_timed(controller: Controller, plant: SimulatedPlant, target, *, duration: float,
+              compute_time: Union[str, float] = "measured", compute_scale: float = 1.0,
+              actuation_latency: float = 0.0, settle_time: float = 0.0, idle_period: float = 1.0 / 30,
+              sample_dt: float = 0.05, initial_load=(0.0, 0.0, 0.0)) -> TimedResult:
+    """Event-driven closed loop over ``duration`` seconds under the plant's load profile F(t).
+
+    compute_time : "measured" (the real wall-clock time of each controller step × ``compute_scale``) or a
+        fixed time per step [s];  actuation_latency : fixed extra time per move [s] (command transport,
+        motor acceleration);  settle_time : wait after a move before measuring [s];  idle_period : time
+        between measurements while the error is below the tolerance [s];  sample_dt : grid on which the true
+        tip error is recorded [s].
+    """
+    pd = check_finite("target", target, (3,))
+    if not (duration > 0 and sample_dt > 0 and idle_period > 0):
+        raise InputError("duration, sample_dt and idle_period must be > 0 s")
+    if not (compute_time == "measured" or (isinstance(compute_time, (int, float)) and compute_time >= 0)):
+        raise InputError(f"compute_time must be 'measured' or a time >= 0 s, got {compute_time!r}")
+    plant.time = 0.0
+    plant.command(controller.start(pd, initial_load))
+    ts, loads, errs, ests = [], [], [], []
+    next_sample = [0.0]
+
+    def pass_time(dt: float):
+        """Advance the plant by dt, recording samples on the grid."""
+        t_end = plant.time + dt
+        while next_sample[0] <= t_end + 1e-12:
+            plant.advance(max(next_sample[0] - plant.time, 0.0))
+            ts.append(plant.time)
+            loads.append(plant.load())
+            errs.append(plant.true_tip() - pd)
+            ests.append(controller.estimate)
+            next_sample[0] += sample_dt
+        plant.advance(max(t_end - plant.time, 0.0))
+
+    cycles, ctimes, corrections, idle = [], [], 0, 0
+    while plant.time < duration:
+        t_meas = plant.time
+        rep: StepReport = controller.step(plant.measure())
+        c = rep.compute_time * compute_scale if compute_time == "measured" else float(compute_time)
+        if rep.command is None:
+            idle += 1
+            pass_time(max(idle_period, c))
+            continue
+        ctimes.append(rep.compute_time)
+        pass_time(c)                                  # the old lengths hold while the solver runs
+        move = plant.command(rep.command)
+        pass_time(move + actuation_latency)           # motors travel (rate-limited)
+        pass_time(settle_time)
+        corrections += 1
+        cycles.append((t_meas, c, move + actuation_latency, settle_time))
+    n = len(ts)
+    return TimedResult(controller.name, np.array(ts), np.array(loads).reshape(n, 3), np.array(errs).reshape(n, 3),
+                       np.array(ests).reshape(n, 3), cycles, corrections, ctimes, idle)
