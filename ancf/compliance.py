@@ -64,11 +64,16 @@ class Compliance:
 
 
 def _parts(model: Model, eq: Equilibrium):
+    """(H, J_p, J_l) in free coordinates at ``eq``, cached on the equilibrium object for this model so
+    that several compliance evaluations at one state assemble once."""
+    key = (id(model), eq.q.tobytes(), eq.tensions.tobytes(), float(eq.pressure), eq.tip_force.tobytes())
+    cached = getattr(eq, "_compliance_parts", None)
+    if cached is not None and cached[0] == key:
+        return cached[1]
     ev = model.evaluate(eq.q, eq.tensions, eq.pressure, eq.tip_force)
-    H = model.reduce_mat(ev.K)
-    Jp = model.reduce_vec(model.tip_jacobian(eq.q))
-    Jl = model.reduce_vec(ev.J_l)
-    return H, Jp, Jl
+    parts = (model.reduce_mat(ev.K), model.reduce_vec(model.tip_jacobian(eq.q)), model.reduce_vec(ev.J_l))
+    object.__setattr__(eq, "_compliance_parts", (key, parts))
+    return parts
 
 
 def _full(model: Model, Cz: np.ndarray) -> np.ndarray:
@@ -143,7 +148,7 @@ def locked(model: Model, eq: Equilibrium, method: str = "exact", active: Optiona
 
     ``active``: indices of taut tendons; default from :func:`active_set` along ``load_direction`` with
     the paper's rule for the paper/ik forms and the exact complementarity rule for the exact form.
-    ``constraint_weight`` [N] scales the constraint rows (J_A, and J_p for "ik") of the stacked
+    ``constraint_weight`` [N/m] scales the constraint rows (J_A, and J_p for "ik") of the stacked
     least-squares forms; 1.0 is the paper's literal, unweighted stack.  (Flagged interpretation: the paper
     does not state a weighting; unweighted, the force rows dominate and the locked forms come out close to
     the constant-tension compliance.)

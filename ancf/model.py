@@ -123,7 +123,7 @@ class Model:
         self._kscale = float(p.stiffness.EA(1.0)) / p.length
         # default residual tolerance [N]: round-off of the generalized forces scales with EA
         self.default_tol = 1e-9 + 1e-13 * float(p.stiffness.EA(1.0))
-        self._droop: Optional[Equilibrium] = None
+        self._droop: dict[float, Equilibrium] = {}
 
     # ----------------------------------------------------------------------------- coordinate maps
     def to_free(self, q: np.ndarray) -> np.ndarray:
@@ -336,10 +336,12 @@ class Model:
         return z, SolveInfo(total_it, hist[-1], hist)
 
     def droop(self, pressure: float = 0.0) -> Equilibrium:
-        """Gravity-only equilibrium (T = 0, no tip force) — the stored warm start of the paper's LACC."""
-        if self._droop is None or self._droop.pressure != pressure:
-            self._droop = self.fk(np.zeros(self.m), pressure, (0, 0, 0))
-        return self._droop
+        """Gravity-only equilibrium (T = 0, no tip force) at ``pressure`` [Pa] — the stored warm start of
+        the paper's LACC (computed once per pressure and kept)."""
+        key = float(pressure)
+        if key not in self._droop:
+            self._droop[key] = self.fk(np.zeros(self.m), key, (0, 0, 0))
+        return self._droop[key]
 
     # ----------------------------------------------------------------------------- IK
     def ik(self, target, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None, tensions0=None, *,
