@@ -15,7 +15,8 @@ from ancf import cli as ancf_cli
 from ancf.errors import BellowsError
 
 app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM reference, compliance control.",
-                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
+                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
+                  rich_markup_mode=None)   # help texts state units as "[kPa]": no markup parsing
 ancf_cli.register(app)
 
 try:  # the paper's studies (workspace, stiffness, Table I, loading)

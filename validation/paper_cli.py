@@ -1,0 +1,176 @@
+"""``bellows paper workspace | stiffness | table1 | ablation | loading | all``: the paper's studies.
+
+Each subcommand writes ``<study>.json`` and figures (PNG, SVG) to ``--out`` (default
+``bellows_out/paper``) and prints a table that sets our numbers beside the paper's; ``--json`` prints the
+result as JSON (SI units, unit in each key) instead.  The controller studies (``table1``, ``ablation``,
+``loading``) come from :mod:`validation.control_studies`; when it is missing they say so and exit with
+status 2 (``all`` skips them with a note).
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import sys
+from typing import Optional
+
+import typer
+from rich.console import Console
+
+from ancf.errors import BellowsError
+
+from . import paper
+
+app = typer.Typer(help="Reproductions of the paper's studies (workspace, stiffness, Table I, ...).",
+                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
+
+OUT_HELP = "Output folder for the JSON, figures (PNG, SVG) and data files."
+DEFAULT_OUT = pathlib.Path("bellows_out/paper")
+PRESET_HELP = "Actuator preset name (paper, ...) or a path to an actuator .toml file."
+
+
+def _console(as_json: bool) -> Console:
+    # with --json the table and notes go to stderr so that stdout stays valid JSON
+    return Console(width=130, stderr=as_json)
+
+
+def _floats(text: str, what: str, scale: float = 1.0) -> list[float]:
+    try:
+        return [float(x) * scale for x in text.replace(" ", "").split(",") if x != ""]
+    except ValueError:
+        raise typer.BadParameter(f"{what}: expected comma-separated numbers, got {text!r}") from None
+
+
+def _echo_json(data) -> None:
+    typer.echo(json.dumps(paper._jsonable(data), indent=2))
+
+
+def _fail(msg: str) -> None:
+    typer.secho(f"error: {msg}", fg=typer.colors.RED, err=True)
+    raise typer.Exit(2)
+
+
+@app.command()
+def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per mode (paper: 10 000)."),
+              seed: int = typer.Option(0, help="Random seed (same seed → identical clouds)."),
+              workers: Optional[int] = typer.Option(None, help="Worker processes (default: all cores; 1 = serial)."),
+              scheduler: Optional[str] = typer.Option(
+                  None, help="dask scheduler address (tcp://host:8786), or 'local' for a temporary "
+                             "LocalCluster with --workers processes."),
+              chunk_size: int = typer.Option(100, help="Samples per task."),
+              warm_start: bool = typer.Option(True, help="Warm-start FK within a chunk (Morton order)."),
+              preset: str = typer.Option("paper", help=PRESET_HELP),
+              out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+              progress: bool = typer.Option(True, help="Show a progress bar."),
+              as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Workspace of the TD and TPHD modes (Sec. IV-A, Fig. 4): convex-hull volumes and their ratio."""
+    con = _console(as_json)
+    try:
+        res = paper.workspace(samples=samples, seed=seed, workers=workers, scheduler=scheduler, out=out,
+                              progress=progress and not as_json, chunk_size=chunk_size, warm_start=warm_start,
+                              params=preset)
+    except ImportError as exc:
+        _fail(f"{exc} (the --scheduler option needs dask[distributed])")
+    except OSError as exc:
+        if scheduler is None:
+            raise
+        _fail(f"cannot use the dask scheduler {scheduler!r}: {exc}")
+    if as_json:
+        _echo_json({k: v for k, v in res.items() if k != "clouds"})
+    else:
+        paper.print_workspace(res, con)
+    if res["failures"]:
+        con.print(f"[yellow]{res['failures']} FK solves failed; their inputs are in workspace.json[/yellow]")
+    con.print(f"wrote {out}/workspace.json, workspace_clouds.npz, workspace.png, workspace.svg")
+
+
+@app.command()
+def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressures in kPa, comma separated."),
+              tensions_n: str = typer.Option("0,1,2,3,4,5", help="Tensions of the top tendon T1 in N, comma separated."),
+              mass_kg: float = typer.Option(0.05, help="Tip payload in kg (paper: 0.05)."),
+              preset: str = typer.Option("paper", help=PRESET_HELP),
+              out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+              as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Stiffness vs T1, constant tension vs locked tendons (Sec. V-C, Fig. 9)."""
+    con = _console(as_json)
+    res = paper.stiffness_vs_tension(pressures=_floats(pressures_kpa, "--pressures-kpa", 1e3),
+                                     tensions=_floats(tensions_n, "--tensions-n"), mass=mass_kg, out=out,
+                                     params=preset)
+    if as_json:
+        _echo_json(res)
+    else:
+        paper.print_stiffness(res, con)
+    con.print(f"wrote {out}/stiffness.json, stiffness.png, stiffness.svg")
+
+
+def _control(name: str, out: pathlib.Path, as_json: bool) -> None:
+    con = _console(as_json)
+    try:
+        res = paper.CONTROL_STUDIES[name](out=out)
+    except paper.StudyUnavailableError as exc:
+        _fail(str(exc))
+    path = paper.write_json(out / paper.CONTROL_FILES[name], res)
+    if as_json:
+        _echo_json(res)
+    else:
+        paper.print_control_study(name, res, con)
+    con.print(f"wrote {path}")
+
+
+@app.command()
+def table1(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+           as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Table I: VF-CC vs LACC residual error after five iterations (up / horizontal / down)."""
+    _control("table1", out, as_json)
+
+
+@app.command()
+def ablation(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+             as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """FK- vs IK-derived compliance in the LACC loop (paper: IK-derived ≈ 50 % faster)."""
+    _control("ablation", out, as_json)
+
+
+@app.command()
+def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Continuous (0 → 110 g → 0 over 50 s) and cyclic (0.125 Hz) loading (Sec. V-E)."""
+    _control("loading", out, as_json)
+
+
+@app.command("all")
+def all_(samples: int = typer.Option(10_000, help="Workspace Monte Carlo samples per mode."),
+         seed: int = typer.Option(0, help="Random seed."),
+         workers: Optional[int] = typer.Option(None, help="Worker processes for the workspace."),
+         scheduler: Optional[str] = typer.Option(None, help="dask scheduler address, or 'local'."),
+         out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+         progress: bool = typer.Option(True, help="Show a progress bar."),
+         as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON.")):
+    """Every study into one folder (controller studies are skipped with a note if unavailable)."""
+    con = _console(as_json)
+    try:
+        res = paper.run_all(out, samples=samples, seed=seed, workers=workers, scheduler=scheduler,
+                            progress=progress and not as_json, console=con)
+    except ImportError as exc:
+        if scheduler is None:
+            raise
+        _fail(f"{exc} (the --scheduler option needs dask[distributed])")
+    except OSError as exc:
+        if scheduler is None:
+            raise
+        _fail(f"cannot use the dask scheduler {scheduler!r}: {exc}")
+    if as_json:
+        _echo_json(res["summary"])
+    con.print(f"wrote {out}/summary.json and the studies' files")
+
+
+def main() -> None:  # pragma: no cover - standalone entry (the product mounts ``app`` as ``bellows paper``)
+    try:
+        app()
+    except BellowsError as exc:
+        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
+        sys.exit(2)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
