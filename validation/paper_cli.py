@@ -63,7 +63,7 @@ def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per 
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
               progress: bool = typer.Option(True, help="Show a progress bar."),
               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Workspace of the TD and TPHD modes (Sec. IV-A, Fig. 4): convex-hull volumes and their ratio."""
+    """Workspace of the TD and TPHD modes (paper Sec IV-A, Fig 4): convex-hull volumes and their ratio."""
     con = _console(as_json)
     try:
         res = paper.workspace(samples=samples, seed=seed, workers=workers, scheduler=scheduler, out=out,
@@ -91,7 +91,7 @@ def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressur
               preset: str = typer.Option("paper", help=PRESET_HELP),
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Stiffness vs T1, constant tension vs locked tendons (Sec. V-C, Fig. 9)."""
+    """Stiffness vs T1, constant tension vs locked tendons (paper Sec V-C, Fig 9)."""
     con = _console(as_json)
     res = paper.stiffness_vs_tension(pressures=_floats(pressures_kpa, "--pressures-kpa", 1e3),
                                      tensions=_floats(tensions_n, "--tensions-n"), mass=mass_kg, out=out,
@@ -134,7 +134,7 @@ def ablation(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
 @app.command()
 def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
             as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Continuous (0 → 110 g → 0 over 50 s) and cyclic (0.125 Hz) loading (Sec. V-E)."""
+    """Continuous (0 → 110 g → 0 over 50 s) and cyclic (0.125 Hz) loading (paper Sec V-E)."""
     _control("loading", out, as_json)
 
 
