@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import json
+import math
 import pathlib
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
@@ -97,8 +98,29 @@ def equilibrium_summary(eq, seconds: float | None = None) -> dict:
     return out
 
 
+def to_jsonable(x: Any) -> Any:
+    """Nested dict/list/array → JSON types (arrays to lists, NaN/inf to None, paths to strings)."""
+    if isinstance(x, dict):
+        return {str(k): to_jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [to_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return to_jsonable(x.tolist())
+    if isinstance(x, (np.floating, float)):
+        v = float(x)
+        return v if math.isfinite(v) else None
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, np.bool_):
+        return bool(x)
+    if isinstance(x, pathlib.Path):
+        return str(x)
+    return x
+
+
 def write_json(path, data) -> pathlib.Path:
+    """Write ``data`` (converted by :func:`to_jsonable`) as indented JSON, creating the folder."""
     path = pathlib.Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(data, indent=2))
+    path.write_text(json.dumps(to_jsonable(data), indent=2))
     return path

@@ -14,6 +14,7 @@ It never sees the plant's state or load: only the measured tip position.
 from __future__ import annotations
 
 import abc
+import time
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -101,6 +102,18 @@ class Controller(abc.ABC):
 
     def _measured(self, measured_tip) -> np.ndarray:
         return check_finite("measured tip position", measured_tip, (3,))
+
+    def _begin_step(self, measured_tip):
+        """Shared start of ``step``: check, error e = p_m − p_d, its norm, the clock, and the idle report
+        when already within tolerance (else None).  Returns (e, ‖e‖, t0, idle_report)."""
+        self._check_started()
+        pm = self._measured(measured_tip)
+        t0 = time.perf_counter()
+        e = pm - self.target
+        en = float(np.linalg.norm(e))
+        idle = (StepReport(e, en, True, None, self.estimate, "idle", time.perf_counter() - t0)
+                if en < self.tolerance else None)
+        return e, en, t0, idle
 
     def _warm_start(self) -> Equilibrium:
         """The stored gravity-only droop state at the controller's pressure (paper Sec. III-E)."""

@@ -164,13 +164,9 @@ class LACC(Controller):
 
     def step(self, measured_tip) -> StepReport:
         """Algorithm 1 lines 5–13 for one measurement p_m [m]."""
-        self._check_started()
-        pm = self._measured(measured_tip)
-        t0 = time.perf_counter()
-        e = pm - self.target
-        en = float(np.linalg.norm(e))
-        if en < self.tolerance:
-            return StepReport(e, en, True, None, self.estimate, "idle", time.perf_counter() - t0)
+        e, en, t0, idle = self._begin_step(measured_tip)
+        if idle is not None:
+            return idle
         notes: list = []
         Cp, A = None, ()
         backtracks = 0

@@ -69,13 +69,9 @@ class VFCC(Controller):
         return eq.tendon_lengths.copy()
 
     def step(self, measured_tip) -> StepReport:
-        self._check_started()
-        pm = self._measured(measured_tip)
-        t0 = time.perf_counter()
-        e = pm - self.target
-        en = float(np.linalg.norm(e))
-        if en < self.tolerance:
-            return StepReport(e, en, True, None, self.estimate, "idle", time.perf_counter() - t0)
+        e, en, t0, idle = self._begin_step(measured_tip)
+        if idle is not None:
+            return idle
         F = self.chi * e if self.law == "proportional" else self._F + self.chi * e
         eq = self.model.ik(self.target, self.pressure, F, q0=self.state.q, tensions0=self.state.tensions)
         self._F, self.state = F, eq

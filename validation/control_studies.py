@@ -35,6 +35,7 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
+from ancf.export import to_jsonable
 from ancf import InfeasibleTargetError, Model, presets
 from ancf.errors import BellowsError
 from controller import LACC, VFCC, PlantOptions, SimulatedPlant, run_iterations, run_timed
@@ -55,20 +56,6 @@ PathLike = Union[str, pathlib.Path, None]
 
 
 # ============================================================================== helpers
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        return None if not math.isfinite(float(x)) else float(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    return x
-
-
 def _write(out: PathLike, name: str, res: dict, fig=None) -> None:
     if out is None:
         if fig is not None:
@@ -77,7 +64,7 @@ def _write(out: PathLike, name: str, res: dict, fig=None) -> None:
         return
     out = pathlib.Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / f"{name}.json").write_text(json.dumps(_jsonable(res), indent=2))
+    (out / f"{name}.json").write_text(json.dumps(to_jsonable(res), indent=2))
     if fig is not None:
         import matplotlib.pyplot as plt
         fig.savefig(out / f"{name}.png", dpi=130)

@@ -86,7 +86,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import math
 import os
 import pathlib
 import time
@@ -94,6 +93,7 @@ from typing import Any, Callable, Optional, Sequence, Union
 
 import numpy as np
 
+from ancf.export import to_jsonable, write_json
 from ancf import ActuatorParams, Model, presets
 from ancf import compliance as cp
 from ancf.errors import BellowsError
@@ -126,31 +126,6 @@ def _params(preset: Union[str, ActuatorParams, None]) -> ActuatorParams:
     return presets.get(str(preset))
 
 
-def _jsonable(x: Any) -> Any:
-    """Nested dict/list/array → JSON types (arrays to lists, NaN to None)."""
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating, float)):
-        v = float(x)
-        return v if math.isfinite(v) else None
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.bool_,)):
-        return bool(x)
-    if isinstance(x, pathlib.Path):
-        return str(x)
-    return x
-
-
-def write_json(path, data) -> pathlib.Path:
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(_jsonable(data), indent=2))
-    return path
 
 
 def _save_figure(fig, out: pathlib.Path, stem: str) -> list[pathlib.Path]:
@@ -747,7 +722,7 @@ def print_control_study(name: str, res: dict, console=None) -> None:
     walk("", res, paper)
     console.print(t)
     if paper:
-        console.print(escape(f"paper: {json.dumps(_jsonable(paper))}"))
+        console.print(escape(f"paper: {json.dumps(to_jsonable(paper))}"))
 
 
 # ============================================================================== everything

@@ -9,6 +9,8 @@ status 2 (``all`` skips them with a note).
 
 from __future__ import annotations
 
+import contextlib
+
 import json
 import pathlib
 import sys
@@ -18,6 +20,7 @@ import typer
 from rich.console import Console
 
 from ancf.errors import BellowsError
+from ancf.export import to_jsonable
 
 from . import paper
 
@@ -42,13 +45,28 @@ def _floats(text: str, what: str, scale: float = 1.0) -> list[float]:
 
 
 def _echo_json(data) -> None:
-    typer.echo(json.dumps(paper._jsonable(data), indent=2))
+    typer.echo(json.dumps(to_jsonable(data), indent=2))
 
 
 def _fail(msg: str) -> None:
     typer.secho(f"error: {msg}", fg=typer.colors.RED, err=True)
     raise typer.Exit(2)
 
+
+
+@contextlib.contextmanager
+def _scheduler_errors(scheduler, always_on_import: bool = False):
+    """Turn a missing dask or an unreachable scheduler into one clear error line (exit 2)."""
+    try:
+        yield
+    except ImportError as exc:
+        if scheduler is None and not always_on_import:
+            raise
+        _fail(f"{exc} (the --scheduler option needs dask[distributed])")
+    except OSError as exc:
+        if scheduler is None:
+            raise
+        _fail(f"cannot use the dask scheduler {scheduler!r}: {exc}")
 
 @app.command()
 def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per mode (paper: 10 000)."),
@@ -65,16 +83,10 @@ def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per 
               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Workspace of the TD and TPHD modes (paper Sec IV-A, Fig 4): convex-hull volumes and their ratio."""
     con = _console(as_json)
-    try:
+    with _scheduler_errors(scheduler, always_on_import=True):
         res = paper.workspace(samples=samples, seed=seed, workers=workers, scheduler=scheduler, out=out,
                               progress=progress and not as_json, chunk_size=chunk_size, warm_start=warm_start,
                               params=preset)
-    except ImportError as exc:
-        _fail(f"{exc} (the --scheduler option needs dask[distributed])")
-    except OSError as exc:
-        if scheduler is None:
-            raise
-        _fail(f"cannot use the dask scheduler {scheduler!r}: {exc}")
     if as_json:
         _echo_json({k: v for k, v in res.items() if k != "clouds"})
     else:
@@ -148,17 +160,9 @@ def all_(samples: int = typer.Option(10_000, help="Workspace Monte Carlo samples
          as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON.")):
     """Every study into one folder (controller studies are skipped with a note if unavailable)."""
     con = _console(as_json)
-    try:
+    with _scheduler_errors(scheduler):
         res = paper.run_all(out, samples=samples, seed=seed, workers=workers, scheduler=scheduler,
                             progress=progress and not as_json, console=con)
-    except ImportError as exc:
-        if scheduler is None:
-            raise
-        _fail(f"{exc} (the --scheduler option needs dask[distributed])")
-    except OSError as exc:
-        if scheduler is None:
-            raise
-        _fail(f"cannot use the dask scheduler {scheduler!r}: {exc}")
     if as_json:
         _echo_json(res["summary"])
     con.print(f"wrote {out}/summary.json and the studies' files")

@@ -25,14 +25,21 @@ from ._tendon_generated import tendon_u, tendon_uJ
 
 
 @njit(cache=True)
-def tendon_density(a, b, E, d, co, so):
-    """Length density |r_c,x| of one tendon, its gradient (6,) and Hessian (6, 6) w.r.t. (a, b) = (r_x, r_xx),
-    all in the world frame.  E (3, 3): actuator frame as columns."""
+def _to_frame(a, b, E):
+    """Components of a, b in the actuator frame: Eᵀ a, Eᵀ b."""
     al = np.empty(3)
     bl = np.empty(3)
     for i in range(3):
         al[i] = E[0, i] * a[0] + E[1, i] * a[1] + E[2, i] * a[2]
         bl[i] = E[0, i] * b[0] + E[1, i] * b[1] + E[2, i] * b[2]
+    return al, bl
+
+
+@njit(cache=True)
+def tendon_density(a, b, E, d, co, so):
+    """Length density |r_c,x| of one tendon, its gradient (6,) and Hessian (6, 6) w.r.t. (a, b) = (r_x, r_xx),
+    all in the world frame.  E (3, 3): actuator frame as columns."""
+    al, bl = _to_frame(a, b, E)
     u = np.empty(3)
     Ju = np.empty((3, 6))
     Hu = np.zeros((3, 6, 6))
@@ -73,11 +80,7 @@ def tendon_density(a, b, E, d, co, so):
 @njit(cache=True)
 def tendon_length_gradient(a, b, E, d, co, so):
     """Length density |r_c,x| and its gradient (6,) w.r.t. (a, b), world frame (no second derivatives)."""
-    al = np.empty(3)
-    bl = np.empty(3)
-    for i in range(3):
-        al[i] = E[0, i] * a[0] + E[1, i] * a[1] + E[2, i] * a[2]
-        bl[i] = E[0, i] * b[0] + E[1, i] * b[1] + E[2, i] * b[2]
+    al, bl = _to_frame(a, b, E)
     u = np.empty(3)
     Ju = np.empty((3, 6))
     tendon_uJ(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u, Ju)
