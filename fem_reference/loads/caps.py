@@ -1,0 +1,177 @@
+r"""Rigid caps as a nonlinear 6-DOF reduction (``fem_notes.md`` §5).
+
+The base cap is clamped: every node of the base face is fixed.  The distal cap is rigid: every node
+of the distal face (vertices and Hex2 edge/face nodes) is placed exactly
+
+.. math::  x_i = X_c + u_c + R\,(X_i - X_c), \qquad r_i := R\,(X_i - X_c),
+
+with the cap centre ``X_c = (L, 0, 0)``.  The reduced unknowns are ``q = [free nodal displacements,
+u_c (3), θ (3)]``; a Newton increment moves a cap node by :math:`\delta x_i = \delta u_c - [r_i]_\times
+\delta\theta` (spatial rotation vector), so the prolongation ``P(q)`` is the identity on free DOFs and
+``[I, -[r_i]_×]`` on cap rows, and the rotation is updated exactly, :math:`R \leftarrow \exp([\Delta\theta]_\times) R`.
+
+Reduced residual and tangent (Galerkin, not ``skfem.mpc``):
+
+.. math::
+
+    r_q = P^T r, \qquad K_q = P^T K P + \sum_i \big(r_i\,\rho_i^T - (\rho_i \cdot r_i)\,I\big)_{\theta\theta},
+
+where :math:`\rho_i` is the nodal residual force on cap node ``i``.  The last term is the geometric
+stiffness of the rigid link: :math:`\partial(r_i \times \rho_i)/\partial\theta = r_i\rho_i^T - (\rho_i\cdot r_i)I`
+because :math:`\delta r_i = \delta\theta \times r_i`.  The same rule holds for any force acting at a
+cap point ``X_c + R a`` (tip force, cap weight, tendon anchor) with :math:`r = R a`.
+
+The condensed cap stiffness (Schur complement of ``K_q`` on the 6 cap DOFs) is the consistent tip
+stiffness of the loaded state; its inverse is the tip compliance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+__all__ = ["RigidCapReduction", "expm_so3", "log_so3", "point_geometric", "point_jacobian", "skew"]
+
+
+def skew(v) -> np.ndarray:
+    """Cross-product matrix ``[v]_×`` of a 3-vector (``skew(a) @ b == a × b``)."""
+    x, y, z = np.asarray(v, float)
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def expm_so3(w) -> np.ndarray:
+    """Rotation matrix ``exp([w]_×)`` (Rodrigues; exact, series near 0)."""
+    w = np.asarray(w, float)
+    th = float(np.linalg.norm(w))
+    W = skew(w)
+    if th < 1e-6:
+        return np.eye(3) + W + 0.5 * W @ W
+    return np.eye(3) + np.sin(th) / th * W + (1 - np.cos(th)) / th ** 2 * W @ W
+
+
+def log_so3(R: np.ndarray) -> np.ndarray:
+    """Rotation vector ``w`` with ``expm_so3(w) == R`` (|w| < π)."""
+    c = np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)
+    th = np.arccos(c)
+    v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if th < 1e-8:
+        return 0.5 * v
+    if np.pi - th < 1e-6:  # pragma: no cover - near half turn
+        w, V = np.linalg.eigh(0.5 * (R + R.T))
+        axis = V[:, np.argmax(w)]
+        return th * axis * np.sign(axis @ v if abs(axis @ v) > 0 else 1.0)
+    return th / (2 * np.sin(th)) * v
+
+
+def point_jacobian(r: np.ndarray) -> np.ndarray:
+    """``∂x/∂[u_c, θ]`` of a cap point at spatial offset ``r = R a``: the 3×6 block ``[I, -[r]_×]``."""
+    return np.hstack([np.eye(3), -skew(r)])
+
+
+def point_geometric(r: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """θθ geometric stiffness ``r ρᵀ − (ρ·r) I`` of a residual force ``ρ`` acting at offset ``r``."""
+    return np.outer(r, rho) - float(rho @ r) * np.eye(3)
+
+
+class RigidCapReduction:
+    """Index bookkeeping and the prolongation ``P`` of the clamped-base / rigid-distal-cap model.
+
+    Parameters
+    ----------
+    X : ndarray (3, n_nodes)
+        Reference node positions [m].
+    base_nodes, cap_nodes : ndarray of int
+        Nodes of the clamped base face and of the rigid distal face.
+    X_c : ndarray (3,)
+        Reference cap centre [m].
+    """
+
+    def __init__(self, X: np.ndarray, base_nodes: np.ndarray, cap_nodes: np.ndarray, X_c):
+        n = X.shape[1]
+        self.n_nodes = n
+        self.X = X
+        self.X_c = np.asarray(X_c, float)
+        self.base_nodes = np.asarray(base_nodes)
+        self.cap_nodes = np.asarray(cap_nodes)
+        kind = np.zeros(n, int)
+        kind[self.base_nodes] = 1
+        kind[self.cap_nodes] = 2
+        self.free_nodes = np.flatnonzero(kind == 0)
+        self.n_free = 3 * self.free_nodes.size
+        self.n_q = self.n_free + 6
+        self.free_dofs = (3 * self.free_nodes[:, None] + np.arange(3)).ravel()
+        self.cap_dofs = (3 * self.cap_nodes[:, None] + np.arange(3)).ravel()
+        self.A_cap = X[:, self.cap_nodes] - self.X_c[:, None]  # reference offsets (3, nc)
+        # q index of the translational DOFs of each node (-1 if not free)
+        self.q_of_node = -np.ones(n, np.int64)
+        self.q_of_node[self.free_nodes] = 3 * np.arange(self.free_nodes.size)
+
+    @property
+    def cap_slice(self) -> slice:
+        return slice(self.n_free, self.n_free + 6)
+
+    def place(self, U: np.ndarray, uc: np.ndarray, R: np.ndarray) -> None:
+        """Set the displacements of base (zero) and cap nodes (rigid motion) in ``U`` in place."""
+        U[:, self.base_nodes] = 0.0
+        U[:, self.cap_nodes] = uc[:, None] + (R - np.eye(3)) @ self.A_cap
+
+    def prolongation(self, R: np.ndarray, transpose: bool = False) -> sp.csr_matrix:
+        """``P = ∂u/∂q`` at cap rotation ``R``; shape ``(3 n_nodes, n_q)`` (``Pᵀ`` if ``transpose``)."""
+        nf = self.n_free
+        rows = [self.free_dofs]
+        cols = [np.arange(nf)]
+        vals = [np.ones(nf)]
+        r = R @ self.A_cap  # (3, nc)
+        nc = r.shape[1]
+        # translational part: identity
+        for i in range(3):
+            rows.append(3 * self.cap_nodes + i)
+            cols.append(np.full(nc, nf + i))
+            vals.append(np.ones(nc))
+        # rotational part: -skew(r) ; -skew(r)[i, j] = -eps_ikj r_k = eps_ijk r_k
+        eps = np.zeros((3, 3, 3))
+        eps[0, 1, 2] = eps[1, 2, 0] = eps[2, 0, 1] = 1
+        eps[0, 2, 1] = eps[2, 1, 0] = eps[1, 0, 2] = -1
+        for i in range(3):
+            for j in range(3):
+                v = np.einsum("k,kn->n", eps[i, j], r)
+                rows.append(3 * self.cap_nodes + i)
+                cols.append(np.full(nc, nf + 3 + j))
+                vals.append(v)
+        r_, c_, v_ = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+        if transpose:  # build Pᵀ directly in CSR (scipy's P.T is CSC: a conversion per product)
+            return sp.csr_matrix((v_, (c_, r_)), shape=(self.n_q, 3 * self.n_nodes))
+        return sp.csr_matrix((v_, (r_, c_)), shape=(3 * self.n_nodes, self.n_q))
+
+    def reduce(self, K: sp.spmatrix | None, r: np.ndarray, R: np.ndarray):
+        """Reduced residual ``Pᵀ r`` and tangent ``Pᵀ K P`` + rigid-link geometric stiffness.
+
+        Parameters
+        ----------
+        K : sparse (3n, 3n) or None
+        r : ndarray (3n,)  — full residual (internal − external) [N]
+        R : ndarray (3, 3) — current cap rotation
+
+        Returns
+        -------
+        r_q : ndarray (n_q,)
+        K_q : csr_matrix (n_q, n_q) or None
+        """
+        PT = self.prolongation(R, transpose=True)
+        rq = PT @ r
+        if K is None:
+            return rq, None
+        P = self.prolongation(R)
+        Kq = PT @ (K.tocsr() @ P)
+        rho = r.reshape(-1, 3)[self.cap_nodes].T  # (3, nc)
+        rr = R @ self.A_cap
+        G = rr @ rho.T - np.sum(rho * rr) * np.eye(3)
+        s = self.n_free + 3
+        Kq = Kq + sp.csr_matrix((G.ravel(), (np.repeat(np.arange(s, s + 3), 3), np.tile(np.arange(s, s + 3), 3))),
+                                shape=Kq.shape)
+        return rq, Kq.tocsr()
+
+    def cap_point_rows(self, R: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Spatial offset ``r = R a`` and 3×6 Jacobian block (columns ``cap_slice``) of a cap point."""
+        r = R @ np.asarray(a, float)
+        return r, point_jacobian(r)

@@ -1,0 +1,635 @@
+r"""The bellows model: mesh + material + loads + rigid caps + Newton with load stepping.
+
+Reduced unknowns ``q = [free nodal displacements (3 n_free), u_c (3), θ (3)]`` (see
+:mod:`fem_reference.loads.caps`).  With ``λ ∈ [0, 1]`` the load parameter of a solve, every load is
+ramped linearly from its starting value (zero, or the loads of ``initial``) to its target:
+
+.. math::
+
+    r_q(q) = P^T\big(f^{int}(u) - f^{p}(u; p) - s_g f^g\big)
+             - J_{tip}^T F_{tip} - J_{com}^T m_{cap} g - J_c^T\,p A_{cap} R e_x
+             + \sum_i T_i\,\partial L_i/\partial q = 0,
+
+with ``s_g`` = 1 when gravity is on, and for a locked tendon the extra equation ``L_i(q) = L_{0,i}``
+with ``T_i`` unknown (``T_i ≥ 0``; a cable whose multiplier would become negative goes slack).
+The Newton matrix is the exact derivative of ``r_q`` (internal tangent, follower-pressure load
+stiffness, cap pressure follower term, tendon Hessians and every rigid-link geometric term), so
+Newton converges quadratically (tested).
+
+Tip compliance (3×3, ``δp_tip = C δF_tip``) from the same tangent:
+
+- ``mode="tension"`` (tensions held): :math:`C = J_p K_q^{-1} J_p^T`;
+- ``mode="locked"`` (taut tendons at fixed length; multipliers change):
+  :math:`C' = J_p\,[K^{-1} - K^{-1} g (g^T K^{-1} g)^{-1} g^T K^{-1}]\,J_p^T`
+  over the taut tendons (``T > 0``).  Direction-dependent slackening under the perturbation is not
+  modelled (it is a linearisation about the loaded state).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+
+from ancf.errors import ConfigError, ConvergenceError, InputError
+
+from .assembly import HexAssembler, PressureAssembler, gravity_load
+from .geometry import BellowsGeometry, e_radial
+from .loads.caps import (
+    RigidCapReduction,
+    expm_so3,
+    point_geometric,
+    point_jacobian,
+)
+from .loads.gravity import cap_weight
+from .loads.pressure import cap_pressure_force
+from .loads.tendons import (
+    TendonPath,
+    guide_hessian,
+    guide_point,
+    polyline_gradient,
+    polyline_hessian_blocks,
+    polyline_length,
+)
+from .material import Material
+from .mesh import BellowsMesh, build_mesh
+from .solver import NewtonStats, StepFailed, factorize
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .results import BellowsResult
+
+__all__ = ["BellowsModel", "LoadCase", "State"]
+
+G_DEFAULT = (0.0, 0.0, -9.81)
+
+
+@dataclass
+class LoadCase:
+    """Loads of one equilibrium (SI).
+
+    tensions : (m,) [N]; pressure [Pa]; tip_force (3,) [N]; gravity : 0..1 scale of the dead weight;
+    locked_lengths : (m,) [m] with NaN for tendons at prescribed tension.
+    """
+
+    tensions: np.ndarray
+    pressure: float
+    tip_force: np.ndarray
+    gravity: float
+    locked_lengths: np.ndarray
+
+    def lerp(self, other: LoadCase, lam: float) -> LoadCase:
+        a = lambda x, y: x + lam * (y - x)
+        ll = np.where(np.isnan(other.locked_lengths), np.nan,
+                      a(np.nan_to_num(self.locked_lengths, nan=0.0), other.locked_lengths))
+        return LoadCase(a(self.tensions, other.tensions), a(self.pressure, other.pressure),
+                        a(self.tip_force, other.tip_force), a(self.gravity, other.gravity), ll)
+
+
+@dataclass
+class State:
+    """Configuration: full nodal displacements, cap translation and rotation, tendon tensions."""
+
+    U: np.ndarray  # (3, n_nodes) [m]
+    uc: np.ndarray  # (3,) [m]
+    R: np.ndarray  # (3, 3)
+    T: np.ndarray  # (m,) [N]  (multipliers for locked tendons)
+    slack: np.ndarray  # (m,) bool — locked tendon currently slack
+
+    def copy(self) -> State:
+        return State(self.U.copy(), self.uc.copy(), self.R.copy(), self.T.copy(), self.slack.copy())
+
+
+class BellowsModel:
+    """3-D hyperelastic FE model of the bellows with rigid caps, pressure, tendons, gravity, tip load.
+
+    Parameters
+    ----------
+    geometry : BellowsGeometry
+    material : Material
+    mesh : {"coarse", "medium", "reference"}, MeshLevel or BellowsMesh
+    linear_solver : {"auto", "pardiso", "splu"}
+    gravity_vector : (3,) [m/s²]
+    """
+
+    def __init__(self, geometry: BellowsGeometry, material: Material, mesh="coarse",
+                 linear_solver: str = "auto", gravity_vector=G_DEFAULT):
+        self.geometry = geometry
+        self.material = material
+        self.linear_solver = linear_solver
+        self.g = np.asarray(gravity_vector, float)
+        t0 = time.perf_counter()
+        self.bmesh = mesh if isinstance(mesh, BellowsMesh) else build_mesh(geometry, mesh)
+        bm = self.bmesh
+        self.asm = HexAssembler(bm.mesh, material)
+        self.press = PressureAssembler(bm.mesh, bm.inner_facets(), self.asm.pattern)
+        self.f_gravity = gravity_load(self.asm, material.density, self.g)
+        n_s, n_t, n_th = bm.shape
+        X = bm.X
+        L = geometry.length
+        self.X_c = np.array([L, 0.0, 0.0])
+        self.caps = RigidCapReduction(X, bm.nodes_where(i_s=0), bm.nodes_where(i_s=2 * n_s), self.X_c)
+        self.a_tip = np.array([geometry.tip_offset, 0.0, 0.0])
+        self.a_com = np.array([geometry.cap_com_offset, 0.0, 0.0])
+        self.A_cap = np.pi * geometry.cap_inner_radius ** 2
+        self.tendons = [self._route(th) for th in geometry.tendon_angles]
+        self.m = len(self.tendons)
+        self.setup_time = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ setup helpers
+    def _route(self, theta: float) -> TendonPath:
+        geo, bm = self.geometry, self.bmesh
+        n_s, n_t, n_th = bm.shape
+        d = geo.tendon_radius
+        er = e_radial(theta)
+        roots = geo.root_positions()[1:-1]
+        nodes_l, w_l = [], []
+        nth2 = 2 * n_th
+        for z in roots:
+            i_s = int(np.argmin(np.abs(bm.zeta - z)))
+            if abs(bm.zeta[i_s] - z) > 1e-9 * geo.length:  # pragma: no cover
+                raise ConfigError("root not on a mesh row")
+            ring = np.array([bm.nodes_where(i_s=i_s, i_t=n_t, i_theta=k)[0] for k in range(nth2)])
+            pos = (theta % (2 * np.pi)) / (2 * np.pi) * nth2
+            k0 = int(np.floor(pos)) % nth2
+            s = pos - np.floor(pos)
+            k1 = (k0 + 1) % nth2
+            wc = np.full(nth2, 1.0 / nth2)
+            a = -wc.copy()
+            a[k0] += 1 - s
+            a[k1] += s
+            nodes_l.append(ring)
+            w_l.append((wc, a))
+        return TendonPath(theta=float(theta), radius=d, exit_point=d * er, guide_nodes=nodes_l,
+                          guide_wc=[w[0] for w in w_l], guide_a=[w[1] for w in w_l], anchor=d * er)
+
+    @property
+    def n_dofs(self) -> int:
+        """Number of reduced unknowns (free nodal DOFs + 6 cap DOFs)."""
+        return self.caps.n_q
+
+    def zero_state(self) -> State:
+        m = self.m
+        return State(np.zeros((3, self.bmesh.n_nodes)), np.zeros(3), np.eye(3), np.zeros(m), np.zeros(m, bool))
+
+    def _apply(self, st: State, dq: np.ndarray, alpha: float = 1.0) -> State:
+        new = st.copy()
+        c = self.caps
+        new.U[:, c.free_nodes] += alpha * dq[: c.n_free].reshape(-1, 3).T
+        new.uc = st.uc + alpha * dq[c.n_free: c.n_free + 3]
+        new.R = expm_so3(alpha * dq[c.n_free + 3: c.n_free + 6]) @ st.R
+        c.place(new.U, new.uc, new.R)
+        return new
+
+    # ------------------------------------------------------------------ kinematics of points
+    def tip_position(self, st: State) -> np.ndarray:
+        return self.X_c + st.uc + st.R @ self.a_tip
+
+    def tip_jacobian(self, st: State) -> sp.csr_matrix:
+        """``∂p_tip/∂q``, shape ``(3, n_q)``."""
+        Jb = point_jacobian(st.R @ self.a_tip)
+        s = self.caps.n_free
+        rows, cols = np.nonzero(np.ones((3, 6)))
+        return sp.csr_matrix((Jb[rows, cols], (rows, cols + s)), shape=(3, self.n_dofs))
+
+    def _tendon_terms(self, st: State, k: int, want_hessian: bool):
+        """Length, gradient ``∂L/∂q`` (n_q,), Hessian ``∂²L/∂q²`` (sparse) of tendon ``k``."""
+        tp = self.tendons[k]
+        c = self.caps
+        x = self.bmesh.X + st.U
+        centre = self.X_c + st.uc
+        pts = tp.points(x, centre, st.R)
+        npts = pts.shape[0]
+        L = polyline_length(pts)
+        gL = polyline_gradient(pts)
+        rows, cols, vals = [], [], []
+        guide_data = []
+        for gi, (nodes, wc, a) in enumerate(zip(tp.guide_nodes, tp.guide_wc, tp.guide_a)):
+            k_pt = gi + 1
+            q0 = c.q_of_node[nodes]
+            if np.any(q0 < 0):  # pragma: no cover
+                raise ConfigError("tendon guide on a constrained node")
+            _, blocks, geo_ = guide_point(x[:, nodes], wc, a, tp.radius)
+            ii3, kk3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+            rows.append(np.broadcast_to(3 * k_pt + ii3.ravel(), (nodes.size, 9)).ravel())
+            cols.append((q0[:, None] + kk3.ravel()[None, :]).ravel())
+            vals.append(blocks.reshape(nodes.size, 9).ravel())
+            guide_data.append((q0, a, geo_))
+        ra = st.R @ tp.anchor
+        Jb = point_jacobian(ra)
+        rr, cc = np.nonzero(np.ones((3, 6)))
+        rows.append(3 * (npts - 1) + rr)
+        cols.append(c.n_free + cc)
+        vals.append(Jb[rr, cc])
+        r_, c_, v_ = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+        G = sp.csr_matrix((v_, (r_, c_)), shape=(3 * npts, self.n_dofs))
+        GT = sp.csr_matrix((v_, (c_, r_)), shape=(self.n_dofs, 3 * npts))
+        g = GT @ gL.ravel()
+        if not want_hessian:
+            return L, g, None
+        Hb = polyline_hessian_blocks(pts)
+        nseg = Hb.shape[0]
+        hr, hc, hv = [], [], []
+        ii, jj = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
+        for s_ in range(nseg):
+            for a, b, sg in ((s_, s_, 1), (s_ + 1, s_ + 1, 1), (s_, s_ + 1, -1), (s_ + 1, s_, -1)):
+                hr.append(3 * a + ii.ravel())
+                hc.append(3 * b + jj.ravel())
+                hv.append(sg * Hb[s_].ravel())
+        Hx = sp.csr_matrix((np.concatenate(hv), (np.concatenate(hr), np.concatenate(hc))),
+                           shape=(3 * npts, 3 * npts))
+        H = GT @ (Hx @ G)
+        gr, gc, gv = [], [], []
+        for gi, (q0, a, (n_, P_, rho_)) in enumerate(guide_data):
+            B = guide_hessian(gL[gi + 1], n_, P_, rho_, tp.radius)
+            N_ = q0.size
+            aa = np.outer(a, a)  # (N, N)
+            shp = (N_, N_, 3, 3)
+            gr.append(np.broadcast_to(q0[:, None, None, None] + np.arange(3)[None, None, :, None], shp).ravel())
+            gc.append(np.broadcast_to(q0[None, :, None, None] + np.arange(3)[None, None, None, :], shp).ravel())
+            gv.append((aa[:, :, None, None] * B[None, None]).ravel())
+        if gr:
+            H = H + sp.csr_matrix((np.concatenate(gv), (np.concatenate(gr), np.concatenate(gc))), shape=H.shape)
+        Gg = point_geometric(ra, gL[-1])
+        s0 = c.n_free + 3
+        H = H + sp.csr_matrix((Gg.ravel(), (s0 + ii.ravel(), s0 + jj.ravel())), shape=H.shape)
+        return L, g, H
+
+    def tendon_lengths(self, st: State) -> np.ndarray:
+        """Current cable path lengths [m], shape ``(m,)``."""
+        x = self.bmesh.X + st.U
+        return np.array([polyline_length(tp.points(x, self.X_c + st.uc, st.R)) for tp in self.tendons])
+
+    # ------------------------------------------------------------------ residual and tangent
+    def evaluate(self, st: State, lc: LoadCase, tangent: bool = True, stats: NewtonStats | None = None):
+        """Reduced residual, tangent and tendon data at state ``st`` under loads ``lc``.
+
+        Returns
+        -------
+        dict with ``r`` (n_q,) [N | N m], ``K`` (csr or None), ``jmin``, ``L`` (m,) [m],
+        ``g`` (n_q, m) tendon length gradients, ``f_ref`` (norm of the external generalised load).
+        """
+        t0 = time.perf_counter()
+        c = self.caps
+        f_int, K, jmin = self.asm.assemble(st.U, tangent=tangent)
+        out = dict(jmin=jmin)
+        if jmin <= 0:
+            out["r"] = None
+            return out
+        f_ext = lc.gravity * self.f_gravity
+        Kp = None
+        if lc.pressure != 0.0:
+            fp, Kp = self.press.assemble(st.U, lc.pressure, tangent=tangent)
+            f_ext = f_ext + fp
+        r_full = f_int - f_ext
+        if tangent and Kp is not None:
+            K = K - Kp
+        r, Kq = c.reduce(K, r_full, st.R)
+        fext_q = c.prolongation(st.R, transpose=True) @ f_ext
+        s = c.n_free
+        extra_K = np.zeros((6, 6))
+        # point loads on the cap: (spatial offset, external force)
+        loads = [(st.R @ self.a_tip, lc.tip_force)]
+        if lc.gravity and self.geometry.cap_mass > 0:
+            loads.append((st.R @ self.a_com, cap_weight(self.geometry.cap_mass, self.g, lc.gravity)))
+        pvec, dpvec = cap_pressure_force(lc.pressure, self.A_cap, st.R)
+        loads.append((np.zeros(3), pvec))
+        for rr, F in loads:
+            Jb = point_jacobian(rr)
+            r[s: s + 6] -= Jb.T @ F
+            fext_q[s: s + 6] += Jb.T @ F
+            extra_K[3:, 3:] += point_geometric(rr, -F)
+        # follower cap pressure: residual -f, so K[u_c, θ] += -∂f/∂θ = p A [R e_x]_×
+        extra_K[0:3, 3:6] -= dpvec
+        m = self.m
+        Ls = np.zeros(m)
+        g = np.zeros((self.n_dofs, m))
+        for k in range(m):
+            Lk, gk, Hk = self._tendon_terms(st, k, tangent and st.T[k] != 0.0)
+            Ls[k], g[:, k] = Lk, gk
+            if st.T[k] != 0.0:
+                r += st.T[k] * gk
+                fext_q -= st.T[k] * gk
+                if tangent:
+                    Kq = Kq + st.T[k] * Hk
+        if tangent:
+            ii, jj = np.meshgrid(np.arange(6), np.arange(6), indexing="ij")
+            Kq = (Kq + sp.csr_matrix((extra_K.ravel(), (s + ii.ravel(), s + jj.ravel())), shape=Kq.shape)).tocsr()
+            Kq = self._canonical(Kq)
+        out.update(r=r, K=Kq, L=Ls, g=g, f_ref=float(np.linalg.norm(fext_q)))
+        if stats is not None:
+            stats.t_assembly += time.perf_counter() - t0
+        return out
+
+    def _canonical(self, K: sp.csr_matrix) -> sp.csr_matrix:
+        """Embed ``K`` in a model-wide sparsity pattern (the union of all patterns seen so far).
+
+        scipy drops entries that cancel exactly in sparse sums, and tendon Hessians appear only when
+        a tension is non-zero, so the raw pattern flickers between iterations; a stable pattern lets
+        PARDISO reuse its symbolic analysis (see :mod:`fem_reference.solver`).
+        """
+        K.sum_duplicates()
+        pat = getattr(self, "_pattern", None)
+        if pat is not None and np.array_equal(pat[0], K.indptr) and np.array_equal(pat[1], K.indices):
+            return K
+        cache = getattr(self, "_pattern_cache", None)  # last raw pattern -> positions in `pat`
+        if (cache is not None and cache[3] is pat and np.array_equal(cache[0], K.indptr)
+                and np.array_equal(cache[1], K.indices)):
+            data = np.zeros(pat[2].size)
+            data[cache[2]] = K.data
+            return sp.csr_matrix((data, pat[1], pat[0]), shape=K.shape)
+        n = K.shape[0]
+        keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(K.indptr)) * n + K.indices
+        if pat is None:
+            self._pattern = (K.indptr.copy(), K.indices.copy(), keys)
+            return K
+        pkeys = pat[2]
+        pos = np.searchsorted(pkeys, keys)
+        if not np.all(pkeys[np.minimum(pos, pkeys.size - 1)] == keys):
+            u = np.sort(np.concatenate([pkeys, keys]))  # (np.union1d's hash path is ~10x slower here)
+            pkeys = u[np.concatenate(([True], u[1:] != u[:-1]))]
+            indptr = np.zeros(n + 1, np.int64)
+            np.add.at(indptr, pkeys // n + 1, 1)
+            pat = (np.cumsum(indptr).astype(K.indptr.dtype), (pkeys % n).astype(K.indices.dtype), pkeys)
+            self._pattern = pat
+            pos = np.searchsorted(pkeys, keys)
+        self._pattern_cache = (K.indptr.copy(), K.indices.copy(), pos, pat)
+        data = np.zeros(pkeys.size)
+        data[pos] = K.data
+        return sp.csr_matrix((data, pat[1], pat[0]), shape=K.shape)
+
+    # ------------------------------------------------------------------ Newton at fixed load
+    def _newton(self, st: State, lc: LoadCase, stats: NewtonStats, *, rtol: float, atol: float,
+                ltol: float, max_iter: int, growth: float, callback=None, lc_prev: LoadCase | None = None):
+        locked = ~np.isnan(lc.locked_lengths)
+        history: list[float] = []
+        step_norms: list[float] = []
+        st = st.copy()
+        # prescribed tensions
+        st.T[~locked] = lc.tensions[~locked]
+        st.T[locked & st.slack] = 0.0
+        ev = self.evaluate(st, lc, tangent=True, stats=stats)
+        if lc_prev is not None:
+            # Euler predictor: the first matrix is the tangent of the converged start state under its
+            # own loads (prestress and load stiffness consistent), not under the new loads.  From an
+            # unstressed state with a pressure increment, the latter contains the follower-load
+            # stiffness without the matching wall prestress and can be near-singular (measured).
+            ev_prev = self.evaluate(st, lc_prev, tangent=True, stats=stats)
+            if ev_prev.get("K") is not None:
+                ev["K"] = ev_prev["K"]
+        for it in range(max_iter + 1):
+            r = ev["r"]
+            active = locked & ~st.slack
+            cres = (ev["L"] - lc.locked_lengths)[active]
+            rn = float(np.linalg.norm(r))
+            history.append(rn)
+            if callback is not None:
+                callback(dict(iteration=it, residual=rn, constraint=float(np.abs(cres).max(initial=0.0))))
+            tol = max(atol, rtol * ev["f_ref"])
+            if not np.isfinite(rn):
+                raise StepFailed("residual not finite", history, it)
+            if rn <= tol and np.all(np.abs(cres) <= ltol):
+                stats.n_iterations += it
+                self._last_step_norms = step_norms
+                return st, ev, history, it
+            if it == max_iter:
+                break
+            if len(history) > 3 and rn > 1e6 * min(history):
+                raise StepFailed("diverging", history, it)
+            t0 = time.perf_counter()
+            fac = factorize(ev["K"], self.linear_solver)
+            stats.n_factorizations += 1
+            if active.any():
+                gA = ev["g"][:, active]
+                sol = fac.solve(np.column_stack([r, gA]))
+                xr, Xg = sol[:, 0], sol[:, 1:]
+                S = gA.T @ Xg
+                dT = np.linalg.solve(S, cres - gA.T @ xr)
+                dq = -xr - Xg @ dT
+            else:
+                dq = -fac.solve(r)
+                dT = np.zeros(0)
+            stats.t_linear += time.perf_counter() - t0
+            del fac
+            step_norms.append(float(np.linalg.norm(dq)))
+            alpha = 1.0
+            for ls in range(12):
+                trial = self._apply(st, dq, alpha)
+                if active.any():
+                    trial.T[active] = st.T[active] + alpha * dT
+                # the full step is accepted almost always: assemble its tangent right away
+                ev_t = self.evaluate(trial, lc, tangent=(ls == 0), stats=stats)
+                ok = ev_t["jmin"] > 0 and bool(np.all(np.isfinite(ev_t["r"])))
+                if ok and np.linalg.norm(ev_t["r"]) <= growth * max(rn, tol):
+                    break
+                alpha *= 0.5
+            else:
+                raise StepFailed("line search failed (inverted elements or residual growth)", history, it)
+            st = trial
+            ev = ev_t if ev_t.get("K") is not None else self.evaluate(st, lc, tangent=True, stats=stats)
+        raise StepFailed(f"no convergence in {max_iter} iterations", history, max_iter)
+
+    # ------------------------------------------------------------------ public solve
+    def _loadcase(self, tensions, pressure, tip_force, gravity, locked_lengths) -> LoadCase:
+        m = self.m
+        T = np.zeros(m) if tensions is None else np.asarray(tensions, float).ravel()
+        if T.shape != (m,):
+            raise InputError(f"tensions must have {m} entries [N], got {T.shape}")
+        if not np.all(np.isfinite(T)) or np.any(T < 0):
+            raise InputError(f"tensions must be finite and >= 0 N (a cable cannot push), got {T}")
+        p = float(pressure)
+        if not np.isfinite(p):
+            raise InputError("pressure must be finite [Pa]")
+        F = np.asarray(tip_force, float).ravel()
+        if F.shape != (3,) or not np.all(np.isfinite(F)):
+            raise InputError(f"tip_force must be a finite 3-vector [N], got {tip_force!r}")
+        gs = float(gravity) if not isinstance(gravity, bool) else (1.0 if gravity else 0.0)
+        ll = np.full(m, np.nan)
+        if locked_lengths is not None:
+            vals = list(locked_lengths)
+            if len(vals) != m:
+                raise InputError(f"locked_lengths must have {m} entries (None = tension mode)")
+            for k, v in enumerate(vals):
+                if v is not None and not (isinstance(v, float) and np.isnan(v)):
+                    if not np.isfinite(v) or v <= 0:
+                        raise InputError(f"locked length {k} must be a positive length [m], got {v}")
+                    ll[k] = float(v)
+        return LoadCase(T, p, F, gs, ll)
+
+    def solve(self, tensions=None, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), gravity=False,
+              locked_lengths: Sequence[float | None] | None = None, initial: BellowsResult | None = None,
+              n_steps: int | None = None, rtol: float = 1e-9, atol: float = 1e-9, ltol: float = 1e-11,
+              max_iter: int = 25, max_cuts: int = 8, growth: float = 1e4,
+              progress: Callable[[dict], None] | None = None) -> BellowsResult:
+        """Static equilibrium under the given loads (SI units).
+
+        Parameters
+        ----------
+        tensions : (m,) [N]
+            Tendon tensions (≥ 0).  For locked tendons this is ignored (the tension is an unknown).
+        pressure : float [Pa]
+            Cavity gauge pressure (follower load on the inner wall and the distal cap).
+        tip_force : (3,) [N]
+            Dead force on the tip point of the distal cap (world frame).
+        gravity : bool or float
+            Dead weight of wall and cap (float: scale factor).
+        locked_lengths : (m,) of float or None, optional
+            Locked cable lengths [m]; ``None`` entries stay at prescribed tension.
+        initial : BellowsResult, optional
+            Start from this equilibrium and ramp the loads from its loads (warm start).
+        n_steps : int, optional
+            Initial number of load increments (adaptive cut-back/growth afterwards).
+        rtol, atol : float
+            Residual tolerance ``‖r‖ <= max(atol [N], rtol ‖f_ext‖)``.
+        ltol : float
+            Locked length tolerance [m].
+        progress : callable(dict), optional
+            Called after each converged load step with ``{"lam", "step", "iterations", "residuals"}``.
+
+        Returns
+        -------
+        BellowsResult
+
+        Raises
+        ------
+        ancf.errors.ConvergenceError
+            When a load increment fails after ``max_cuts`` cut-backs (carries the residual history).
+        """
+        from .results import BellowsResult
+
+        target = self._loadcase(tensions, pressure, tip_force, gravity, locked_lengths)
+        t_start = time.perf_counter()
+        stats = NewtonStats()
+        if initial is not None:
+            if initial.model is not self:
+                raise InputError("initial must be a result of this same BellowsModel")
+            st = initial.state.copy()
+            start = initial.loadcase
+            start = LoadCase(st.T.copy(), start.pressure, start.tip_force.copy(), start.gravity,
+                             np.full(self.m, np.nan))
+        else:
+            st = self.zero_state()
+            start = LoadCase(np.zeros(self.m), 0.0, np.zeros(3), 0.0, np.full(self.m, np.nan))
+        locked = ~np.isnan(target.locked_lengths)
+        L_now = self.tendon_lengths(st)
+        start.locked_lengths = np.where(locked, L_now, np.nan)
+        start.tensions = np.where(locked, st.T, start.tensions)
+        target.tensions = np.where(locked, st.T, target.tensions)  # unused for locked tendons
+        st.slack = locked & (st.T <= 0) & (target.locked_lengths >= L_now)
+        if n_steps is None:
+            dp = abs(target.pressure - start.pressure)
+            dT = float(np.abs(target.tensions - start.tensions).sum())
+            n_steps = 1 + int(dp / 20e3) + int(dT / 3.0)
+        lam, dlam, cuts = 0.0, 1.0 / max(1, int(n_steps)), 0
+        step = 0
+        while lam < 1.0 - 1e-14:
+            lam_t = min(1.0, lam + dlam)
+            lc = start.lerp(target, lam_t)
+            lc_prev = start.lerp(target, lam)
+            st_start = st
+            try:
+                for _pass in range(6):  # active-set passes for locked tendons
+                    st_new, ev, hist, its = self._newton(st, lc, stats, rtol=rtol, atol=atol, ltol=ltol,
+                                                         max_iter=max_iter, growth=growth,
+                                                         lc_prev=lc_prev if _pass == 0 else None)
+                    changed = False
+                    for k in np.flatnonzero(locked):
+                        if not st_new.slack[k] and st_new.T[k] < 0:
+                            st_new.slack[k], st_new.T[k], changed = True, 0.0, True
+                        elif st_new.slack[k] and ev["L"][k] > lc.locked_lengths[k] + ltol:
+                            st_new.slack[k], changed = False, True
+                    if not changed:
+                        break
+                    st = st_new
+                else:  # pragma: no cover
+                    raise StepFailed("tendon active set did not settle", hist, its)
+            except StepFailed as e:
+                cuts += 1
+                if cuts > max_cuts:
+                    raise ConvergenceError(
+                        f"load step λ {lam:.4g} → {lam_t:.4g} failed: {e.reason}; residual [N] per "
+                        f"iteration in .history", solver="fem_newton", iterations=e.iterations,
+                        residual_norm=e.history[-1] if e.history else np.nan,
+                        tolerance=max(atol, rtol), history=e.history) from None
+                dlam *= 0.5
+                st = st_start
+                continue
+            st = st_new
+            step += 1
+            stats.steps.append(dict(lam=lam_t, iterations=its, residuals=hist,
+                                    step_norms=list(self._last_step_norms)))
+            if progress is not None:
+                progress(dict(lam=lam_t, step=step, iterations=its, residuals=hist))
+            lam = lam_t
+            if its <= 5:
+                dlam = min(1.0, dlam * 1.5)
+        stats.t_total = time.perf_counter() - t_start
+        target.tensions = st.T.copy()
+        return BellowsResult(model=self, state=st, loadcase=target, stats=stats,
+                             tendon_lengths=self.tendon_lengths(st))
+
+    # ------------------------------------------------------------------ compliance
+    def cap_compliance(self, res: BellowsResult) -> np.ndarray:
+        """6×6 compliance of the cap centre: ``[δu_c; δθ] = C [δF; δM]`` (tension mode) [m/N, 1/N ...]."""
+        ev = self.evaluate(res.state, res.loadcase, tangent=True)
+        fac = factorize(ev["K"], self.linear_solver)
+        E = np.zeros((self.n_dofs, 6))
+        E[self.caps.cap_slice, :] = np.eye(6)
+        return E.T @ fac.solve(E)
+
+    def tip_compliance(self, res: BellowsResult, mode: str = "tension") -> np.ndarray:
+        """3×3 tip compliance ``δp_tip = C δF_tip`` [m/N] about the equilibrium ``res``.
+
+        ``mode="tension"``: tensions held constant.  ``mode="locked"``: tendons with ``T > 0`` held at
+        their current length (tensions are multipliers); slack tendons stay slack.
+        """
+        if mode not in ("tension", "locked"):
+            raise InputError("mode must be 'tension' or 'locked'")
+        st = res.state
+        ev = self.evaluate(st, res.loadcase, tangent=True)
+        fac = factorize(ev["K"], self.linear_solver)
+        Jp = self.tip_jacobian(st).toarray()
+        Y = fac.solve(Jp.T)
+        C = Jp @ Y
+        if mode == "locked":
+            act = st.T > 1e-12
+            if act.any():
+                g = ev["g"][:, act]
+                Z = fac.solve(g)
+                C = C - (Jp @ Z) @ np.linalg.solve(g.T @ Z, g.T @ Y)
+        return C
+
+    def equivalent_rod(self, res: BellowsResult | None = None) -> dict:
+        """Equivalent-rod parameters from the condensed cap tangent about ``res`` (default: unloaded).
+
+        Returns (SI): ``EA`` = L / C_{u_x F_x} [N]; ``EI`` = L / C_{θ_y M_y} [N m²] (pure moment, no
+        shear); ``EI_tip_force`` = L³ / (3 C_{u_z F_z}) [N m²] (cantilever with shear, i.e. what a
+        tip-load experiment identifies); ``D_a`` = sqrt(8 EI / EA) [m] (the ANCF thin-tube relation);
+        ``A_eff`` = (∂u_x/∂p) / C_{u_x F_x} [m²] — the blocked-force pressure area — and
+        ``D_eff`` = sqrt(4 A_eff / π) [m].  ``∂u/∂p = −K_q⁻¹ ∂r_q/∂p`` is exact because the residual
+        is affine in ``p`` at a fixed configuration.
+
+        Straight-tube closed form (Lamé, closed ends, long tube): ``A_eff = π a² (1 − 2ν)``.
+        """
+        if res is None:
+            res = self.solve()
+        L = self.geometry.length
+        st, lc = res.state, res.loadcase
+        ev = self.evaluate(st, lc, tangent=True)
+        fac = factorize(ev["K"], self.linear_solver)
+        E = np.zeros((self.n_dofs, 6))
+        E[self.caps.cap_slice, :] = np.eye(6)
+        C6 = E.T @ fac.solve(E)
+        lc1 = LoadCase(lc.tensions.copy(), lc.pressure + 1.0, lc.tip_force.copy(), lc.gravity,
+                       lc.locked_lengths.copy())
+        drdp = self.evaluate(st, lc1, tangent=False)["r"] - self.evaluate(st, lc, tangent=False)["r"]
+        dudp = -fac.solve(drdp)[self.caps.cap_slice]
+        EA = L / C6[0, 0]
+        EI = L / C6[4, 4]
+        A_eff = dudp[0] / C6[0, 0]
+        return dict(EA=EA, EI=EI, EI_tip_force=L ** 3 / (3 * C6[2, 2]), D_a=float(np.sqrt(8 * EI / EA)),
+                    A_eff=A_eff, D_eff=float(np.sqrt(4 * max(A_eff, 0.0) / np.pi)), cap_compliance=C6)
+

@@ -1,0 +1,112 @@
+"""Equilibrium results: tip pose, centreline, tendon data, VTU export."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .loads.caps import log_so3
+
+__all__ = ["BellowsResult"]
+
+
+@dataclass
+class BellowsResult:
+    """One converged equilibrium of a :class:`fem_reference.BellowsModel` (SI units).
+
+    Attributes
+    ----------
+    model : BellowsModel
+    state : State — nodal displacements ``U (3, n_nodes)`` [m], cap ``uc (3,)`` [m], ``R (3, 3)``, ``T (m,)`` [N]
+    loadcase : LoadCase — the loads that were reached (tensions hold the final tensions/multipliers)
+    stats : NewtonStats — timings [s], iterations, per-step residual histories
+    tendon_lengths : ndarray (m,) — cable path lengths [m]
+    """
+
+    model: object
+    state: object
+    loadcase: object
+    stats: object
+    tendon_lengths: np.ndarray
+
+    @property
+    def tip_position(self) -> np.ndarray:
+        """Tip point (cap centre + ``tip_offset`` along the cap axis), world frame [m], shape (3,)."""
+        return self.model.tip_position(self.state)
+
+    @property
+    def cap_rotation(self) -> np.ndarray:
+        """Rotation matrix of the distal cap (3, 3); its first column is the deformed tip axis."""
+        return self.state.R.copy()
+
+    @property
+    def cap_rotation_vector(self) -> np.ndarray:
+        """Rotation vector of the distal cap [rad], shape (3,)."""
+        return log_so3(self.state.R)
+
+    @property
+    def cap_centre(self) -> np.ndarray:
+        return self.model.X_c + self.state.uc
+
+    @property
+    def tensions(self) -> np.ndarray:
+        """Tendon tensions [N] (prescribed, or the multipliers of locked tendons), shape (m,)."""
+        return self.state.T.copy()
+
+    @property
+    def iterations(self) -> int:
+        """Total Newton iterations over all load steps."""
+        return int(self.stats.n_iterations)
+
+    @property
+    def displacement(self) -> np.ndarray:
+        """Nodal displacements [m], shape (3, n_nodes)."""
+        return self.state.U
+
+    @property
+    def centreline(self) -> np.ndarray:
+        """Deformed centreline, shape (2 n_s + 1, 3) [m]: mean of each ring of mid-wall nodes.
+
+        Row 0 is the base centre, the last row the distal cap centre; rows follow the fine mesh
+        lattice along the axis (vertices and mid-nodes).
+        """
+        bm = self.model.bmesh
+        n_s, n_t, n_th = bm.shape
+        x = bm.X + self.state.U
+        sel = bm.lattice[1] == n_t
+        i_s = bm.lattice[0, sel]
+        cnt = np.bincount(i_s, minlength=2 * n_s + 1)
+        return np.stack([np.bincount(i_s, weights=x[k, sel], minlength=2 * n_s + 1) / cnt for k in range(3)], 1)
+
+    def summary(self) -> dict:
+        """JSON-friendly summary (SI units)."""
+        lc = self.loadcase
+        return dict(
+            tip_position_m=self.tip_position.tolist(),
+            cap_rotation_vector_rad=self.cap_rotation_vector.tolist(),
+            tensions_N=self.tensions.tolist(),
+            tendon_lengths_m=np.asarray(self.tendon_lengths).tolist(),
+            pressure_Pa=float(lc.pressure),
+            tip_force_N=np.asarray(lc.tip_force).tolist(),
+            gravity=float(lc.gravity),
+            iterations=self.iterations,
+            load_steps=len(self.stats.steps),
+            timings_s=self.stats.as_dict(),
+            n_dofs=int(self.model.n_dofs),
+        )
+
+    def save_vtu(self, path: str | Path) -> Path:
+        """Write the deformed-state fields on the reference mesh (hex27 VTU, via meshio).
+
+        Point data: ``displacement`` [m]; open in ParaView with "Warp By Vector".
+        """
+        import meshio
+        from skfem.io.meshio import to_meshio
+
+        mm = to_meshio(self.model.bmesh.mesh, point_data={"displacement": self.state.U.T.copy()})
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        meshio.write(path, mm)
+        return path

@@ -1,0 +1,49 @@
+"""CLI (typer app mounted as ``bellows fem``) and headless rendering."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from fem_reference.cli import app
+
+
+def test_cli_solve_json_and_files(tmp_path):
+    r = CliRunner().invoke(app, ["solve", "--preset", "tube", "--tensions-n", "0.2,0,0", "--tip-force-n",
+                                 "0,0,-0.05", "--no-gravity", "--json", "--out", str(tmp_path)])
+    assert r.exit_code == 0, r.output
+    line = [ln for ln in r.stdout.splitlines() if ln.startswith("{")][-1]
+    d = json.loads(line)
+    assert len(d["tip_position_m"]) == 3 and d["iterations"] >= 1
+    assert d["tensions_N"] == [0.2, 0.0, 0.0]
+    assert (tmp_path / "result.vtu").exists()
+    assert json.loads((tmp_path / "result.json").read_text())["pressure_Pa"] == 0.0
+
+
+def test_cli_rejects_bad_input():
+    r = CliRunner().invoke(app, ["solve", "--tensions-n", "1,2"])
+    assert r.exit_code != 0
+    r = CliRunner().invoke(app, ["solve", "--preset", "tube", "--tensions-n", "-1,0,0"])
+    assert r.exit_code == 1 and "push" in r.output
+
+
+def test_cli_info():
+    r = CliRunner().invoke(app, ["info"])
+    assert r.exit_code == 0 and "wall_thickness" in r.output
+
+
+def test_render_png_headless(tmp_path):
+    pytest.importorskip("pyvista")
+    from fem_reference import BellowsGeometry, BellowsModel, Material, MeshLevel
+    from fem_reference.render import render_result
+
+    M = BellowsModel(BellowsGeometry.straight_tube(0.08, 0.015, 0.004, n_segments=2),
+                     Material.neo_hookean(0.8e6, 40e6), MeshLevel(2, 1, 12, 1))
+    res = M.solve(tensions=(0.5, 0, 0))
+    p = render_result(res, tmp_path / "r.png", window_size=(400, 300))
+    import matplotlib.image as mpimg
+
+    img = mpimg.imread(p)
+    assert img.shape[:2] == (300, 400)
+    assert np.std(img[..., :3]) > 0.01  # not a blank frame
