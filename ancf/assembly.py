@@ -19,26 +19,39 @@ from .forces.axial import add_axial
 from .forces.bending import add_bending
 from .forces.gravity import add_gravity
 from .forces.pressure import add_pressure, add_stretch_length
-from .forces.tendon import add_tendon
+from .forces.tendon import add_tendon, tendon_length_density
 from .forces.tip_load import add_tip_load
 
 
 @njit(cache=True)
 def _scatter(q_off, Nk, g9, H9, G, H, want_H):
+    """Add Bᵀ g9 into G and Bᵀ H9 B into the upper block triangle of H (see :func:`_mirror`).
+
+    No density has second derivatives in r (gravity is linear in r, the tip load is added separately),
+    so only the (r_x, r_xx) rows/columns of H9 (α, β ∈ {1, 2}) are scattered."""
     for j in range(4):
         for c in range(3):
             G[q_off + 3 * j + c] += Nk[0, j] * g9[c] + Nk[1, j] * g9[3 + c] + Nk[2, j] * g9[6 + c]
     if want_H:
         for j in range(4):
-            for l in range(4):
-                for al in range(3):
-                    for be in range(3):
+            for l in range(j, 4):
+                for al in range(1, 3):
+                    for be in range(1, 3):
                         f = Nk[al, j] * Nk[be, l]
                         if f == 0.0:
                             continue
                         for c in range(3):
                             for c2 in range(3):
                                 H[q_off + 3 * j + c, q_off + 3 * l + c2] += f * H9[3 * al + c, 3 * be + c2]
+
+
+@njit(cache=True)
+def _mirror(H):
+    """Complete H from its upper block triangle (3×3 blocks; diagonal blocks are already full)."""
+    n = H.shape[0]
+    for i in range(n):
+        for k in range(3 * (i // 3 + 1), n):
+            H[k, i] = H[i, k]
 
 
 @njit(cache=True)
@@ -50,8 +63,9 @@ def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H, need
 
     Parameters: N (nq, 3, 4) shape table, wq (nq,) weights in x [m]; ea, ei stiffness coefficients;
     pA = p A_eff [N]; mg = m' g [N/m]; E actuator frame (3, 3); d, co, so (m,) tendon distance [m] and
-    cos/sin θ; T (m,) tensions [N]; h tool offset [m]; F (3,) total tip load [N].  With
-    ``need_lengths`` False, slack tendons (T_i = 0) are skipped and l_c, J_l, J_arc are left at zero.
+    cos/sin θ; T (m,) tensions [N]; h tool offset [m]; F (3,) total tip load [N].
+    ``need_lengths``: 0 — slack tendons (T_i = 0) are skipped and l_c, J_l, J_arc, arc are left at zero
+    (Newton loops); 1 — lengths and arc length as values only (J_l, J_arc zero); 2 — values and gradients.
     """
     ndof = q.size
     m = d.size
@@ -91,19 +105,24 @@ def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H, need
             if pA != 0.0:
                 energy += add_pressure(a, pA, sc, g9, H9)
             energy += add_gravity(r, mg, sc, g9)
-            if need_lengths:
+            if need_lengths > 0:
                 ga[:] = 0.0
                 arc += add_stretch_length(a, sc, ga)
-                _scatter(off, Nk, ga, zero9, Jarc, H, False)
+                if need_lengths == 2:
+                    _scatter(off, Nk, ga, zero9, Jarc, H, False)
             for i in range(m):
-                if T[i] == 0.0 and not need_lengths:
+                if T[i] == 0.0 and need_lengths < 2:
+                    if need_lengths == 1:
+                        lc[i] += sc * tendon_length_density(a, b, E, d[i], co[i], so[i])
                     continue
                 gl[:] = 0.0
                 li = add_tendon(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H)
                 lc[i] += li
                 energy += T[i] * li
-                if need_lengths:
+                if need_lengths == 2:
                     _scatter(off, Nk, gl, zero9, Jl[i], H, False)
             _scatter(off, Nk, g9, H9, G, H, want_H)
+    if want_H:
+        _mirror(H)
     energy += add_tip_load(q, h, F, G, H, want_H)
     return energy, G, H, lc, Jl, arc, Jarc

@@ -175,23 +175,25 @@ class Model:
         return np.asarray(tip_force, float) + self.params.tip_mass * self._g
 
     def evaluate(self, q, tensions=None, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
-                 hessian: bool = True, gravity_scale: float = 1.0, lengths: bool = True) -> Evaluation:
+                 hessian: bool = True, gravity_scale: float = 1.0, lengths=True) -> Evaluation:
         """Potential, generalized force Q = ∂Π/∂q and tangent at full coordinates ``q`` (ndof,).
 
-        ``lengths=False`` skips what only the tendon lengths need (faster inside Newton loops); the
-        returned ``lengths``, ``J_l``, ``J_arc`` are then zero."""
+        ``lengths``: True — tendon lengths, arc length and their gradients; ``"values"`` — the lengths
+        without gradients (``J_l``, ``J_arc`` zero); False — none of them (``lengths`` zero too; faster
+        inside Newton loops)."""
         T = np.zeros(self.m) if tensions is None else np.ascontiguousarray(tensions, dtype=float)
         F = self.params.tip_mass * self._g * gravity_scale + np.asarray(tip_force, float)
         E, Q, K, lc, Jl, arc, Jarc = assemble(
             np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, self._ea, self._ei,
             float(pressure) * self.params.A_eff, self._mg * gravity_scale, self._E, self._d, self._co,
-            self._so, T, self.params.tool_offset, np.ascontiguousarray(F), hessian, lengths)
+            self._so, T, self.params.tool_offset, np.ascontiguousarray(F), hessian,
+            2 if lengths is True else (1 if lengths == "values" else 0))
         return Evaluation(E, Q, K if hessian else None, lc, Jl, arc, Jarc)
 
     # convenience accessors (full coordinates) ---------------------------------------------------
     def residual(self, q, tensions=None, pressure=0.0, tip_force=(0, 0, 0)) -> np.ndarray:
         """Q(q, T, p, F) = ∂Π/∂q (ndof,) — paper eq. (1)."""
-        return self.evaluate(q, tensions, pressure, tip_force, hessian=False).Q
+        return self.evaluate(q, tensions, pressure, tip_force, hessian=False, lengths=False).Q
 
     def tangent(self, q, tensions=None, pressure=0.0, tip_force=(0, 0, 0)) -> np.ndarray:
         """∂Q/∂q (ndof, ndof), symmetric."""
@@ -211,7 +213,7 @@ class Model:
 
     def tendon_lengths(self, q) -> np.ndarray:
         """l_c,i(q) [m] (paper eq. 5)."""
-        return self.evaluate(q, hessian=False).lengths
+        return self.evaluate(q, hessian=False, lengths="values").lengths
 
     def tendon_jacobian(self, q) -> np.ndarray:
         """∂l_c/∂q (m, ndof)."""
@@ -279,7 +281,7 @@ class Model:
         z0 = self._initial_z(q0)
         z, info = self._fk_z(z0, T, pr, F, tol, max_iter)
         q = self.to_full(z)
-        ev = self.evaluate(q, T, pr, F, hessian=False)
+        ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
         return self._result(q, T, pr, F, info, ev, "fk")
 
     def _fk_fun(self, T, pr, F, load=1.0):
@@ -293,7 +295,7 @@ class Model:
         def fun(z, hessian):
             q = self.to_full(z)
             E, Q, K, *_ = assemble(q, self.n, self._N, self._wq, self._ea, self._ei, pA, mg, self._E, self._d,
-                                   self._co, self._so, Ts, p.tool_offset, Ftot, hessian, False)
+                                   self._co, self._so, Ts, p.tool_offset, Ftot, hessian, 0)
             if not np.isfinite(E):
                 return np.inf, None, None
             return E, self.reduce_vec(Q), (self.reduce_mat(K) if hessian else None)
@@ -372,7 +374,7 @@ class Model:
             if np.all(T >= p.tension_min - 1e-9) and np.all(T <= p.tension_max + 1e-9):
                 T = np.clip(T, p.tension_min, p.tension_max)
                 q = self.to_full(z)
-                ev = self.evaluate(q, T, pr, F, hessian=False)
+                ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
                 return self._result(q, T, pr, F, info, ev, "ik")
         # bounded reduced solve over the tensions: feasible solution or nearest reachable point
         unconstrained = None if sol is None else sol[1]
@@ -434,16 +436,19 @@ class Model:
         if feasible and self.m > 3:
             # redundant tendons: least total tension Σ T² on the solution manifold, inside the bounds
             cons = {"type": "eq", "fun": fun, "jac": jac}
-            opt = so.minimize(lambda t: 0.5 * t @ t, T, jac=lambda t: t, bounds=list(zip(lo, hi)),
-                              constraints=[cons], method="SLSQP", options={"ftol": 1e-14, "maxiter": 100})
+            opt = so.minimize(lambda t: 0.5 * t @ t, T, jac=lambda t: t, bounds=list(zip(lo, hi, strict=True)),
+                              constraints=[cons], method="SLSQP", options={"ftol": 1e-12, "maxiter": 100})
             nfev += int(opt.nfev)
-            if opt.success and np.linalg.norm(fun(opt.x)) <= max(tol_position * 10, 1e-8):
+            # judge the candidate ourselves (SLSQP's own flag trips on the FK's round-off): on target,
+            # inside the bounds, and less total tension than the least-squares point
+            if (np.linalg.norm(fun(np.clip(opt.x, lo, hi))) <= max(tol_position * 10, 1e-8)
+                    and opt.x @ opt.x < T @ T):
                 T = np.clip(opt.x, lo, hi)
                 z = solve_fk(T)
                 q = self.to_full(z)
                 err = float(np.linalg.norm(self.tip(q) - pd))
         if feasible:
-            ev = self.evaluate(q, T, pr, F, hessian=False)
+            ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
             info = SolveInfo(nfev, float(np.linalg.norm(self.reduce_vec(ev.Q))), [])
             return self._result(q, T, pr, F, info, ev, "ik")
         violated = []
@@ -510,7 +515,7 @@ class Model:
 
     def _locked_active_set(self, z0, T0, l0, pr, F, tol, tol_length, max_iter):
         # initial active set: tendons carrying tension at lock time, else those the start state stretches
-        l_start = self.evaluate(self.to_full(z0), hessian=False).lengths
+        l_start = self.evaluate(self.to_full(z0), hessian=False, lengths="values").lengths
         A = [i for i in range(self.m) if T0[i] > 0 or l_start[i] > l0[i]]
         z, T = z0.copy(), T0.copy()
         seen = set()
@@ -529,13 +534,13 @@ class Model:
             z = x[:self.nz]
             T = np.zeros(self.m)
             T[A] = x[self.nz:]
-            lengths = self.evaluate(self.to_full(z), hessian=False).lengths
+            lengths = self.evaluate(self.to_full(z), hessian=False, lengths="values").lengths
             neg = [i for i in A if T[i] < -1e-10]
             over = [i for i in range(self.m) if i not in A and lengths[i] > l0[i] + tol_length]
             if not neg and not over:
                 q = self.to_full(z)
                 T = np.maximum(T, 0.0)
-                ev = self.evaluate(q, T, pr, F, hessian=False)
+                ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
                 slack = np.maximum(l0 - ev.lengths, 0.0)
                 slack[A] = 0.0
                 info.iterations = total
@@ -555,7 +560,7 @@ class Model:
         slack (or back) can stall there; the solve is then restarted with the initial sign of γ flipped
         for the tendons that started at zero tension (at most 2^m starts)."""
         nz, m = self.nz, self.m
-        l_start = self.evaluate(self.to_full(z0), hessian=False).lengths
+        l_start = self.evaluate(self.to_full(z0), hessian=False, lengths="values").lengths
         g_base = np.where(T0 > 0, np.sqrt(np.maximum(T0, 0)), -np.sqrt(np.maximum(l0 - l_start, 0)))
         undecided = [i for i in range(m) if g_base[i] == 0.0]
         g_base = np.where(g_base == 0, 1e-3, g_base)
@@ -597,6 +602,6 @@ class Model:
         T = np.where(gam > 0, gam ** 2, 0.0)
         slack = np.where(gam > 0, 0.0, gam ** 2)
         q = self.to_full(z)
-        ev = self.evaluate(q, T, pr, F, hessian=False)
+        ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
         return self._result(q, T, pr, F, info, ev, "fk_locked(gamma)", slack=slack,
                             active=tuple(int(i) for i in np.flatnonzero(gam > 0)))

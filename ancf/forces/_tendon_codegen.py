@@ -62,6 +62,11 @@ def build() -> str:
     lines1 += [f"    u[{i}] = {sp.pycode(red1[i])}" for i in range(3)]
     lines1 += [f"    Ju[{k // 6}, {k % 6}] = {sp.pycode(red1[3 + k])}" for k in range(18)]
     body1 = "\n".join(lines1).replace("math.", "")
+    # value-only variant (u): tendon lengths of a result
+    repl0, red0 = sp.cse(list(u), optimizations="basic")
+    lines0 = [f"    {s} = {sp.pycode(e)}" for s, e in repl0]
+    lines0 += [f"    u[{i}] = {sp.pycode(red0[i])}" for i in range(3)]
+    body0 = "\n".join(lines0).replace("math.", "")
     repl, red = sp.cse(outs, optimizations="basic")
     lines = []
     for s, e in repl:
@@ -106,7 +111,14 @@ def tendon_u(a0, a1, a2, b0, b1, b2, d, co, so, u, Ju, Hu):  # pragma: no cover 
 def tendon_uJ(a0, a1, a2, b0, b1, b2, d, co, so, u, Ju):  # pragma: no cover - compiled
     \"\"\"Like ``tendon_u`` without the second derivatives (u and Ju only).\"\"\"
 """
-    return header + body + second + body1 + "\n"
+    third = """
+
+
+@njit(cache=True, fastmath=False)
+def tendon_u_value(a0, a1, a2, b0, b1, b2, d, co, so, u):  # pragma: no cover - compiled
+    \"\"\"Only u = a + d (∂g/∂a) b (3,).\"\"\"
+"""
+    return header + body + second + body1 + third + body0 + "\n"
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ with E = [e1 e2 e3], a_loc = Eᵀ a and the derivatives rotate back blockwise (g
 import numpy as np
 from numba import njit
 
-from ._tendon_generated import tendon_u, tendon_uJ
+from ._tendon_generated import tendon_u, tendon_u_value, tendon_uJ
 
 
 @njit(cache=True)
@@ -93,6 +93,15 @@ def tendon_length_gradient(a, b, E, d, co, so):
         for c in range(3):
             g[3 * I + c] = E[c, 0] * gl0 + E[c, 1] * gl1 + E[c, 2] * gl2
     return w, g
+
+
+@njit(cache=True)
+def tendon_length_density(a, b, E, d, co, so):
+    """Length density |r_c,x| only (no derivatives)."""
+    al, bl = _to_frame(a, b, E)
+    u = np.empty(3)
+    tendon_u_value(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u)
+    return np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
 
 
 @njit(cache=True)
