@@ -170,9 +170,9 @@ class Model:
                                  f"{p.pressure_max:g}] Pa (note: SI pascals, 30 kPa = 30e3)")
         return np.ascontiguousarray(T, dtype=float), pr, np.ascontiguousarray(F, dtype=float)
 
-    def total_tip_load(self, tip_force) -> np.ndarray:
-        """External tip force plus the tip mass weight [N]."""
-        return np.asarray(tip_force, float) + self.params.tip_mass * self._g
+    def total_tip_load(self, tip_force, gravity_scale: float = 1.0) -> np.ndarray:
+        """External tip force plus the tip mass weight (scaled by ``gravity_scale``) [N], contiguous (3,)."""
+        return np.ascontiguousarray(np.asarray(tip_force, float) + self.params.tip_mass * self._g * gravity_scale)
 
     def evaluate(self, q, tensions=None, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
                  hessian: bool = True, gravity_scale: float = 1.0, lengths=True) -> Evaluation:
@@ -182,11 +182,11 @@ class Model:
         without gradients (``J_l``, ``J_arc`` zero); False — none of them (``lengths`` zero too; faster
         inside Newton loops)."""
         T = np.zeros(self.m) if tensions is None else np.ascontiguousarray(tensions, dtype=float)
-        F = self.params.tip_mass * self._g * gravity_scale + np.asarray(tip_force, float)
+        F = self.total_tip_load(tip_force, gravity_scale)
         E, Q, K, lc, Jl, arc, Jarc = assemble(
             np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, self._ea, self._ei,
             float(pressure) * self.params.A_eff, self._mg * gravity_scale, self._E, self._d, self._co,
-            self._so, T, self.params.tool_offset, np.ascontiguousarray(F), hessian,
+            self._so, T, self.params.tool_offset, F, hessian,
             2 if lengths is True else (1 if lengths == "values" else 0))
         return Evaluation(E, Q, K if hessian else None, lc, Jl, arc, Jarc)
 
@@ -287,7 +287,7 @@ class Model:
     def _fk_fun(self, T, pr, F, load=1.0):
         """Potential, free gradient and free Hessian at free coordinates z (lean path for Newton)."""
         Ts = np.ascontiguousarray(T * load, dtype=float)
-        Ftot = np.ascontiguousarray(self.params.tip_mass * self._g * load + F * load, dtype=float)
+        Ftot = self.total_tip_load(F * load, gravity_scale=load)
         pA = float(pr * load) * self.params.A_eff
         mg = self._mg * load
         p = self.params
