@@ -16,13 +16,42 @@ eq. (1) Q_f tip load, eq. (2b)    :mod:`ancf.forces.tip_load`, :mod:`ancf.kinema
 assembly of eq. (1)               :mod:`ancf.assembly`
 FK, IK (2), locked FK (3)–(6)     :mod:`ancf.model`, :mod:`ancf.solvers`
 ================================  ====================================================
+
+The package attributes are loaded lazily (PEP 562): ``import ancf.errors`` costs only that module (no
+numba, no scipy), so every other package can use the one exception tree without loading the model.
 """
 
-from .errors import (BellowsError, ConfigError, ConvergenceError, InfeasibleTargetError, InputError)
-from .stiffness import StiffnessLaw
-from .params import ActuatorParams, Tendon
-from . import presets
-from .model import Model, Equilibrium
+from __future__ import annotations
+
+import importlib
+
+from .errors import (BellowsError, ConfigError, ConvergenceError, InfeasibleTargetError, InputError,
+                     UnstableEquilibriumError)
+
+_LAZY = {
+    "StiffnessLaw": ("ancf.stiffness", "StiffnessLaw"),
+    "ActuatorParams": ("ancf.params", "ActuatorParams"),
+    "Tendon": ("ancf.params", "Tendon"),
+    "presets": ("ancf.presets", None),
+    "compliance": ("ancf.compliance", None),
+    "Model": ("ancf.model", "Model"),
+    "Equilibrium": ("ancf.model", "Equilibrium"),
+}
 
 __all__ = ["ActuatorParams", "Tendon", "StiffnessLaw", "Model", "Equilibrium", "presets", "BellowsError",
-           "ConfigError", "ConvergenceError", "InfeasibleTargetError", "InputError"]
+           "ConfigError", "ConvergenceError", "InfeasibleTargetError", "InputError", "UnstableEquilibriumError"]
+
+
+def __getattr__(name: str):
+    try:
+        module, attr = _LAZY[name]
+    except KeyError:
+        raise AttributeError(f"module 'ancf' has no attribute {name!r}") from None
+    mod = importlib.import_module(module)
+    value = mod if attr is None else getattr(mod, attr)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -1,4 +1,4 @@
-"""One assembly loop for every distributed generalized force (DESIGN.md §3).
+"""One assembly loop for every distributed generalized force (docs/design.md §3).
 
 Each force is a density w(r, r_x, r_xx) at a quadrature point (modules in :mod:`ancf.forces`).  Since
 r = S q^i, r_x = S_x q^i, r_xx = S_xx q^i are linear in the element coordinates, with

@@ -10,6 +10,7 @@ with one ``except``.  Each subclass also derives from the matching builtin (``Va
     ├── ConfigError (ValueError)            bad parameter file / value / unit, unknown key
     ├── InputError (ValueError)             NaN / inf / wrong shape / out-of-range call argument
     ├── ConvergenceError (RuntimeError)     a nonlinear solve did not converge (carries residual history)
+    ├── UnstableEquilibriumError (RuntimeError)  a solve reached an equilibrium that is not a minimum
     ├── InfeasibleTargetError (ValueError)  IK target needs a tension outside its bounds / is unreachable
     └── HardwareError (RuntimeError)        rig layer: limits, faults, timeouts (see ``hardware``)
 """
@@ -60,6 +61,24 @@ class ConvergenceError(BellowsError, RuntimeError):
         super().__init__(
             f"{solver}: {message} (residual {self.residual_norm:.3e} > tolerance {self.tolerance:.1e} "
             f"after {self.iterations} iterations)")
+
+
+class UnstableEquilibriumError(BellowsError, RuntimeError):
+    """A solve converged to an equilibrium that is not stable (a saddle or maximum of the potential).
+
+    Such a state is never returned as a result.  Attributes
+    ----------
+    solver : str
+        Which solve found it.
+    min_eigenvalue : float
+        Smallest eigenvalue of the reduced Hessian (on the constraint tangent space for locked tendons);
+        negative.  Units of the model's generalized stiffness.
+    """
+
+    def __init__(self, message: str, *, solver: str, min_eigenvalue: float):
+        self.solver = solver
+        self.min_eigenvalue = float(min_eigenvalue)
+        super().__init__(f"{solver}: {message} (smallest reduced stiffness eigenvalue {self.min_eigenvalue:.3e})")
 
 
 class InfeasibleTargetError(BellowsError, ValueError):

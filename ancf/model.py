@@ -4,7 +4,7 @@ Unknowns: the full coordinate vector q (6(n+1),) = [r_1, r_x,1, …, r_{n+1}, r_
 clamped (r_1 = 0, r_x,1 = e1); with ``free_base_stretch`` the base slope keeps its direction but not its
 length.  Free coordinates z map to q = q_fix + P z.
 
-Equilibrium is the stationarity of the potential (DESIGN.md §3)
+Equilibrium is the stationarity of the potential (docs/design.md §3)
 
     Π(q) = U_axial + U_bend + Σ_i T_i l_c,i(q) − p A_eff ∫|r_x| dx − m' ∫ g·r dx − F · p_end(q),
 

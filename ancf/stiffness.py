@@ -2,7 +2,7 @@
 
 Paper Sec. II-B identifies an effective structural stiffness ``k(λ) = a λ + b`` (a = 1336 N, b = -568.8 N)
 and writes ``k_t = k(λ) l_0``, ``k_b = D_a² l_0 λ k(λ) / 8``.  With the element energy written over the
-normalised coordinate ξ ∈ [0, 1] this reads (DESIGN.md §3, flagged interpretation)
+normalised coordinate ξ ∈ [0, 1] this reads (docs/design.md §3, flagged interpretation)
 
     EA(λ) = k(λ) = a λ + b,                 EI(λ) = D_a² λ k(λ) / 8 = (D_a²/8)(a λ² + b λ).
 

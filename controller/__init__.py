@@ -1,4 +1,4 @@
-"""Quasi-static tip-position controllers of the bellows actuator (DESIGN.md §4).
+"""Quasi-static tip-position controllers of the bellows actuator (docs/design.md §4).
 
 ================================  ==========================================================
 paper                             module

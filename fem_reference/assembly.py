@@ -14,7 +14,7 @@ Volume terms (27-point Gauss on each Hex2, ``dphi[a, J, e, q] = ∂N_a/∂X_J``,
 The element matrices are formed with one batched matrix product per chunk of elements
 (``(27 × 81) @ (81 × 243)`` per element) and summed into a fixed CSR pattern through a
 precomputed scatter map (``np.bincount``), so repeated assemblies never sort indices again.
-This is the kernel of ``fem_notes.md`` §1 (≈50× faster than ``BilinearForm`` for Hex2 vectors).
+This is the kernel of ``docs/fem.md`` §1 (≈50× faster than ``BilinearForm`` for Hex2 vectors).
 
 Follower pressure on the deformed inner surface (Nanson, :math:`n\,da = J F^{-T} N\,dA`); the
 solid's outward normal ``N`` on the inner surface points into the cavity, the pressure pushes along

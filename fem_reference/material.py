@@ -46,7 +46,7 @@ With :math:`a = J^{-2/3}`, :math:`\partial a/\partial F = -\tfrac23 a F^{-T}`,
 Both reduce to linear elasticity with shear modulus μ and bulk modulus κ at small strain
 (``E = 9κμ/(3κ + μ)``, ``ν = (3κ − 2μ)/(2(3κ + μ))``).  Near incompressibility is handled by
 full-integration quadratic hexahedra with ``κ/μ ≈ 50`` (ν ≈ 0.49): the locking error of this
-element at that ratio is ~1–3 % on a thin tube (fem_notes §3) and is measured by the straight-tube
+element at that ratio is ~1–3 % on a thin tube (docs/fem.md §3) and is measured by the straight-tube
 tests of this package.  A mixed u–p formulation is not implemented.
 """
 

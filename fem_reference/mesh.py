@@ -8,7 +8,7 @@ The wall is the image of the box lattice :math:`(\zeta, \tau, \theta)` under
 the geometry is curved to the accuracy of the quadratic iso-parametric map (the volume converges at
 :math:`O(h^4)`, tested).  ``BellowsMesh.lattice`` keeps the fine-lattice index of every node, which is
 how the inner surface, the cap faces and the tendon guide rings are selected (geometric lambdas on
-facet "midpoints" are fragile on curved surfaces, see ``fem_notes.md`` §2).
+facet "midpoints" are fragile on curved surfaces, see ``docs/fem.md`` §2).
 
 Construction: ``MeshHex1`` from the coarse lattice → ``MeshHex2.from_mesh`` (straight mid-nodes) →
 each local DOF ``j`` of the Hex2 element is the average of a fixed subset of the element's 8 vertices

@@ -2,7 +2,7 @@
 
 Stated by the paper (Sec. II, V): length 160 mm, length-to-diameter ≈ 5.4 (≈ 30 mm diameter),
 three tendons at routing distance 27.5 mm, θ = 0, 2π/3, 4π/3, DPI8400 silicone Shore 50A, rigid PLA
-end caps.  Identified ANCF parameters (DESIGN.md §2–3): EA ≈ 767 N, EI ≈ 0.084 N m², D_a = 29.59 mm,
+end caps.  Identified ANCF parameters (docs/design.md §2–3): EA ≈ 767 N, EI ≈ 0.084 N m², D_a = 29.59 mm,
 D_eff = 26.05 mm.
 
 **How the guessed dimensions were sized** (a sweep over n ∈ {6, 8}, t ∈ {3, 4, 5} mm, root/crest
@@ -46,7 +46,7 @@ STATED = {
     "length": (0.160, "m", "Sec. II: 160 mm"),
     "diameter": (0.0296, "m", "length-to-diameter ≈ 5.4:1 → ≈ 29.6 mm (equivalent D_a = 29.59 mm)"),
     "tendon_radius": (0.0275, "m", "Sec. V-C: d1 = 27.5 mm"),
-    "tendon_angles": ((0.0, 2 * np.pi / 3, 4 * np.pi / 3), "rad", "DESIGN.md §2"),
+    "tendon_angles": ((0.0, 2 * np.pi / 3, 4 * np.pi / 3), "rad", "docs/design.md §2"),
     "material": ("DPI8400 silicone, Shore 50A", "", "Sec. II"),
     "caps": ("rigid PLA, 3-D printed", "", "Sec. II"),
 }

@@ -1,6 +1,6 @@
 """Headless rendering of results to PNG with pyvista (VTK).
 
-System requirements (Debian/Ubuntu), measured with pyvista 0.49 / vtk 9.7 wheels (fem_notes §7):
+System requirements (Debian/Ubuntu), measured with pyvista 0.49 / vtk 9.7 wheels (docs/fem.md §7):
 
 - **EGL (default here)**: Mesa's ``libegl-mesa0`` and ``libgl1-mesa-dri`` (llvmpipe software OpenGL;
   no GPU, no X server).  This module sets ``VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow`` before

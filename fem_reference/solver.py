@@ -1,6 +1,6 @@
 """Sparse direct solvers and the Newton / load-stepping driver.
 
-Linear solver choice (measured in ``fem_notes.md`` §4 and ``benchmarks/bench_fem.py``):
+Linear solver choice (measured in ``docs/fem.md`` §4 and ``benchmarks/bench_fem.py``):
 ``pypardiso`` (MKL PARDISO, real non-symmetric ``mtype=11`` because the follower-pressure tangent is
 non-symmetric) when importable, else ``scipy.sparse.linalg.splu(A, permc_spec="MMD_AT_PLUS_A")``.
 Plain ``spsolve`` is never used (it ignores ``permc_spec`` and is 3–5× slower).  Measured by

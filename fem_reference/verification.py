@@ -2,7 +2,7 @@
 
 - :func:`uniaxial_block` — homogeneous uniaxial tension of a unit cube (symmetry BCs, prescribed
   face displacement, free lateral faces) with the same assembler as the bellows; exact answer from
-  :meth:`Material.uniaxial_stress` (fem_notes §6.1).
+  :meth:`Material.uniaxial_stress` (docs/fem.md §6.1).
 - :func:`tube_beam_theory` — axial, bending (Timoshenko), torsion compliances of a clamped tube.
 - :func:`rivlin_ring` / :func:`rivlin_ring_exact` — large-strain inflation of a plane-strain thick
   ring by a follower pressure vs Rivlin's incompressible solution: checks the follower load at
@@ -81,7 +81,7 @@ def tube_beam_theory(length: float, r_mid: float, thickness: float, material: Ma
 
 def rivlin_ring_exact(p_over_mu: float, A: float, B: float) -> float:
     """Deformed inner radius ``a`` of an incompressible neo-Hookean thick ring in plane strain under
-    internal pressure ``p = p_over_mu · μ`` (Rivlin; fem_notes §6.2):
+    internal pressure ``p = p_over_mu · μ`` (Rivlin; docs/fem.md §6.2):
     ``p/μ = ln(B/A) − ln(b/a) + (c/2)(1/a² − 1/b²)``, ``c = a² − A²``, ``b² = B² + c``.
     There is a limit pressure ``μ ln(B/A)``."""
     from scipy.optimize import brentq

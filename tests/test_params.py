@@ -16,7 +16,7 @@ def test_paper_preset_values():
     assert p.D_eff == pytest.approx(26.05e-3)
     assert p.tendon_distances == pytest.approx([27.5e-3] * 3)
     assert p.tendon_angles == pytest.approx([0, 2 * math.pi / 3, 4 * math.pi / 3])
-    # EA = k(1) = a + b, EI = D_a² k(1) / 8 (DESIGN.md §3)
+    # EA = k(1) = a + b, EI = D_a² k(1) / 8 (docs/design.md §3)
     assert p.stiffness.EA(1.0) == pytest.approx(1336 - 568.8)
     assert p.stiffness.EI(1.0) == pytest.approx(0.02959 ** 2 * (1336 - 568.8) / 8)
     assert p.pressure_max == pytest.approx(120e3) and p.tension_max == pytest.approx(5.0)

@@ -66,7 +66,7 @@ Measured (paper preset, n = 6; ``bellows paper all``)
 * Workspace, 10 000 samples per mode, seed 0, no failed solve: TD 2.38 cm³, TPHD 14.57 cm³,
   TPHD +512 % vs TD (paper +108.6 %).  The half-sample hulls are 1.7 % (TD) and 3.6 % (TPHD) smaller, so
   the ratio is still creeping up, not down.  Why so far from the paper: with EA = k(λ) ≈ 767 N
-  (DESIGN.md §3) the tendons (≤ 15 N) shorten the actuator by only ≈ 3 mm, so the TD cloud is a thin
+  (docs/design.md §3) the tendons (≤ 15 N) shorten the actuator by only ≈ 3 mm, so the TD cloud is a thin
   shell, while 120 kPa (≈ 64 N on A_eff) lengthens it by ≈ 12 mm; pressure hardly changes the lateral
   reach (front view of the figure).  With the alternative reading EA = k(λ)·L (≈ 123 N) the same study
   gives ≈ +77 % (2 000 samples; 183 of 4 000 FK solves fail at the extreme inputs) — the paper's order —

@@ -1,6 +1,6 @@
 """Built-in actuator presets (TOML files beside this module).
 
-``paper()``        the paper's actuator (DESIGN.md §2), linear stiffness law, 3 tendons.
+``paper()``        the paper's actuator (docs/design.md §2), linear stiffness law, 3 tendons.
 ``paper_constant()`` the same actuator with the constant law EA = k(1), EI = D_a² k(1)/8.
 ``four_tendon()``  paper geometry with four tendons at 90° and a constant law.
 """

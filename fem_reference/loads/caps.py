@@ -1,4 +1,4 @@
-r"""Rigid caps as a nonlinear 6-DOF reduction (``fem_notes.md`` §5).
+r"""Rigid caps as a nonlinear 6-DOF reduction (``docs/fem.md`` §5).
 
 The base cap is clamped: every node of the base face is fixed.  The distal cap is rigid: every node
 of the distal face (vertices and Hex2 edge/face nodes) is placed exactly

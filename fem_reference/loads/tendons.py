@@ -1,4 +1,4 @@
-r"""Tendons as frictionless sliding cables through guide points (``fem_notes.md`` §5).
+r"""Tendons as frictionless sliding cables through guide points (``docs/fem.md`` §5).
 
 A tendon is the polyline :math:`x_0, x_1, \dots, x_n`: ``x_0`` is the fixed exit on the base cap at
 distance ``d`` from the axis, ``x_1 … x_{n-1}`` are guide points (one per interior root), ``x_n`` is the

@@ -35,7 +35,7 @@ def test_pressure_load_stiffness_matches_central_fd(tube_mesh):
     fd = (pa.assemble(U + h * d, p, False)[0] - pa.assemble(U - h * d, p, False)[0]) / (2 * h)
     an = K @ d.T.ravel()
     assert np.linalg.norm(fd - an) < 1e-6 * np.linalg.norm(an)
-    # non-symmetric on an open surface (fem_notes §2)
+    # non-symmetric on an open surface (docs/fem.md §2)
     assert abs(K - K.T).max() > 1e-3 * abs(K).max()
 
 

@@ -3,7 +3,7 @@
 This is the "does not lock" evidence for the element choice (full-integration 27-node hexahedra,
 no mixed formulation): at κ/μ = 1000 (ν ≈ 0.9995) the inner radius grows by ~69 % and the FE result
 is within 0.5 % of the exact *displacement* of the incompressible solution on a 2 × 12 mesh
-(a locking element is tens of percent too stiff here: Hex1 gives −84 %, fem_notes §3).
+(a locking element is tens of percent too stiff here: Hex1 gives −84 %, docs/fem.md §3).
 """
 
 import numpy as np

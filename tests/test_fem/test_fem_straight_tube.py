@@ -1,10 +1,10 @@
-"""Straight-tube limit vs closed forms: axial EA/L, Timoshenko tip deflection, torsion (fem_notes §6.3).
+"""Straight-tube limit vs closed forms: axial EA/L, Timoshenko tip deflection, torsion (docs/fem.md §6.3).
 
 Tube L = 160 mm, R_mid = 15 mm, t = 4 mm, clamped base, rigid cap; mesh 32 × 1 × 12 Hex2.
 Tolerances: at ν = 0.3 the FE/beam ratios are within 2 % (the remaining ~1 % is the real restraint of
 Poisson contraction at the clamp and cap, a boundary layer of length ~√(Rt)); torsion has no such
 effect and must agree to 0.2 %.  At ν = 0.49 (the silicone model) the ratios are within 5 %
-(end restraint + some volumetric stiffening of Hex2, fem_notes §3).
+(end restraint + some volumetric stiffening of Hex2, docs/fem.md §3).
 """
 
 import numpy as np

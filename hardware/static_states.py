@@ -1,0 +1,340 @@
+"""Static states: the one file format for measured (or simulated) equilibria of an actuator.
+
+A *static state* is an equilibrium held long enough to be measured: the tendon tensions, the chamber
+pressure, the tip load if it is known, the tip position and, optionally, marker positions along the
+body — each with its uncertainty.  The rig layer writes them (a run log holds them in its
+``/static_states`` group) and :func:`validation.identify.from_measurements` fits the reduced model to
+them.  The format is documented in ``docs/data-formats.md``; in short:
+
+HDF5 (canonical).  A group (the file root or ``/static_states``) with attributes
+``format = "bellows-static-states"``, ``format_version = 1`` and optional ``description``,
+``actuator_toml`` (the actuator file the states were recorded with), and datasets (N states, m tendons,
+k markers), each with a ``units`` attribute:
+
+=====================  ==========  ======  ==========================================================
+dataset                shape       units   meaning
+=====================  ==========  ======  ==========================================================
+``tensions``           (N, m)      N       tendon tensions (required)
+``pressure``           (N,)        Pa      chamber gauge pressure (required)
+``tip_position``       (N, 3)      m       tool point in the actuator's world frame (required)
+``tip_force``          (N, 3)      N       external tip load; NaN rows = unknown (optional, default 0)
+``markers``            (N, k, 3)   m       marker positions on the centreline (optional)
+``marker_arclength``   (k,)        m       undeformed arc length of each marker from the base
+``*_std``              as above    same    one standard deviation of the quantity (optional)
+``time``               (N,)        s       when the state was recorded (optional)
+``label``              (N,)        —       free text per state (optional)
+=====================  ==========  ======  ==========================================================
+
+CSV (accepted).  One row per state; every numeric column names its unit as a suffix, as in actuator
+files: ``tension1_N``, ``pressure_kPa`` | ``pressure_Pa``, ``tip_x_mm`` | ``tip_x_m`` (and ``_y``, ``_z``),
+``force_x_N`` …, ``tip_std_mm`` | ``tip_std_m`` (isotropic), ``tension_std_N``, ``pressure_std_kPa``,
+``label``.  Markers are HDF5-only.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+from ancf.errors import ConfigError, InputError
+
+FORMAT = "bellows-static-states"
+FORMAT_VERSION = 1
+
+_UNITS = {"N": 1.0, "Pa": 1.0, "kPa": 1e3, "bar": 1e5, "m": 1.0, "mm": 1e-3, "s": 1.0}
+
+
+@dataclass
+class StaticStates:
+    """A set of N measured static states (SI units; see the module docstring for shapes).
+
+    Required: ``tensions`` (N, m) [N], ``pressure`` (N,) [Pa], ``tip_position`` (N, 3) [m].
+    Optional: ``tip_force`` (N, 3) [N] (NaN = unknown), ``markers`` (N, k, 3) [m] with
+    ``marker_arclength`` (k,) [m], standard deviations ``*_std``, ``time`` (N,) [s], ``label`` (N,).
+    """
+
+    tensions: np.ndarray
+    pressure: np.ndarray
+    tip_position: np.ndarray
+    tip_force: Optional[np.ndarray] = None
+    markers: Optional[np.ndarray] = None
+    marker_arclength: Optional[np.ndarray] = None
+    tensions_std: Optional[np.ndarray] = None
+    pressure_std: Optional[np.ndarray] = None
+    tip_position_std: Optional[np.ndarray] = None
+    tip_force_std: Optional[np.ndarray] = None
+    markers_std: Optional[np.ndarray] = None
+    time: Optional[np.ndarray] = None
+    label: Optional[list] = None
+    description: str = ""
+    actuator_toml: str = ""
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        T = _arr("tensions", self.tensions, 2)
+        N, m = T.shape
+        if N == 0:
+            raise InputError("static states: no state given")
+        self.tensions = T
+        self.pressure = _arr("pressure", self.pressure, 1, (N,))
+        self.tip_position = _arr("tip_position", self.tip_position, 2, (N, 3))
+        if np.any(T < 0):
+            raise InputError("static states: tensions must be >= 0 N (a tendon cannot push)")
+        if self.tip_force is not None:
+            self.tip_force = _arr("tip_force", self.tip_force, 2, (N, 3), allow_nan=True)
+        if self.markers is not None:
+            mk = _arr("markers", self.markers, 3)
+            if mk.shape[0] != N or mk.shape[2] != 3:
+                raise InputError(f"static states: markers must have shape (N={N}, k, 3), got {mk.shape}")
+            self.markers = mk
+            if self.marker_arclength is None:
+                raise InputError("static states: markers need marker_arclength (k,) [m]")
+            self.marker_arclength = _arr("marker_arclength", self.marker_arclength, 1, (mk.shape[1],))
+        elif self.marker_arclength is not None:
+            raise InputError("static states: marker_arclength given without markers")
+        for name, like in (("tensions_std", T), ("pressure_std", self.pressure),
+                           ("tip_position_std", self.tip_position), ("tip_force_std", self.tip_force),
+                           ("markers_std", self.markers)):
+            v = getattr(self, name)
+            if v is None:
+                continue
+            if like is None:
+                raise InputError(f"static states: {name} given without {name[:-4]}")
+            a = np.broadcast_to(_arr(name, v, None), like.shape).astype(float).copy()
+            if np.any(a < 0):
+                raise InputError(f"static states: {name} must be >= 0")
+            setattr(self, name, a)
+        if self.time is not None:
+            self.time = _arr("time", self.time, 1, (N,))
+        if self.label is not None:
+            if len(self.label) != N:
+                raise InputError(f"static states: label needs {N} entries, got {len(self.label)}")
+            self.label = [str(x) for x in self.label]
+
+    @property
+    def n_states(self) -> int:
+        return self.tensions.shape[0]
+
+    @property
+    def n_tendons(self) -> int:
+        return self.tensions.shape[1]
+
+    def subset(self, index) -> "StaticStates":
+        """The states selected by ``index`` (indices or boolean mask)."""
+        idx = np.arange(self.n_states)[index]
+        kw = {}
+        for name in ("tensions", "pressure", "tip_position", "tip_force", "markers", "tensions_std",
+                     "pressure_std", "tip_position_std", "tip_force_std", "markers_std", "time"):
+            v = getattr(self, name)
+            kw[name] = None if v is None else v[idx]
+        kw["label"] = None if self.label is None else [self.label[i] for i in idx]
+        return StaticStates(marker_arclength=self.marker_arclength, description=self.description,
+                            actuator_toml=self.actuator_toml, meta=dict(self.meta), **kw)
+
+
+def _arr(name, v, ndim, shape=None, allow_nan=False) -> np.ndarray:
+    try:
+        a = np.array(v, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"static states: {name} must be numeric, got {type(v).__name__}") from None
+    if ndim is not None and a.ndim != ndim:
+        raise InputError(f"static states: {name} must be {ndim}-D, got shape {a.shape}")
+    if shape is not None and a.shape != shape:
+        raise InputError(f"static states: {name} must have shape {shape}, got {a.shape}")
+    bad = ~np.isfinite(a)
+    if allow_nan:
+        bad &= ~np.isnan(a)
+    if np.any(bad):
+        raise InputError(f"static states: {name} contains {'inf' if allow_nan else 'NaN or inf'}")
+    return a
+
+
+_DATASETS = {"tensions": "N", "pressure": "Pa", "tip_position": "m", "tip_force": "N", "markers": "m",
+             "marker_arclength": "m", "tensions_std": "N", "pressure_std": "Pa", "tip_position_std": "m",
+             "tip_force_std": "N", "markers_std": "m", "time": "s"}
+
+
+# ------------------------------------------------------------------------------------------------ HDF5
+def write_static_states(target, states: StaticStates, *, group: str = "static_states", overwrite: bool = False):
+    """Write ``states`` to an HDF5 file path (creates ``/<group>``; refuses to overwrite an existing file
+    unless ``overwrite``) or into an open ``h5py.Group`` (its subgroup ``group``).  Returns the path or
+    the group."""
+    import h5py
+    if isinstance(target, (str, pathlib.Path)):
+        path = pathlib.Path(target)
+        if path.exists() and not overwrite:
+            raise InputError(f"{path} exists; pass overwrite=True (CLI: --force) to replace it")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with h5py.File(path, "w") as f:
+            _write_group(f.create_group(group), states)
+        return path
+    return _write_group(target.create_group(group), states)
+
+
+def _write_group(g, states: StaticStates):
+    g.attrs["format"] = FORMAT
+    g.attrs["format_version"] = FORMAT_VERSION
+    g.attrs["description"] = states.description
+    g.attrs["actuator_toml"] = states.actuator_toml
+    for name, unit in _DATASETS.items():
+        v = getattr(states, name)
+        if v is not None:
+            ds = g.create_dataset(name, data=np.asarray(v, float))
+            ds.attrs["units"] = unit
+    if states.label is not None:
+        import h5py
+        g.create_dataset("label", data=np.array(states.label, dtype=object), dtype=h5py.string_dtype())
+    return g
+
+
+def read_static_states(path, *, group: Optional[str] = None) -> StaticStates:
+    """Read static states from an HDF5 file (``/static_states`` of a run log, or a file whose root has the
+    format attributes) or from a CSV file (by suffix).  Raises :class:`ConfigError` on a malformed file."""
+    path = pathlib.Path(path)
+    if not path.exists():
+        raise InputError(f"static-states file {path} does not exist")
+    if path.suffix.lower() == ".csv":
+        return _read_csv(path)
+    import h5py
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise ConfigError(f"{path}: not a readable HDF5 file ({exc})") from None
+    with f:
+        if group is not None:
+            if group not in f:
+                raise ConfigError(f"{path}: no group '{group}'")
+            g = f[group]
+        elif f.attrs.get("format") == FORMAT:
+            g = f
+        elif "static_states" in f:
+            g = f["static_states"]
+        else:
+            raise ConfigError(f"{path}: no static states (neither a '/static_states' group nor a file with "
+                              f"format = '{FORMAT}')")
+        if g.attrs.get("format") != FORMAT:
+            raise ConfigError(f"{path}: group {g.name} is not in the '{FORMAT}' format")
+        version = int(g.attrs.get("format_version", 0))
+        if version > FORMAT_VERSION:
+            raise ConfigError(f"{path}: format version {version} is newer than this reader ({FORMAT_VERSION})")
+        kw = {}
+        for name, unit in _DATASETS.items():
+            if name in g:
+                got = g[name].attrs.get("units")
+                if got != unit:
+                    raise ConfigError(f"{path}: dataset {name} has units {got!r}; expected {unit!r}")
+                kw[name] = g[name][()]
+        for req in ("tensions", "pressure", "tip_position"):
+            if req not in kw:
+                raise ConfigError(f"{path}: static states need a '{req}' dataset")
+        if "label" in g:
+            kw["label"] = [x.decode() if isinstance(x, bytes) else str(x) for x in g["label"][()]]
+        kw["description"] = str(g.attrs.get("description", ""))
+        kw["actuator_toml"] = str(g.attrs.get("actuator_toml", ""))
+    try:
+        return StaticStates(**kw)
+    except InputError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+# ------------------------------------------------------------------------------------------------ CSV
+def _column(header: list[str], stem: str) -> Optional[tuple[int, float]]:
+    hits = [(i, _UNITS[h[len(stem) + 1:]]) for i, h in enumerate(header)
+            if h.startswith(stem + "_") and h[len(stem) + 1:] in _UNITS]
+    if len(hits) > 1:
+        raise ConfigError(f"column '{stem}' given twice (in two units)")
+    if not hits:
+        bare = [h for h in header if h == stem]
+        if bare:
+            raise ConfigError(f"column '{stem}' needs a unit suffix (e.g. {stem}_mm, {stem}_N, {stem}_kPa)")
+        return None
+    return hits[0]
+
+
+def _read_csv(path: pathlib.Path) -> StaticStates:
+    with open(path, newline="") as fh:
+        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+    if len(rows) < 2:
+        raise ConfigError(f"{path}: needs a header row and at least one state")
+    header = [h.strip() for h in rows[0]]
+    body = rows[1:]
+
+    def col(stem, required=False):
+        try:
+            hit = _column(header, stem)
+        except ConfigError as exc:
+            raise ConfigError(f"{path}: {exc}") from None
+        if hit is None:
+            if required:
+                raise ConfigError(f"{path}: missing column '{stem}_<unit>'")
+            return None
+        i, fac = hit
+        out = []
+        for r, row in enumerate(body):
+            txt = row[i].strip() if i < len(row) else ""
+            try:
+                out.append(float(txt) * fac if txt else math.nan)
+            except ValueError:
+                raise ConfigError(f"{path}: row {r + 2}, column {header[i]}: not a number: {txt!r}") from None
+        return np.array(out)
+
+    m = 0
+    while any(h.startswith(f"tension{m + 1}_") for h in header):
+        m += 1
+    if m == 0:
+        raise ConfigError(f"{path}: no tension columns (tension1_N, tension2_N, ...)")
+    T = np.column_stack([col(f"tension{i + 1}", True) for i in range(m)])
+    p = col("pressure", True)
+    tip = np.column_stack([col(f"tip_{c}", True) for c in "xyz"])
+    fcols = [col(f"force_{c}") for c in "xyz"]
+    F = None if all(c is None for c in fcols) else np.column_stack(
+        [c if c is not None else np.zeros(len(body)) for c in fcols])
+    tip_std = col("tip_std")
+    t_std = col("tension_std")
+    p_std = col("pressure_std")
+    labels = None
+    if "label" in header:
+        i = header.index("label")
+        labels = [row[i] if i < len(row) else "" for row in body]
+    for name, v in (("tensions", T), ("pressure", p), ("tip_position", tip)):
+        if np.any(np.isnan(v)):
+            raise ConfigError(f"{path}: empty cells in the required {name} columns")
+    try:
+        return StaticStates(tensions=T, pressure=p, tip_position=tip, tip_force=F,
+                            tip_position_std=None if tip_std is None else np.repeat(tip_std[:, None], 3, 1),
+                            tensions_std=None if t_std is None else np.repeat(t_std[:, None], m, 1),
+                            pressure_std=p_std, label=labels)
+    except InputError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
+
+
+def write_static_states_csv(path, states: StaticStates, *, overwrite: bool = False) -> pathlib.Path:
+    """Write ``states`` as CSV in SI units (markers are not written: HDF5 only)."""
+    path = pathlib.Path(path)
+    if path.exists() and not overwrite:
+        raise InputError(f"{path} exists; pass overwrite=True (CLI: --force) to replace it")
+    m = states.n_tendons
+    header = [f"tension{i + 1}_N" for i in range(m)] + ["pressure_Pa", "tip_x_m", "tip_y_m", "tip_z_m"]
+    cols = [states.tensions[:, i] for i in range(m)] + [states.pressure] + [states.tip_position[:, c]
+                                                                             for c in range(3)]
+    if states.tip_force is not None:
+        header += ["force_x_N", "force_y_N", "force_z_N"]
+        cols += [states.tip_force[:, c] for c in range(3)]
+    if states.tip_position_std is not None:
+        header.append("tip_std_m")
+        cols.append(states.tip_position_std.max(axis=1))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header + (["label"] if states.label is not None else []))
+        for k in range(states.n_states):
+            row = [repr(float(c[k])) for c in cols]
+            if states.label is not None:
+                row.append(states.label[k])
+            w.writerow(row)
+    return path

@@ -1,0 +1,20 @@
+"""Module-level task functions for the runner tests (picklable for worker processes)."""
+
+import os
+import time
+
+
+def square(task):
+    return {"x": task["x"], "y": task["x"] ** 2, "pid": os.getpid()}
+
+
+def slow(task):
+    time.sleep(task["sleep"])
+    return {"x": task["x"], "pid": os.getpid()}
+
+
+def fail_on(task):
+    from ancf.errors import InputError
+    if task["x"] == task["bad"]:
+        raise InputError(f"bad task {task['x']}")
+    return task["x"]

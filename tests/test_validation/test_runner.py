@@ -1,0 +1,98 @@
+"""The shared task runner: backends agree, results stream, the cache resumes, Ctrl-C keeps finished work."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+from ancf.errors import BellowsError, InputError
+from validation.runner import ResultCache, RunInterrupted, run_tasks, task_key
+
+import _runner_tasks as T
+
+
+def test_serial_and_processes_agree_and_stream_every_result():
+    tasks = [{"x": k} for k in range(7)]
+    seen = []
+    a = run_tasks(T.square, tasks, workers=1, progress=False)
+    b = run_tasks(T.square, tasks, workers=2, progress=False, on_result=lambda i, r: seen.append(i))
+    assert [r["y"] for r in a.results] == [k * k for k in range(7)]
+    assert [r["y"] for r in b.results] == [r["y"] for r in a.results]
+    assert sorted(seen) == list(range(7))
+    assert len({r["pid"] for r in b.results}) >= 1 and b.backend.startswith("processes")
+    assert a.backend.startswith("serial")
+
+
+def test_cache_skips_finished_tasks_and_recomputes_changed_ones(tmp_path):
+    cache = ResultCache(tmp_path / "c", version="v1")
+    tasks = [{"x": k} for k in range(4)]
+    first = run_tasks(T.square, tasks, workers=1, progress=False, cache=cache)
+    assert first.cached == 0 and first.computed_indices == [0, 1, 2, 3]
+    tasks[2] = {"x": 10}
+    second = run_tasks(T.square, tasks, workers=1, progress=False, cache=cache)
+    assert second.cached == 3 and second.computed_indices == [2]
+    assert second.results[2]["y"] == 100
+    # another code version invalidates everything
+    third = run_tasks(T.square, tasks, workers=1, progress=False, cache=ResultCache(tmp_path / "c", version="v2"))
+    assert third.cached == 0
+
+
+def test_task_key_is_canonical_and_sensitive():
+    import numpy as np
+    assert task_key({"a": 1.0, "b": [1, 2]}) == task_key({"b": [1, 2], "a": 1.0})
+    assert task_key({"a": np.array([1.0, 2.0])}) != task_key({"a": np.array([1.0, 2.0 + 1e-12])})
+    with pytest.raises(InputError):
+        task_key({"a": object()})
+
+
+def test_task_errors_propagate_typed():
+    with pytest.raises(InputError, match="bad task 3"):
+        run_tasks(T.fail_on, [{"x": k, "bad": 3} for k in range(5)], workers=2, progress=False)
+
+
+def test_bad_arguments_are_typed_errors():
+    with pytest.raises(InputError):
+        run_tasks(T.square, [{"x": 1}], workers=0, progress=False)
+    with pytest.raises(InputError):
+        run_tasks(T.square, [{"x": 1}], weights=[1, 2], progress=False)
+
+
+def test_ctrl_c_stops_workers_promptly_and_keeps_finished_results(tmp_path):
+    """SIGINT to a running 2-worker sweep: it returns within seconds, the finished results are saved, and no
+    worker process survives."""
+    out = tmp_path / "done.json"
+    script = textwrap.dedent(f"""
+        import json, sys
+        sys.path.insert(0, {str(os.path.dirname(__file__))!r})
+        import _runner_tasks as T
+        from validation.runner import run_tasks, RunInterrupted
+        tasks = [{{"x": k, "sleep": 0.2 if k < 4 else 30.0}} for k in range(12)]
+        try:
+            run_tasks(T.slow, tasks, workers=2, progress=False)
+        except RunInterrupted as exc:
+            pids = [r["pid"] for r in exc.completed.values()]
+            json.dump({{"done": sorted(exc.completed), "total": exc.total, "pids": pids}}, open({str(out)!r}, "w"))
+            sys.exit(3)
+    """)
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=os.getcwd())
+    time.sleep(4.0)          # the 4 short tasks are done, two 30 s tasks are running
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    rc = proc.wait(timeout=20)
+    assert time.monotonic() - t0 < 10
+    assert rc == 3
+    data = json.loads(out.read_text())
+    assert data["total"] == 12 and set(range(4)) <= set(data["done"]) and len(data["done"]) < 12
+    for pid in set(data["pids"]):        # workers are gone
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
+
+
+def test_run_interrupted_is_a_bellows_error():
+    exc = RunInterrupted("sweep interrupted", completed={0: 1}, total=3, saved_to="x.json")
+    assert isinstance(exc, BellowsError) and "1 of 3" in str(exc) and "x.json" in str(exc)
