@@ -9,6 +9,7 @@ with one ``except``.  Each subclass also derives from the matching builtin (``Va
     BellowsError
     ├── ConfigError (ValueError)            bad parameter file / value / unit, unknown key
     ├── InputError (ValueError)             NaN / inf / wrong shape / out-of-range call argument
+    │   └── OutputExistsError               an output exists and overwriting was not asked for
     ├── ConvergenceError (RuntimeError)     a nonlinear solve did not converge (carries residual history)
     ├── UnstableEquilibriumError (RuntimeError)  a solve reached an equilibrium that is not a minimum
     ├── InfeasibleTargetError (ValueError)  IK target needs a tension outside its bounds / is unreachable
@@ -32,6 +33,10 @@ class ConfigError(BellowsError, ValueError):
 
 class InputError(BellowsError, ValueError):
     """A call argument is invalid (NaN, wrong shape, outside the operating range, ...)."""
+
+
+class OutputExistsError(InputError):
+    """An output file exists and overwriting it was not asked for (``force=True`` / ``--force``)."""
 
 
 class ConvergenceError(BellowsError, RuntimeError):
