@@ -12,6 +12,7 @@ with one ``except``.  Each subclass also derives from the matching builtin (``Va
     │   └── OutputExistsError               an output exists and overwriting was not asked for
     ├── ConvergenceError (RuntimeError)     a nonlinear solve did not converge (carries residual history)
     ├── UnstableEquilibriumError (RuntimeError)  a solve reached an equilibrium that is not a minimum
+    ├── CollapsedStateError (RuntimeError)  a state outside the stiffness law's validity range
     ├── InfeasibleTargetError (ValueError)  IK target needs a tension outside its bounds / is unreachable
     └── HardwareError (RuntimeError)        rig layer: limits, faults, timeouts (see ``hardware``)
 """
@@ -84,6 +85,17 @@ class UnstableEquilibriumError(BellowsError, RuntimeError):
         self.solver = solver
         self.min_eigenvalue = float(min_eigenvalue)
         super().__init__(f"{solver}: {message} (smallest reduced stiffness eigenvalue {self.min_eigenvalue:.3e})")
+
+
+class CollapsedStateError(BellowsError, RuntimeError):
+    """A solve reached a state outside the validity range of the stiffness law (e.g. a stretch where
+    EA(λ) or EI(λ) is no longer positive: the section has collapsed).  Such a state is not a valid
+    equilibrium of the model and is never returned.  ``stretch`` holds the offending stretch λ."""
+
+    def __init__(self, message: str, *, solver: str = "", stretch: float = float("nan")):
+        self.solver = solver
+        self.stretch = float(stretch)
+        super().__init__(message)
 
 
 class InfeasibleTargetError(BellowsError, ValueError):

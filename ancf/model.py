@@ -106,8 +106,7 @@ class Model:
         self.q_ref = kin.reference_q(self.n, p.length, p.base_axis)
         # free-coordinate map q = q_fix + P z
         if p.free_base_stretch:
-            self._q_fix = self.q_ref.copy()
-            self._q_fix[:6] = 0.0
+            self._q_fix = np.zeros(self.ndof)            # r_1 = 0; everything else comes from z
             P = np.zeros((self.ndof, self.ndof - 5))
             P[3:6, 0] = self._e1
             P[6:, 1:] = np.eye(self.ndof - 6)

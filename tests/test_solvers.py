@@ -193,3 +193,18 @@ def test_random_states_over_operating_range(paper_model):
         g = m.fk_locked(e.tendon_lengths, p, F2, q0=e.q, tensions0=e.tensions, method="gamma")
         assert np.linalg.norm(a.tip - g.tip) < 1e-8
         assert np.all(a.tensions >= 0) and np.all(a.slack >= 0) and np.all(a.tensions * a.slack == 0)
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_free_coordinate_map_round_trips(free):
+    """to_full(to_free(q)) == q for admissible q (the base stays clamped), with and without a free base
+    stretch; with the free stretch the reference state is still an equilibrium with no load."""
+    model = Model(presets.paper().replace(free_base_stretch=free, line_mass=0.0, tip_mass=0.0))
+    rng = np.random.default_rng(3)
+    q = model.q_ref.copy()
+    q[6:] += rng.normal(0, 1e-3, model.ndof - 6)
+    if free:
+        q[3:6] = 1.07 * model._e1
+    np.testing.assert_allclose(model.to_full(model.to_free(q)), q, rtol=0, atol=1e-15)
+    eq = model.fk((0.0, 0.0, 0.0), 0.0)
+    np.testing.assert_allclose(eq.q, model.q_ref, atol=1e-12)

@@ -45,12 +45,7 @@ PRESSURE = 60e3
 CONFIGURATIONS = {"upward": (3.4, 1.2, 1.2), "horizontal": (2.2, 1.6, 1.6), "downward": (0.8, 3.0, 3.0)}
 LOADING_TENSIONS = (1.6, 2.2, 2.2)      # near-horizontal (tip −4°) with room for 110 g
 
-PAPER_TABLE1 = {"upward": {"vfcc_mm": 9.054, "lacc_mm": 0.020, "reduction_percent": 99.78},
-                "horizontal": {"vfcc_mm": 10.23, "lacc_mm": 0.028, "reduction_percent": 99.73},
-                "downward": {"vfcc_mm": 2.090, "lacc_mm": 0.006, "reduction_percent": 99.71}}
-PAPER_ABLATION = {"ik_faster_percent": 50.0}
-PAPER_LOADING = {"continuous_max_error_mm": 0.722, "cyclic_max_error_mm": 3.573, "loop_time_s": 0.5,
-                 "continuous_uncontrolled_drift_mm": 10.0, "cyclic_uncontrolled_drift_mm": 7.0}
+from .paper_numbers import ABLATION as PAPER_ABLATION, LOADING as PAPER_LOADING, TABLE1 as PAPER_TABLE1  # noqa: E402
 
 PathLike = Union[str, pathlib.Path, None]
 
