@@ -9,7 +9,7 @@ Kronecker structure [s_j I]_j, so B never needs to be formed: with N[k, α, j] =
     H[block j, c; block l, c']   += Σ_α Σ_β N[k,α,j] N[k,β,l] ∇²w[3α + c, 3β + c'].
 
 Q(q) = ∂Π/∂q is paper eq. (1) with the signs of the potential
-Π = U_axial + U_bend + Σ T_i l_c,i − p A_eff ∫λ dx − m' ∫ g·r dx − F · p_end.
+Π = U_axial + U_bend + Σ T_i l_c,i − p ∫ A(λ) λ dx − m' ∫ g·r dx − F · p_end.
 """
 
 import numpy as np
@@ -55,14 +55,15 @@ def _mirror(H):
 
 
 @njit(cache=True)
-def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H, need_lengths):
+def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need_lengths):
     """Total potential Π, its gradient Q (ndof,) and Hessian (ndof, ndof) at the full coordinates q.
 
     Also returns the tendon lengths l_c (m,), their gradients J_l (m, ndof) [= ∂Q/∂T], the deformed
-    length ∫λ dx and its gradient (ndof,) [∂Q/∂p = −A_eff × this].
+    length ∫λ dx and its gradient (ndof,) [∂Q/∂p = −A_eff × this for a constant pressure area].
 
     Parameters: N (nq, 3, 4) shape table, wq (nq,) weights in x [m]; ea, ei stiffness coefficients;
-    pA = p A_eff [N]; mg = m' g [N/m]; E actuator frame (3, 3); d, co, so (m,) tendon distance [m] and
+    pa = p × coefficients of A(λ) λ = Σ c_k λ^{k+1} [N] (constant area: (p A_eff,)); mg = m' g [N/m];
+    E actuator frame (3, 3); d, co, so (m,) tendon distance [m] and
     cos/sin θ; T (m,) tensions [N]; h tool offset [m]; F (3,) total tip load [N].
     ``need_lengths``: 0 — slack tendons (T_i = 0) are skipped and l_c, J_l, J_arc, arc are left at zero
     (Newton loops); 1 — lengths and arc length as values only (J_l, J_arc zero); 2 — values and gradients.
@@ -85,6 +86,10 @@ def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H, need
     H9 = np.zeros((9, 9))
     ga = np.zeros(9)
     gl = np.zeros(9)
+    has_p = False
+    for k in range(pa.size):
+        if pa[k] != 0.0:
+            has_p = True
     for e in range(n_el):
         off = 6 * e
         for k in range(nq):
@@ -102,8 +107,8 @@ def assemble(q, n_el, N, wq, ea, ei, pA, mg, E, d, co, so, T, h, F, want_H, need
                 H9[:, :] = 0.0
             energy += add_axial(a, ea, sc, g9, H9)
             energy += add_bending(a, b, ei, sc, g9, H9)
-            if pA != 0.0:
-                energy += add_pressure(a, pA, sc, g9, H9)
+            if has_p:
+                energy += add_pressure(a, pa, sc, g9, H9)
             energy += add_gravity(r, mg, sc, g9)
             if need_lengths > 0:
                 ga[:] = 0.0

@@ -6,11 +6,13 @@ length.  Free coordinates z map to q = q_fix + P z.
 
 Equilibrium is the stationarity of the potential (docs/design.md §3)
 
-    Π(q) = U_axial + U_bend + Σ_i T_i l_c,i(q) − p A_eff ∫|r_x| dx − m' ∫ g·r dx − F · p_end(q),
+    Π(q) = U_axial + U_bend + Σ_i T_i l_c,i(q) − p ∫ A(λ) λ dx − m' ∫ g·r dx − F · p_end(q),
 
 Q(q, T, p, F) = ∂Π/∂q = 0 is paper eq. (1); its exact derivatives are
 
-    ∂Q/∂q = ∇²Π (symmetric),  ∂Q/∂T_i = ∂l_c,i/∂q,  ∂Q/∂p = −A_eff ∂(∫λ dx)/∂q,  ∂Q/∂F = −(∂p_end/∂q)ᵀ.
+    ∂Q/∂q = ∇²Π (symmetric),  ∂Q/∂T_i = ∂l_c,i/∂q,  ∂Q/∂p = −∂(∫A(λ)λ dx)/∂q,  ∂Q/∂F = −(∂p_end/∂q)ᵀ
+
+(A(λ) = A_eff for the paper's constant pressure area; see :mod:`ancf.forces.pressure`).
 
 Solvers:
 * FK (T, p, F) → q: Newton on ∇Π with an energy line search, LM shift, load stepping fallback.
@@ -96,6 +98,7 @@ class Model:
         self._N, self._wq = kin.shape_table(p.quadrature_points, p.element_length)
         self._ea = p.stiffness.ea
         self._ei = p.stiffness.ei
+        self._vc = np.ascontiguousarray(p.volume_coeffs)      # A(λ) λ = Σ c_k λ^{k+1} [m²]
         self._E = np.ascontiguousarray(p.frame)
         self._e1 = self._E[:, 0].copy()
         self._d = p.tendon_distances
@@ -184,7 +187,7 @@ class Model:
         F = self.total_tip_load(tip_force, gravity_scale)
         E, Q, K, lc, Jl, arc, Jarc = assemble(
             np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, self._ea, self._ei,
-            float(pressure) * self.params.A_eff, self._mg * gravity_scale, self._E, self._d, self._co,
+            float(pressure) * self._vc, self._mg * gravity_scale, self._E, self._d, self._co,
             self._so, T, self.params.tool_offset, F, hessian,
             2 if lengths is True else (1 if lengths == "values" else 0))
         return Evaluation(E, Q, K if hessian else None, lc, Jl, arc, Jarc)
@@ -203,8 +206,12 @@ class Model:
         return self.evaluate(q, hessian=False).J_l.T
 
     def dQ_dp(self, q) -> np.ndarray:
-        """∂Q/∂p (ndof,) [m²]."""
-        return -self.params.A_eff * self.evaluate(q, hessian=False).J_arc
+        """∂Q/∂p = −∂V/∂q (ndof,) [m²], V = ∫ A(λ) λ dx the chamber volume."""
+        zero3 = np.zeros(3)
+        _, Q, *_ = assemble(np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, np.zeros(1),
+                            np.zeros(1), self._vc, zero3, self._E, self._d, self._co, self._so, np.zeros(self.m),
+                            0.0, zero3, False, 0)
+        return Q
 
     def dQ_dF(self, q) -> np.ndarray:
         """∂Q/∂F_e (ndof, 3) = −(∂p_end/∂q)ᵀ."""
@@ -287,13 +294,13 @@ class Model:
         """Potential, free gradient and free Hessian at free coordinates z (lean path for Newton)."""
         Ts = np.ascontiguousarray(T * load, dtype=float)
         Ftot = self.total_tip_load(F * load, gravity_scale=load)
-        pA = float(pr * load) * self.params.A_eff
+        pa = float(pr * load) * self._vc
         mg = self._mg * load
         p = self.params
 
         def fun(z, hessian):
             q = self.to_full(z)
-            E, Q, K, *_ = assemble(q, self.n, self._N, self._wq, self._ea, self._ei, pA, mg, self._E, self._d,
+            E, Q, K, *_ = assemble(q, self.n, self._N, self._wq, self._ea, self._ei, pa, mg, self._E, self._d,
                                    self._co, self._so, Ts, p.tool_offset, Ftot, hessian, 0)
             if not np.isfinite(E):
                 return np.inf, None, None

@@ -44,7 +44,7 @@ TOP_FIELDS = {
     "D_eff": "length", "line_mass": "line_mass", "tip_mass": "mass", "tool_offset": "length",
     "base_axis": "dimensionless", "reference_direction": "dimensionless", "gravity": "acceleration",
     "tension_min": "force", "tension_max": "force", "pressure_min": "pressure", "pressure_max": "pressure",
-    "free_base_stretch": None,
+    "free_base_stretch": None, "pressure_area_slope": "dimensionless",
 }
 STIFFNESS_FIELDS = {"law": None, "a": "force", "b": "force", "D_a": "length", "EA": "force",
                     "EI": "bending_stiffness", "EA_coeffs": "force", "EI_coeffs": "bending_stiffness"}
@@ -118,6 +118,7 @@ class ActuatorParams(BaseModel):
     quadrature_points : int        Gauss points per element (≥ 4)
     stiffness : StiffnessLaw       EA(λ), EI(λ)
     D_eff : float                  effective pressure diameter [m]; A_eff = π D_eff²/4
+    pressure_area_slope : float    β of the pressure area A(λ) = A_eff (1 + β (λ − 1)) [-]; 0: constant area
     tendons : tuple[Tendon, ...]   ≥ 3 tendons
     line_mass : float              m' [kg/m] (distributed self-weight)
     tip_mass : float               lumped mass at the tool point [kg]
@@ -139,6 +140,7 @@ class ActuatorParams(BaseModel):
     quadrature_points: int = 5
     stiffness: StiffnessLaw
     D_eff: float
+    pressure_area_slope: float = 0.0
     tendons: tuple[Tendon, ...]
     line_mass: float = 0.0
     tip_mass: float = 0.0
@@ -178,6 +180,14 @@ class ActuatorParams(BaseModel):
     def _deff(cls, v):
         if not (0 < v < 1):
             raise ValueError(f"D_eff {v} m must be in (0, 1) m (SI metres: 26 mm is 0.026)")
+        return v
+
+    @field_validator("pressure_area_slope")
+    @classmethod
+    def _beta(cls, v):
+        if not (math.isfinite(v) and -2.0 < v < 2.0):
+            raise ValueError(f"pressure_area_slope {v} must be in (-2, 2) (A(λ) must stay positive for "
+                             "0.5 < λ < 1.5)")
         return v
 
     @field_validator("line_mass", "tip_mass", "tool_offset", "tension_min", "pressure_min")
@@ -224,6 +234,16 @@ class ActuatorParams(BaseModel):
     def A_eff(self) -> float:
         """Effective pressure area π D_eff²/4 [m²]."""
         return math.pi * self.D_eff ** 2 / 4
+
+    def pressure_area(self, lam):
+        """Effective pressure area A(λ) = A_eff (1 + β (λ − 1)) [m²] at stretch λ."""
+        return self.A_eff * (1.0 + self.pressure_area_slope * (np.asarray(lam, float) - 1.0))
+
+    @property
+    def volume_coeffs(self) -> np.ndarray:
+        """Coefficients c of the volume per reference length A(λ) λ = Σ_k c_k λ^{k+1} [m²]."""
+        b = self.pressure_area_slope
+        return np.array([self.A_eff * (1.0 - b), self.A_eff * b]) if b != 0.0 else np.array([self.A_eff])
 
     @property
     def element_length(self) -> float:
@@ -316,6 +336,7 @@ class ActuatorParams(BaseModel):
         lines += [
             f"length_m = {self.length!r}", f"n_elements = {self.n_elements}",
             f"quadrature_points = {self.quadrature_points}", f"D_eff_m = {self.D_eff!r}",
+            f"pressure_area_slope = {self.pressure_area_slope!r}",
             f"line_mass_kg_per_m = {self.line_mass!r}", f"tip_mass_kg = {self.tip_mass!r}",
             f"tool_offset_m = {self.tool_offset!r}", f"base_axis = {list(self.base_axis)}",
             f"reference_direction = {list(self.reference_direction)}",

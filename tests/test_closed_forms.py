@@ -119,3 +119,19 @@ def test_frame_invariance():
     assert np.allclose(e1.q.reshape(-1, 3), (R @ e0.q.reshape(-1, 3).T).T, atol=1e-12)
     assert np.allclose(e1.tendon_lengths, e0.tendon_lengths, atol=1e-13)
     assert np.allclose(e1.tip_rotation, R @ e0.tip_rotation @ R.T, atol=1e-10)
+
+
+@pytest.mark.parametrize("beta", [-0.8, 0.0, 0.6])
+def test_pressure_area_law_uniform_extension(beta):
+    """Straight, weightless actuator under pressure only: uniform stretch λ with the axial force balance
+    W'(λ) = p d(A(λ) λ)/dλ = p A_eff (1 + β (2λ − 1)) (stretch-dependent pressure area; β = 0 is the
+    paper's constant area)."""
+    import scipy.optimize as so
+    params = uniform_params(pressure_area_slope=beta, free_base_stretch=True)
+    model = Model(params)
+    pr = 90e3
+    eq = model.fk((0, 0, 0), pr)
+    law, A = params.stiffness, params.A_eff
+    lam = so.brentq(lambda l: law.axial_force(l) - pr * A * (1 + beta * (2 * l - 1)), 0.8, 1.5, xtol=1e-15)
+    assert eq.tip[0] == pytest.approx(lam * params.length, rel=1e-10)
+    assert params.pressure_area(lam) == pytest.approx(A * (1 + beta * (lam - 1)))

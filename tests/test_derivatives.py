@@ -60,7 +60,8 @@ def test_density_derivatives(law, which):
     fns = {
         "axial": lambda x, g, H: add_axial(x[3:6], law.ea, 1.0, g, H),
         "bending": lambda x, g, H: add_bending(x[3:6], x[6:9], law.ei, 1.0, g, H),
-        "pressure": lambda x, g, H: add_pressure(x[3:6], 16.0, 1.0, g, H),
+        "pressure": lambda x, g, H: add_pressure(x[3:6], np.array([16.0]), 1.0, g, H),
+        "pressure_area_law": lambda x, g, H: add_pressure(x[3:6], np.array([12.0, 5.0, -1.5]), 1.0, g, H),
     }
     fn = fns[which]
     for _ in range(3):
@@ -138,7 +139,7 @@ def model(request):
         R = rotation([1, 2, 3], 0.7)
         p = p.replace(stiffness=LAWS[1], base_axis=tuple(R @ np.array(p.base_axis)),
                       reference_direction=tuple(R @ np.array(p.reference_direction)), tool_offset=0.012,
-                      free_base_stretch=True)
+                      free_base_stretch=True, pressure_area_slope=-0.7)
     return Model(p)
 
 
