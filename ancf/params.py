@@ -34,6 +34,8 @@ UNITS: dict[str, dict[str, float]] = {
     "pressure": {"Pa": 1.0, "kPa": 1e3, "bar": 1e5, "MPa": 1e6},
     "acceleration": {"m_per_s2": 1.0},
     "bending_stiffness": {"N_m2": 1.0, "N_mm2": 1e-6},
+    "modulus": {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6},
+    "density": {"kg_per_m3": 1.0, "g_per_cm3": 1e3},
     "dimensionless": {"": 1.0},
 }
 

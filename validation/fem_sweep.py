@@ -1,0 +1,297 @@
+"""FEM virtual experiments as a sweep: each load case solved independently, in parallel, cached on disk.
+
+:func:`run_cases` hands the load cases of a :class:`validation.experiments.Design` to
+:func:`validation.runner.run_tasks` — local processes by default, a dask cluster with ``scheduler`` — with
+a progress bar.  Each case is cached (with ``cache_dir``) under a hash of everything that determines its
+result: the geometry, the material, the mesh level, the load case, what is asked (compliance or not) and
+a fingerprint of the ``fem_reference`` sources; so a re-run computes only what changed and an
+interrupted sweep resumes where it stopped.
+
+A worker builds its :class:`fem_reference.BellowsModel` once per (geometry, material, mesh) and keeps it
+for the following cases.  The result of one case is a small :class:`FemRecord` (tip pose, centreline,
+tendon data, optionally the 3×3 tip compliances), never the model.
+
+Warm starts.  The cases are grouped into short *chains* (:func:`plan_chains`): each chain starts at the
+case with the smallest load and visits its nearest remaining neighbour next, in the load space scaled by
+the operating range; every solve of a chain starts from the previous equilibrium and ramps the loads from
+there (the FEM's own load stepping), which takes far fewer Newton iterations than solving every case from
+the unloaded state.  A chain is the unit of parallel work and of caching.  The equilibrium of a stable
+state does not depend on the path to it, so warm and cold solves agree to the solver's tolerance.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+
+from ancf.errors import BellowsError, InputError
+
+from .experiments import LoadCase
+from .runner import ResultCache, run_tasks, source_fingerprint
+
+__all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "fem_model", "solve_task", "plan_chains"]
+
+
+@dataclass(frozen=True)
+class FemSpec:
+    """What defines an FEM model: geometry, material and mesh level (all picklable, hashable inputs)."""
+    geometry: object
+    material: object
+    mesh: str = "coarse"
+
+    def key(self) -> dict:
+        return {"geometry": self.geometry, "material": self.material, "mesh": self.mesh}
+
+
+@dataclass
+class FemRecord:
+    """The FEM's answer for one load case (SI units).
+
+    tip_position (3,) [m]; cap_rotation (3, 3); centreline (k, 3) [m] with centreline_s (k,) the
+    undeformed arc length of each point from the base [m]; tensions (m,) [N]; tendon_lengths (m,) [m];
+    compliance_tension / compliance_locked (3, 3) [m/N] (tip compliance with tensions held / tendons
+    locked, if asked) and locked_active (indices of the tendons locked); iterations, seconds; error: the
+    failure message if the solve failed (then the arrays are NaN).
+    """
+    case: LoadCase
+    tip_position: np.ndarray
+    cap_rotation: np.ndarray
+    centreline: np.ndarray
+    centreline_s: np.ndarray
+    tensions: np.ndarray
+    tendon_lengths: np.ndarray
+    compliance_tension: Optional[np.ndarray] = None
+    compliance_locked: Optional[np.ndarray] = None
+    iterations: int = 0
+    seconds: float = 0.0
+    error: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.error
+
+    def centreline_at(self, s) -> np.ndarray:
+        """Centreline points at undeformed arc lengths ``s`` (k,) [m], linear interpolation → (k, 3) [m]."""
+        s = np.atleast_1d(np.asarray(s, float))
+        return np.column_stack([np.interp(s, self.centreline_s, self.centreline[:, c]) for c in range(3)])
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["case"] = self.case.to_dict()
+        return d
+
+
+_MODELS: dict = {}
+
+
+def fem_model(spec: FemSpec):
+    """The :class:`fem_reference.BellowsModel` of ``spec``, built once per process."""
+    from fem_reference import BellowsModel
+    from .runner import task_key
+    k = task_key(spec.key())
+    if k not in _MODELS:
+        _MODELS.clear()                       # one model per worker at a time (memory)
+        _MODELS[k] = BellowsModel(spec.geometry, spec.material, mesh=spec.mesh)
+    return _MODELS[k]
+
+
+def _centreline_s(model) -> np.ndarray:
+    """Undeformed arc length of each centreline row (reference axial coordinate of each ring) [m]."""
+    bm = model.bmesh
+    n_s, n_t, _ = bm.shape
+    sel = bm.lattice[1] == n_t
+    i_s = bm.lattice[0, sel]
+    cnt = np.bincount(i_s, minlength=2 * n_s + 1)
+    return np.bincount(i_s, weights=bm.X[0, sel], minlength=2 * n_s + 1) / cnt
+
+
+def solve_task(task: dict):
+    """Worker entry point: ``task["kind"]`` is ``"chain"`` (:func:`solve_chain`), ``"case"``
+    (:func:`solve_case`) or ``"rod"`` (:func:`rod_estimate`)."""
+    kind = task.get("kind")
+    if kind == "rod":
+        return rod_estimate(task)
+    if kind == "chain":
+        return solve_chain(task)
+    return solve_case(task)
+
+
+def rod_estimate(task: dict) -> dict:
+    """Worker: closed-form equivalent-rod values (EA, EI, D_a, D_eff, …) from the condensed cap tangent of the
+    unloaded FEM (:meth:`fem_reference.BellowsModel.equivalent_rod`), plus the wall and cap masses."""
+    spec: FemSpec = task["spec"]
+    model = fem_model(spec)
+    rod = model.equivalent_rod()
+    rod = {k: (np.asarray(v).tolist() if isinstance(v, np.ndarray) else float(v)) for k, v in rod.items()}
+    rod["wall_mass_kg"] = float(spec.geometry.wall_volume() * spec.material.density)
+    rod["cap_mass_kg"] = float(spec.geometry.cap_mass)
+    return rod
+
+
+def solve_case(task: dict) -> FemRecord:
+    """Worker: solve one load case on the FEM (``task``: spec, case, compliance) → :class:`FemRecord`."""
+    return solve_chain({**task, "kind": "chain", "cases": [task["case"]],
+                        "compliance": [bool(task.get("compliance"))]})[0]
+
+
+def solve_chain(task: dict) -> list:
+    """Worker: solve the load cases ``task["cases"]`` in order, each warm-started from the previous
+    equilibrium (``task``: spec, cases, compliance — one flag per case) → list of :class:`FemRecord`.
+
+    A solve that fails (a :class:`~ancf.errors.BellowsError`) is retried from the unloaded state; if that
+    fails too, its record carries ``error`` (arrays NaN), so that one hard case does not lose the sweep;
+    the caller decides what a failed case means."""
+    spec: FemSpec = task["spec"]
+    model = fem_model(spec)
+    m = model.m
+    out, prev = [], None
+    for case, want_c in zip(task["cases"], task["compliance"]):
+        t0 = time.perf_counter()
+        if len(case.tensions) != m:
+            raise InputError(f"load case has {len(case.tensions)} tensions; the FEM model has {m} tendons")
+        res, err = None, ""
+        for initial in ((prev, None) if prev is not None else (None,)):
+            try:
+                res = model.solve(tensions=case.tensions, pressure=case.pressure, tip_force=case.tip_force,
+                                  gravity=case.gravity, initial=initial)
+                break
+            except BellowsError as exc:
+                err = f"{type(exc).__name__}: {exc}"
+        if res is None:
+            s = _centreline_s(model)
+            out.append(FemRecord(case, np.full(3, np.nan), np.full((3, 3), np.nan), np.full((len(s), 3), np.nan), s,
+                                 np.full(m, np.nan), np.full(m, np.nan), seconds=time.perf_counter() - t0, error=err))
+            continue
+        prev = res
+        rec = FemRecord(case, res.tip_position.copy(), res.cap_rotation.copy(), res.centreline.copy(),
+                        _centreline_s(model), res.tensions.copy(), np.asarray(res.tendon_lengths, float).copy(),
+                        iterations=res.iterations)
+        if want_c:
+            rec.compliance_tension = model.tip_compliance(res, mode="tension")
+            locked, active = _locked_compliance(model, res, task.get("locked_direction", (0.0, 0.0, -1.0)))
+            rec.compliance_locked, rec.extra["locked_active"] = locked, active
+        rec.seconds = time.perf_counter() - t0
+        out.append(rec)
+    return out
+
+
+def _load_vector(case: LoadCase, scale: np.ndarray) -> np.ndarray:
+    return np.concatenate([case.tensions, [case.pressure], case.tip_force, [float(case.gravity)]]) / scale
+
+
+def plan_chains(cases: Sequence[LoadCase], max_length: int = 4) -> list[list[int]]:
+    """Group case indices into warm-start chains of at most ``max_length`` cases (see the module docstring):
+    each chain starts at the smallest remaining load and goes to the nearest remaining case next, in the load
+    space scaled by the largest value of each load component over the cases."""
+    if max_length < 1:
+        raise InputError("max_length must be >= 1")
+    n = len(cases)
+    if n == 0:
+        return []
+    raw = np.array([_load_vector(c, 1.0) for c in cases])
+    scale = np.maximum(np.abs(raw).max(axis=0), 1e-12)
+    X = raw / scale
+    left = set(range(n))
+    chains = []
+    while left:
+        start = min(left, key=lambda i: (np.linalg.norm(X[i]), i))
+        chain = [start]
+        left.discard(start)
+        while left and len(chain) < max_length:
+            nxt = min(left, key=lambda i: (np.linalg.norm(X[i] - X[chain[-1]]), i))
+            chain.append(nxt)
+            left.discard(nxt)
+        chains.append(chain)
+    return chains
+
+
+def _locked_compliance(model, res, direction) -> tuple[np.ndarray, list]:
+    """FEM tip compliance with *all* tendons locked at their current lengths, the taut set chosen by the
+    complementarity rule of the reduced model's exact locked compliance (:func:`ancf.compliance.active_set`,
+    ``rule="exact"``), so that both models run the same experiment: tendons carrying tension stay taut; a
+    slack one is taut iff a small tip load along ``direction`` would stretch it and its tension increment is
+    ≥ 0."""
+    from fem_reference.solver import factorize
+    st = res.state
+    ev = model.evaluate(st, res.loadcase, tangent=True)
+    fac = factorize(ev["K"], model.linear_solver)
+    Jp = model.tip_jacobian(st).toarray()
+    Y = fac.solve(Jp.T)                              # K⁻¹ J_pᵀ
+    g_all = ev["g"]                                   # (n_dofs, m): ∂L_i/∂q
+    Z_all = fac.solve(g_all)                          # K⁻¹ g
+    u = np.asarray(direction, float)
+    u = u / np.linalg.norm(u)
+    m = g_all.shape[1]
+    taut = {i for i in range(m) if st.T[i] > 1e-12}
+
+    def response(A):
+        if not A:
+            return Y, np.zeros((0, 3))
+        g, Z = g_all[:, A], Z_all[:, A]
+        dT = np.linalg.solve(g.T @ Z, g.T @ Y)          # tension increments per unit tip force (len(A), 3)
+        return Y - Z @ dT, dT
+
+    dl0 = g_all.T @ (Y @ u)
+    A = sorted(taut | {i for i in range(m) if dl0[i] > 0})
+    seen = set()
+    while tuple(A) not in seen:
+        seen.add(tuple(A))
+        dq, dT = response(A)
+        dTu = dict(zip(A, dT @ u))
+        dl = g_all.T @ (dq @ u)
+        drop = [i for i in A if i not in taut and dTu[i] < -1e-12 * max(1.0, abs(dTu[i]))]
+        add = [i for i in range(m) if i not in A and dl[i] > 1e-14]
+        if not drop and not add:
+            return Jp @ dq, A
+        if drop:
+            A.remove(min(drop, key=lambda i: dTu[i]))
+        else:
+            A = sorted(A + [max(add, key=lambda i: dl[i])])
+    raise InputError("the active set of the FEM locked compliance cycled (degenerate state)")
+
+
+def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, workers: Optional[int] = None,
+              scheduler=None, cache_dir=None, progress: bool = True, on_result=None,
+              chain_length: int = 4) -> list[FemRecord]:
+    """Solve every load case on the FEM of ``spec``; returns one :class:`FemRecord` per case, in order.
+
+    compliance : also compute the tip compliances (tension held, all tendons locked) of each state (a bool,
+        or a function of the load case);  workers, scheduler : see :func:`validation.runner.run_tasks`;
+    cache_dir : folder of the on-disk cache (None: no cache);  on_result(i, records) : called as each chain
+    finishes;  chain_length : cases per warm-start chain (1: every case solved from the unloaded state).
+    Raises :class:`validation.runner.RunInterrupted` on Ctrl-C (finished chains are in the cache)."""
+    cases = list(cases)
+    if not cases:
+        raise InputError("run_cases: no load cases")
+    want = compliance if callable(compliance) else (lambda c, v=bool(compliance): v)
+    chains = plan_chains(cases, chain_length)
+    tasks = [{"kind": "chain", "spec": spec, "cases": [cases[i] for i in ch],
+              "compliance": [bool(want(cases[i])) for i in ch]} for ch in chains]
+    cache = None
+    if cache_dir is not None:
+        cache = ResultCache(cache_dir, version="fem-" + source_fingerprint("fem_reference"))
+
+    def key_inputs(task):
+        return {**task["spec"].key(), "cases": task["cases"], "compliance": task["compliance"],
+                "locked_direction": task.get("locked_direction", (0.0, 0.0, -1.0))}
+
+    out = run_tasks(solve_task, tasks, workers=workers, scheduler=scheduler, progress=progress,
+                    description=f"FEM ({spec.mesh} mesh, {len(cases)} cases)", cache=cache, key_inputs=key_inputs,
+                    on_result=on_result, weights=[len(t["cases"]) for t in tasks])
+    records: list = [None] * len(cases)
+    for ch, recs in zip(chains, out.results):
+        for i, r in zip(ch, recs):
+            records[i] = r
+    return records
+
+
+def run_rod(spec: FemSpec, *, cache_dir=None) -> dict:
+    """:func:`rod_estimate` of ``spec`` in this process (cached like the load cases)."""
+    cache = None if cache_dir is None else ResultCache(cache_dir, version="fem-" + source_fingerprint("fem_reference"))
+    task = {"kind": "rod", "spec": spec}
+    return run_tasks(solve_task, [task], workers=1, progress=False, cache=cache,
+                     key_inputs=lambda t: {**t["spec"].key(), "kind": "rod"}).results[0]

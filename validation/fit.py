@@ -1,0 +1,365 @@
+r"""The fit: least squares of the reduced model's equilibria against observed static states.
+
+Given observed states i (loads T_i, p_i, F_i; tip position and optionally marker positions along the
+body, each with its standard deviation σ) and a model form θ ↦ ActuatorParams (:mod:`validation.forms`),
+minimise
+
+    Σ_i ‖(p̂_i(θ) − p_i) / σ_i‖²,   p̂_i(θ) = tip / markers of the equilibrium FK(T_i, p_i, F_i; θ),
+
+with :func:`scipy.optimize.least_squares` (trust-region reflective, bounds from the form) and the exact
+Jacobian ∂p̂/∂θ = −J_p H⁻¹ ∂Q/∂θ at each equilibrium (:mod:`validation.forms`).  Each FK warm-starts from
+the state's previous equilibrium.
+
+Uncertainty (reported for every parameter):
+
+* covariance  Cov(θ) = s² (JᵀJ)⁻¹ with J the σ-weighted Jacobian at the optimum, and s² = RSS/(n − k) when
+  the data carry no stated uncertainties (``absolute_sigma=False``: FEM data, whose misfit is model error),
+  or s² = 1 when they do (``absolute_sigma=True``: measured data with known σ);
+* 95 % confidence intervals θ ± t₀.₉₇₅(n − k) √Cov_jj (normal quantile with absolute σ); derived values
+  (``a``, ``b``, ``EA``, ``EI``, ``D_a``, ``D_eff``) by the delta method through their closed-form maps;
+* the correlation matrix of θ.
+
+Identifiability: a parameter is *not identifiable* when the data do not determine it — (1) it has a share
+> 1 % in a direction of the column-scaled Jacobian whose singular value is below 1e-7 of the largest
+(rank deficiency; e.g. D_eff without any pressure state), or (2) its 95 % CI is wider than its value
+(|half-width| > |value|).  Such a parameter is held at its initial value, the others are refitted without
+it, and it is reported as not identifiable, never as a number.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+import scipy.optimize as so
+import scipy.stats as st
+
+from ancf import ActuatorParams, Model
+from ancf.errors import ConvergenceError, InputError
+
+from .forms import ModelForm, distance_column, position_matrix
+
+__all__ = ["Observations", "FitResult", "fit", "predict"]
+
+RANK_TOL = 1e-7
+NULL_SHARE = 0.01
+#: Signed parameters (slopes, intercepts) for which zero is a meaningful value: rule (2) of the module
+#: docstring (CI wider than the value) does not apply to them.
+SIGNED = frozenset({"a", "b", "beta", "sA", "sI"})
+
+
+@dataclass
+class Observations:
+    """Observed static states (SI).  N states, m tendons, k markers.
+
+    tensions (N, m) [N]; pressure (N,) [Pa]; tip_force (N, 3) [N]; gravity (N,) bool; tip (N, 3) [m];
+    tip_std (N, 3) [m] or None; markers (N, k, 3) [m] or None with marker_s (k,) [m] their undeformed arc
+    lengths and markers_std; labels (N,).
+    """
+    tensions: np.ndarray
+    pressure: np.ndarray
+    tip_force: np.ndarray
+    gravity: np.ndarray
+    tip: np.ndarray
+    tip_std: Optional[np.ndarray] = None
+    markers: Optional[np.ndarray] = None
+    marker_s: Optional[np.ndarray] = None
+    markers_std: Optional[np.ndarray] = None
+    labels: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.tensions = np.atleast_2d(np.asarray(self.tensions, float))
+        N = self.tensions.shape[0]
+        self.pressure = np.asarray(self.pressure, float).reshape(N)
+        self.tip_force = np.asarray(self.tip_force, float).reshape(N, 3)
+        self.gravity = np.asarray(self.gravity, bool).reshape(N)
+        self.tip = np.asarray(self.tip, float).reshape(N, 3)
+        for name in ("tensions", "pressure", "tip_force", "tip"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise InputError(f"observations: {name} must be finite (NaN/inf found)")
+        if self.markers is not None:
+            self.markers = np.asarray(self.markers, float)
+            self.marker_s = np.asarray(self.marker_s, float)
+            if self.markers.shape != (N, self.marker_s.size, 3):
+                raise InputError(f"observations: markers must have shape (N, k, 3), got {self.markers.shape}")
+        if not self.labels:
+            self.labels = [f"state {i}" for i in range(N)]
+
+    @property
+    def n(self) -> int:
+        return self.tensions.shape[0]
+
+    @property
+    def has_sigma(self) -> bool:
+        return self.tip_std is not None
+
+    def subset(self, idx) -> "Observations":
+        idx = np.arange(self.n)[idx]
+        pick = lambda a: None if a is None else a[idx]      # noqa: E731
+        return Observations(self.tensions[idx], self.pressure[idx], self.tip_force[idx], self.gravity[idx],
+                            self.tip[idx], pick(self.tip_std), pick(self.markers), self.marker_s,
+                            pick(self.markers_std), [self.labels[i] for i in idx])
+
+    def weights(self) -> np.ndarray:
+        """1/σ for every residual entry, stacked per state as [tip (3), markers (3k)]."""
+        k = 0 if self.markers is None else self.marker_s.size
+        w = np.ones((self.n, 3 + 3 * k))
+        if self.tip_std is not None:
+            sd = np.broadcast_to(self.tip_std, (self.n, 3))
+            if np.any(sd <= 0):
+                raise InputError("observations: tip_std must be > 0")
+            w[:, :3] = 1.0 / sd
+        if k and self.markers_std is not None:
+            sd = np.broadcast_to(self.markers_std, (self.n, k, 3)).reshape(self.n, 3 * k)
+            if np.any(sd <= 0):
+                raise InputError("observations: markers_std must be > 0")
+            w[:, 3:] = 1.0 / sd
+        elif k and self.tip_std is not None:
+            w[:, 3:] = w[:, :1]
+        return w
+
+
+@dataclass
+class FitResult:
+    """Outcome of :func:`fit` for one model form (SI; see the module docstring).
+
+    theta (n,), names, units; cov (n, n) with NaN rows for parameters that are not identifiable;
+    ci95 {name: (lo, hi)}; identifiable {name: bool}; correlation (n, n); values / values_ci95 /
+    values_identifiable: the same for the derived, reported values; residuals (N, 3 + 3k) [m]
+    (prediction − observation); params: the ActuatorParams at θ; rms_tip [m]; rss (weighted);
+    dof; s2 (variance scale used); singular_values (of the column-scaled Jacobian); nfev.
+    """
+    form: ModelForm
+    theta: np.ndarray
+    cov: np.ndarray
+    ci95: dict
+    identifiable: dict
+    correlation: np.ndarray
+    values: dict
+    values_ci95: dict
+    values_identifiable: dict
+    residuals: np.ndarray
+    params: ActuatorParams
+    rms_tip: float
+    rss: float
+    dof: int
+    s2: float
+    singular_values: np.ndarray
+    nfev: int
+    message: str = ""
+
+    @property
+    def names(self) -> tuple:
+        return self.form.names
+
+    def tip_errors(self) -> np.ndarray:
+        """‖tip prediction − observation‖ per state [m]."""
+        return np.linalg.norm(self.residuals[:, :3], axis=1)
+
+
+class _Evaluator:
+    """FK of every observed state at θ, with warm starts, and the exact sensitivities."""
+
+    def __init__(self, form: ModelForm, obs: Observations, base: ActuatorParams):
+        self.form, self.obs, self.base = form, obs, base
+        self.q: list = [None] * obs.n
+        self._cache_theta = None
+        self._cache = None
+        self.nfev = 0
+
+    def _models(self, theta):
+        params = self.form.to_params(theta, self.base)
+        m_g = Model(params)
+        m_0 = m_g if not np.any(params.gravity) else Model(params.replace(gravity=(0.0, 0.0, 0.0)))
+        return params, m_g, m_0
+
+    def evaluate(self, theta, jacobian: bool = True):
+        theta = np.asarray(theta, float)
+        if self._cache_theta is not None and np.array_equal(theta, self._cache_theta) and \
+                (not jacobian or self._cache[2] is not None):
+            return self._cache
+        self.nfev += 1
+        obs, form = self.obs, self.form
+        params, m_g, m_0 = self._models(theta)
+        k = 0 if obs.markers is None else obs.marker_s.size
+        S = None if k == 0 else position_matrix(params.n_elements, params.length, obs.marker_s)
+        pred = np.zeros((obs.n, 3 + 3 * k))
+        J = np.zeros((obs.n, 3 + 3 * k, form.n)) if jacobian else None
+        for i in range(obs.n):
+            model = m_g if obs.gravity[i] else m_0
+            T, p, F = obs.tensions[i], obs.pressure[i], obs.tip_force[i]
+            eq = None
+            for q0 in ((self.q[i], None) if self.q[i] is not None else (None,)):
+                try:
+                    eq = model.fk(T, p, F, q0=q0, check_limits=False)
+                    break
+                except ConvergenceError as exc:
+                    err = exc
+            if eq is None:
+                raise ConvergenceError(f"FK of state '{obs.labels[i]}' failed for {form.name} parameters "
+                                       f"{dict(zip(form.names, np.round(theta, 6)))}: {err}", solver="fit",
+                                       iterations=err.iterations, residual_norm=err.residual_norm,
+                                       tolerance=err.tolerance, history=err.history) from None
+            self.q[i] = eq.q
+            pred[i, :3] = eq.tip
+            if k:
+                pred[i, 3:] = S @ eq.q
+            if jacobian:
+                ev = model.evaluate(eq.q, T, p, F)
+                H = model.reduce_mat(ev.K)
+                dQ = form.dQ_dtheta(model, eq.q, p, theta)
+                if form.fits_distance:
+                    dQ[:, -1] = distance_column(model, eq.q, T, p, F)
+                dz = -np.linalg.solve(H, model.reduce_vec(dQ.T).T)          # (nz, n)
+                Jp = model.reduce_vec(model.tip_jacobian(eq.q))             # (3, nz)
+                J[i, :3] = Jp @ dz
+                if k:
+                    J[i, 3:] = model.reduce_vec(S) @ dz
+        self._cache_theta, self._cache = theta.copy(), (params, pred, J)
+        return self._cache
+
+
+def _observed(obs: Observations) -> np.ndarray:
+    k = 0 if obs.markers is None else obs.marker_s.size
+    out = np.zeros((obs.n, 3 + 3 * k))
+    out[:, :3] = obs.tip
+    if k:
+        out[:, 3:] = obs.markers.reshape(obs.n, 3 * k)
+    return out
+
+
+def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, absolute_sigma: Optional[bool] = None,
+        fixed: Sequence[str] = (), max_nfev: int = 200, _refit: bool = True) -> FitResult:
+    """Fit ``form`` to ``obs`` from ``theta0`` (everything else from ``base``); see the module docstring.
+
+    ``absolute_sigma`` (default: whether ``obs`` states uncertainties) — treat σ as known.
+    ``fixed`` — parameter names held at ``theta0``.
+    Raises :class:`~ancf.errors.InputError` on inconsistent inputs, :class:`~ancf.errors.ConvergenceError`
+    when an equilibrium cannot be solved along the way."""
+    theta0 = np.asarray(theta0, float)
+    if theta0.shape != (form.n,) or not np.all(np.isfinite(theta0)):
+        raise InputError(f"initial parameters for form {form.name} must be {form.n} finite values, got {theta0}")
+    if obs.tensions.shape[1] != base.n_tendons:
+        raise InputError(f"observations have {obs.tensions.shape[1]} tensions per state; the actuator has "
+                         f"{base.n_tendons} tendons")
+    unknown = set(fixed) - set(form.names)
+    if unknown:
+        raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)} of form {form.name}")
+    absolute = obs.has_sigma if absolute_sigma is None else bool(absolute_sigma)
+    lo, hi = np.array(form.lower, float), np.array(form.upper, float)
+    theta0 = np.clip(theta0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
+    free = np.array([nm not in fixed for nm in form.names])
+    w = obs.weights().ravel()
+    y = _observed(obs).ravel()
+    ev = _Evaluator(form, obs, base)
+    if free.sum() > w.size:
+        raise InputError(f"form {form.name}: {free.sum()} free parameters but only {w.size} observations")
+
+    def full(x):
+        th = theta0.copy()
+        th[free] = x
+        return th
+
+    def fun(x):
+        _, pred, _ = ev.evaluate(full(x), jacobian=False)
+        return (pred.ravel() - y) * w
+
+    def jac(x):
+        _, _, J = ev.evaluate(full(x), jacobian=True)
+        return J.reshape(-1, form.n)[:, free] * w[:, None]
+
+    scale = np.maximum(np.abs(theta0[free]), 1e-12)
+    res = so.least_squares(fun, theta0[free], jac=jac, bounds=(lo[free], hi[free]), method="trf",
+                           x_scale=scale, xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=max_nfev)
+    theta = full(res.x)
+    params, pred, J3 = ev.evaluate(theta, jacobian=True)
+    r = pred - _observed(obs)
+    Jw = J3.reshape(-1, form.n) * w[:, None]
+    rw = r.ravel() * w
+    rss = float(rw @ rw)
+    n_obs = rw.size
+    # identifiability 1: rank of the column-scaled Jacobian over the free parameters
+    colscale = np.maximum(np.abs(theta), 1e-12)
+    idx_free = np.flatnonzero(free)
+    Js = Jw[:, idx_free] * colscale[idx_free]
+    U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
+    tiny = sv < RANK_TOL * (sv[0] if sv.size and sv[0] > 0 else 1.0)
+    share = np.sum(Vt[tiny] ** 2, axis=0) if tiny.any() else np.zeros(idx_free.size)
+    ident = np.zeros(form.n, bool)
+    ident[idx_free] = share <= NULL_SHARE
+    k_id = int(ident.sum())
+    dof = max(n_obs - k_id, 1)
+    s2 = 1.0 if absolute else rss / dof
+    cov = np.full((form.n, form.n), np.nan)
+    if k_id:
+        ii = np.flatnonzero(ident)
+        A = Jw[:, ii]
+        try:
+            cov_id = s2 * np.linalg.inv(A.T @ A)
+        except np.linalg.LinAlgError:
+            cov_id = s2 * np.linalg.pinv(A.T @ A)
+        cov[np.ix_(ii, ii)] = cov_id
+    q = st.norm.ppf(0.975) if absolute else st.t.ppf(0.975, dof)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    # identifiability 2: CI wider than the value
+    signed = np.array([nm in SIGNED for nm in form.names])
+    wide = ident & ~signed & (q * sd > np.abs(theta))
+    if _refit and (wide.any() or (~ident & free).any()):
+        newly = [nm for nm, bad in zip(form.names, (~ident | wide) & free) if bad]
+        out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
+                  max_nfev=max_nfev, _refit=False)
+        for nm in newly:
+            out.identifiable[nm] = False
+            out.ci95[nm] = (float("nan"), float("nan"))
+        out.values_identifiable, out.values_ci95 = _derived_identifiability(form, out.theta, out.cov,
+                                                                            out.identifiable, q)
+        out.values = {k: (v if out.values_identifiable[k] else None) for k, v in form.derived(out.theta).items()}
+        return out
+    ident_map = {nm: bool(ident[j]) and not wide[j] for j, nm in enumerate(form.names)}
+    ci = {nm: ((float(theta[j] - q * sd[j]), float(theta[j] + q * sd[j])) if ident_map[nm]
+               else (float("nan"), float("nan"))) for j, nm in enumerate(form.names)}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    vid, vci = _derived_identifiability(form, theta, cov, ident_map, q)
+    values = {k: (v if vid[k] else None) for k, v in form.derived(theta).items()}
+    return FitResult(form, theta, cov, ci, ident_map, corr, values, vci, vid, r, params,
+                     float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, dof, s2, sv, ev.nfev,
+                     str(res.message))
+
+
+def _derived_identifiability(form, theta, cov, ident: dict, q: float):
+    keys, D = form.derived_jacobian(theta)
+    vals = form.derived(theta)
+    bad = np.array([not ident[nm] for nm in form.names])
+    out_id, out_ci = {}, {}
+    for i, k in enumerate(keys):
+        depends_on_bad = np.any(np.abs(D[i, bad]) > 1e-12 * (np.abs(D[i]).max() + 1e-300)) if bad.any() else False
+        if depends_on_bad or not math.isfinite(vals[k]):
+            out_id[k], out_ci[k] = False, (float("nan"), float("nan"))
+            continue
+        g = D[i, ~bad]
+        c = cov[np.ix_(~bad, ~bad)]
+        sd = math.sqrt(max(float(g @ c @ g), 0.0))
+        half = q * sd
+        out_id[k] = bool(np.isfinite(half)) and (k in SIGNED or half <= abs(vals[k]))
+        out_ci[k] = (vals[k] - half, vals[k] + half) if out_id[k] else (float("nan"), float("nan"))
+    return out_id, out_ci
+
+
+def predict(params: ActuatorParams, obs: Observations) -> np.ndarray:
+    """Predictions (N, 3 + 3k) [m] of the reduced model with ``params`` for the states of ``obs`` (tip, then
+    markers), FK cold from the straight reference.  A state whose FK fails raises."""
+    m_g = Model(params)
+    m_0 = Model(params.replace(gravity=(0.0, 0.0, 0.0))) if np.any(params.gravity) else m_g
+    k = 0 if obs.markers is None else obs.marker_s.size
+    S = None if k == 0 else position_matrix(params.n_elements, params.length, obs.marker_s)
+    out = np.zeros((obs.n, 3 + 3 * k))
+    for i in range(obs.n):
+        model = m_g if obs.gravity[i] else m_0
+        eq = model.fk(obs.tensions[i], obs.pressure[i], obs.tip_force[i], check_limits=False)
+        out[i, :3] = eq.tip
+        if k:
+            out[i, 3:] = S @ eq.q
+    return out

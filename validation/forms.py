@@ -1,0 +1,278 @@
+r"""Model forms: which parameters of the reduced model an identification fits, and their exact sensitivities.
+
+A *form* maps a parameter vector θ to :class:`ancf.ActuatorParams` (a stiffness law EA(λ), EI(λ) and a
+pressure area A(λ)) and gives ∂Q/∂θ, the derivative of the generalized force at a fixed configuration.
+The fit (:mod:`validation.identify`) needs the sensitivity of each equilibrium to θ,
+
+    H δq = −(∂Q/∂θ) δθ   ⇒   ∂p/∂θ = −J_p H⁻¹ ∂Q/∂θ        (p a tip or marker position, J_p = ∂p/∂q),
+
+and ∂Q/∂θ is exact and cheap because every stiffness term of the potential is *linear in its coefficient
+vectors*: with EA(λ) = Σ ea_k λ^k, EI(λ) = Σ ei_k λ^k and A(λ) λ = Σ c_k λ^{k+1},
+
+    Q(q; θ) = Q_axial(q; ea(θ)) + Q_bend(q; ei(θ)) + p Q_press(q; c(θ)) + (terms free of θ),
+
+so ∂Q/∂θ_j is one assembly of the potential with the coefficient vectors ∂ea/∂θ_j, ∂ei/∂θ_j, p ∂c/∂θ_j and
+every other load zero.  (The optional tendon routing distance d enters the tendon terms nonlinearly; its
+column is a central difference of the assembly — not of a solve — with a relative step of 1e-6.)
+
+Forms (``FORMS``; internal parameters in SI, λ the local stretch):
+
+==================  ===================================================================  =========================
+form                law                                                                  parameters θ
+==================  ===================================================================  =========================
+``paper``           EA = k(λ) = k₁ + a (λ − 1),  EI = (D_a²/8) λ k(λ),  A = π D_eff²/4  k₁ [N], a [N], D_a [m], D_eff [m]
+``paper_area``      as ``paper``, A(λ) = A_eff (1 + β (λ − 1))                           + β [−]
+``separate``        EA = EA₁ + s_A (λ − 1),  EI = EI₁ + s_I (λ − 1),  A = π D_eff²/4   EA₁ [N], s_A [N], EI₁ [N m²], s_I [N m²], D_eff [m]
+``separate_area``   as ``separate``, A(λ) = A_eff (1 + β (λ − 1))                        + β [−]
+``constant``        EA, EI constant,  A = π D_eff²/4                                     EA [N], EI [N m²], D_eff [m]
+==================  ===================================================================  =========================
+
+k₁ = EA(1) rather than the paper's intercept b is fitted (b = k₁ − a is reported) so that the axial
+stiffness at rest — the best-determined quantity — is one parameter, bounded positive.  Every form reports
+the same derived values: ``a``, ``b`` (EA(λ) = a λ + b), ``EA``, ``EI`` (at λ = 1), ``D_a = √(8 EI/EA)`` at
+λ = 1 and ``D_eff``; ``beta`` for the area forms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ancf import ActuatorParams, StiffnessLaw
+from ancf.assembly import assemble
+from ancf.errors import InputError
+
+__all__ = ["ModelForm", "FORMS", "get_form", "position_matrix", "REPORTED"]
+
+#: Derived values every form reports, with units.
+REPORTED = {"a": "N", "b": "N", "EA": "N", "EI": "N m^2", "D_a": "m", "D_eff": "m", "beta": "-", "d": "m"}
+
+
+@dataclass(frozen=True)
+class ModelForm:
+    """One parameterisation of the reduced model (see the module docstring).
+
+    names / units : internal parameter names and units;  lower / upper : bounds for the fit (SI);
+    laws(θ) → (ea, ei, c, d) coefficient vectors (c: A(λ)λ = Σ c_k λ^{k+1} [m²]; d: tendon distance or None);
+    laws_jacobian(θ) → list over θ_j of (∂ea, ∂ei, ∂c) (the distance column is handled separately).
+    """
+    name: str
+    names: tuple
+    units: tuple
+    lower: tuple
+    upper: tuple
+    laws: Callable
+    laws_jacobian: Callable
+    fits_distance: bool = False
+    description: str = ""
+
+    @property
+    def n(self) -> int:
+        return len(self.names)
+
+    # ------------------------------------------------------------------ θ ↔ ActuatorParams
+    def to_params(self, theta, base: ActuatorParams) -> ActuatorParams:
+        """The actuator parameters for θ (everything the form does not fit is taken from ``base``)."""
+        ea, ei, c, d = self.laws(np.asarray(theta, float))
+        A1 = float(np.sum(c))                         # A(1) = Σ c_k
+        if not (A1 > 0):
+            raise InputError(f"form {self.name}: pressure area A(1) = {A1} m² must be positive")
+        D_eff = math.sqrt(4 * A1 / math.pi)
+        beta = float(c[1] / A1) if len(c) > 1 else 0.0
+        if self.name.startswith("paper"):           # same coefficients, kept in the paper's readable form
+            law = StiffnessLaw.linear(a=float(ea[1]), b=float(ea[0]), D_a=float(np.sqrt(8 * ei[2] / ea[1]))
+                                      if ea[1] != 0 else float(np.sqrt(8 * ei[1] / ea[0])))
+        elif self.name.startswith("constant"):
+            law = StiffnessLaw.constant(EA=float(ea[0]), EI=float(ei[0]))
+        else:
+            law = StiffnessLaw.polynomial(EA=tuple(ea), EI=tuple(ei))
+        changes = dict(stiffness=law, D_eff=D_eff, pressure_area_slope=beta)
+        if d is not None:
+            from ancf.params import Tendon
+            changes["tendons"] = tuple(Tendon(distance=d, angle=t.angle) for t in base.tendons)
+        return base.replace(**changes)
+
+    def derived(self, theta) -> dict:
+        """The reported values (``REPORTED`` keys that apply) at θ."""
+        ea, ei, c, d = self.laws(np.asarray(theta, float))
+        EA1, EI1 = float(np.sum(ea)), float(np.sum(ei))
+        dEA = float(sum(k * v for k, v in enumerate(ea)))      # dEA/dλ at λ = 1
+        A1 = float(np.sum(c))
+        out = {"a": dEA, "b": EA1 - dEA, "EA": EA1, "EI": EI1,
+               "D_a": math.sqrt(8 * EI1 / EA1) if EA1 > 0 and EI1 > 0 else float("nan"),
+               "D_eff": math.sqrt(4 * A1 / math.pi) if A1 > 0 else float("nan")}
+        if len(c) > 1:
+            out["beta"] = float(c[1] / A1)
+        if d is not None:
+            out["d"] = float(d)
+        return out
+
+    def derived_jacobian(self, theta) -> tuple[list, np.ndarray]:
+        """(keys, ∂derived/∂θ (len(keys), n)) by central differences of the closed-form map (pure algebra)."""
+        theta = np.asarray(theta, float)
+        keys = list(self.derived(theta))
+        J = np.zeros((len(keys), self.n))
+        for j in range(self.n):
+            h = 1e-6 * max(abs(theta[j]), 1e-8 if self.units[j] in ("m", "N m^2") else 1e-3)
+            tp, tm = theta.copy(), theta.copy()
+            tp[j] += h
+            tm[j] -= h
+            dp, dm = self.derived(tp), self.derived(tm)
+            J[:, j] = [(dp[k] - dm[k]) / (2 * h) for k in keys]
+        return keys, J
+
+    # ------------------------------------------------------------------ sensitivities
+    def dQ_dtheta(self, model, q: np.ndarray, pressure: float, theta) -> np.ndarray:
+        """∂Q/∂θ (ndof, n) at full coordinates ``q`` (exact for the law coefficients; see the module docstring)."""
+        theta = np.asarray(theta, float)
+        out = np.zeros((model.ndof, self.n))
+        zero3 = np.zeros(3)
+        T0 = np.zeros(model.m)
+        q = np.ascontiguousarray(q, dtype=float)
+        for j, (dea, dei, dc) in enumerate(self.laws_jacobian(theta)):
+            if dea is None:
+                continue
+            _, Q, *_ = assemble(q, model.n, model._N, model._wq, _vec(dea), _vec(dei), float(pressure) * _vec(dc),
+                                zero3, model._E, model._d, model._co, model._so, T0, 0.0, zero3, False, 0)
+            out[:, j] = Q
+        return out
+
+
+def _vec(c) -> np.ndarray:
+    a = np.ascontiguousarray(np.atleast_1d(np.asarray(c, float)))
+    return a if a.size else np.zeros(1)
+
+
+def distance_column(model, q, tensions, pressure, tip_force, rel: float = 1e-6) -> np.ndarray:
+    """∂Q/∂d (ndof,) for a common tendon routing distance d: central difference of the assembly."""
+    d0 = model._d.copy()
+    h = rel * float(np.mean(d0))
+    try:
+        model._d = d0 + h
+        Qp = model.residual(q, tensions, pressure, tip_force)
+        model._d = d0 - h
+        Qm = model.residual(q, tensions, pressure, tip_force)
+    finally:
+        model._d = d0
+    return (Qp - Qm) / (2 * h)
+
+
+def position_matrix(n_elements: int, length: float, s) -> np.ndarray:
+    """S (3k, 6(n+1)) with r(s_i) = S[3i:3i+3] q: the centreline at undeformed arc lengths s (k,) [m]."""
+    s = np.atleast_1d(np.asarray(s, float))
+    if np.any(s < 0) or np.any(s > length * (1 + 1e-12)):
+        raise InputError(f"arc lengths must lie in [0, {length}] m, got {s}")
+    from ancf.kinematics import hermite
+    l0 = length / n_elements
+    S = np.zeros((3 * s.size, 6 * (n_elements + 1)))
+    for i, si in enumerate(s):
+        e = min(int(si / l0), n_elements - 1)
+        xi = (si - e * l0) / l0
+        N = hermite([xi], l0)[0][:, 0]                     # s1..s4
+        for j in range(4):
+            col = 6 * e + 3 * j
+            S[3 * i:3 * i + 3, col:col + 3] += N[j] * np.eye(3)
+    return S
+
+
+# ---------------------------------------------------------------------------------------------- forms
+def _paper_laws(th, area=False, dist=False):
+    k1, a, Da = th[0], th[1], th[2]
+    De = th[3]
+    c8 = Da * Da / 8
+    ea = np.array([k1 - a, a])                      # EA(λ) = (k1 − a) + a λ
+    ei = np.array([0.0, c8 * (k1 - a), c8 * a])     # EI = c8 λ k(λ)
+    A = math.pi * De * De / 4
+    beta = th[4] if area else 0.0
+    c = np.array([A * (1 - beta), A * beta]) if area else np.array([A])
+    return ea, ei, c, (th[-1] if dist else None)
+
+
+def _paper_jac(th, area=False):
+    k1, a, Da, De = th[0], th[1], th[2], th[3]
+    c8 = Da * Da / 8
+    A = math.pi * De * De / 4
+    dA = math.pi * De / 2
+    beta = th[4] if area else 0.0
+    z2, z3 = np.zeros(2), np.zeros(3)
+    cols = [
+        (np.array([1.0, 0.0]), np.array([0.0, c8, 0.0]), np.zeros(2 if area else 1)),                 # k1
+        (np.array([-1.0, 1.0]), np.array([0.0, -c8, c8]), np.zeros(2 if area else 1)),                # a
+        (z2, np.array([0.0, Da / 4 * (k1 - a), Da / 4 * a]), np.zeros(2 if area else 1)),             # D_a
+        (z2, z3, np.array([dA * (1 - beta), dA * beta]) if area else np.array([dA])),                 # D_eff
+    ]
+    if area:
+        cols.append((z2, z3, np.array([-A, A])))                                                      # β
+    return cols
+
+
+def _separate_laws(th, area=False, dist=False):
+    EA1, sA, EI1, sI, De = th[:5]
+    ea = np.array([EA1 - sA, sA])
+    ei = np.array([EI1 - sI, sI])
+    A = math.pi * De * De / 4
+    beta = th[5] if area else 0.0
+    c = np.array([A * (1 - beta), A * beta]) if area else np.array([A])
+    return ea, ei, c, (th[-1] if dist else None)
+
+
+def _separate_jac(th, area=False):
+    De = th[4]
+    A, dA = math.pi * De * De / 4, math.pi * De / 2
+    beta = th[5] if area else 0.0
+    z2 = np.zeros(2)
+    zc = np.zeros(2 if area else 1)
+    cols = [(np.array([1.0, 0.0]), z2, zc), (np.array([-1.0, 1.0]), z2, zc),
+            (z2, np.array([1.0, 0.0]), zc), (z2, np.array([-1.0, 1.0]), zc),
+            (z2, z2, np.array([dA * (1 - beta), dA * beta]) if area else np.array([dA]))]
+    if area:
+        cols.append((z2, z2, np.array([-A, A])))
+    return cols
+
+
+def _constant_laws(th, area=False, dist=False):
+    A = math.pi * th[2] ** 2 / 4
+    return np.array([th[0]]), np.array([th[1]]), np.array([A]), (th[-1] if dist else None)
+
+
+def _constant_jac(th, area=False):
+    return [(np.array([1.0]), np.zeros(1), np.zeros(1)), (np.zeros(1), np.array([1.0]), np.zeros(1)),
+            (np.zeros(1), np.zeros(1), np.array([math.pi * th[2] / 2]))]
+
+
+_BIG = 1e7
+_DEF = {
+    "paper": (("k1", "a", "D_a", "D_eff"), ("N", "N", "m", "m"), (1e-3, -_BIG, 1e-4, 1e-4), (_BIG, _BIG, 1.0, 1.0),
+              _paper_laws, _paper_jac, False,
+              "the paper's law: EA = k(λ), EI = D_a² λ k(λ)/8, constant pressure area"),
+    "paper_area": (("k1", "a", "D_a", "D_eff", "beta"), ("N", "N", "m", "m", "-"),
+                   (1e-3, -_BIG, 1e-4, 1e-4, -1.9), (_BIG, _BIG, 1.0, 1.0, 1.9), _paper_laws, _paper_jac, True,
+                   "the paper's law with a stretch-dependent pressure area A(λ) = A_eff (1 + β (λ − 1))"),
+    "separate": (("EA1", "sA", "EI1", "sI", "D_eff"), ("N", "N", "N m^2", "N m^2", "m"),
+                 (1e-3, -_BIG, 1e-9, -_BIG, 1e-4), (_BIG, _BIG, _BIG, _BIG, 1.0), _separate_laws, _separate_jac,
+                 False, "separate linear laws EA(λ), EI(λ), constant pressure area"),
+    "separate_area": (("EA1", "sA", "EI1", "sI", "D_eff", "beta"), ("N", "N", "N m^2", "N m^2", "m", "-"),
+                      (1e-3, -_BIG, 1e-9, -_BIG, 1e-4, -1.9), (_BIG, _BIG, _BIG, _BIG, 1.0, 1.9), _separate_laws,
+                      _separate_jac, True, "separate linear laws EA(λ), EI(λ) and a stretch-dependent pressure area"),
+    "constant": (("EA", "EI", "D_eff"), ("N", "N m^2", "m"), (1e-3, 1e-9, 1e-4), (_BIG, _BIG, 1.0), _constant_laws,
+                 _constant_jac, False, "constant EA and EI, constant pressure area"),
+}
+
+
+def get_form(name: str, fit_distance: bool = False) -> ModelForm:
+    """The form ``name`` (one of :data:`FORMS`); ``fit_distance`` adds the tendon routing distance d [m]."""
+    if name not in _DEF:
+        raise InputError(f"unknown model form {name!r}; choose from {sorted(_DEF)}")
+    names, units, lo, hi, laws, jac, area, desc = _DEF[name]
+    if fit_distance:
+        names, units, lo, hi = names + ("d",), units + ("m",), lo + (1e-4,), hi + (0.49,)
+    return ModelForm(name + ("+d" if fit_distance else ""), names, units, lo, hi,
+                     lambda th, laws=laws, area=area, fd=fit_distance: laws(th, area, fd),
+                     lambda th, jac=jac, area=area, fd=fit_distance: jac(th, area) + ([(None, None, None)] if fd else []),
+                     fit_distance, desc + (", tendon distance fitted" if fit_distance else ""))
+
+
+FORMS = tuple(_DEF)

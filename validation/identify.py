@@ -1,0 +1,364 @@
+r"""Identify the reduced model's parameters (k(λ), D_a, D_eff, …) from the FEM or from rig data.
+
+Protocol (``docs/identification.md``):
+
+1. **Virtual experiments** on the FEM of the design (:mod:`validation.experiments`: a list of load cases —
+   equal tensions, pressure steps, combined pressure and tension, single-tendon bending, small lateral tip
+   forces — in training and held-out roles), run in parallel and cached (:mod:`validation.fem_sweep`).
+   From rig data: the measured static states (:mod:`hardware.static_states`) take their place.
+2. **First estimate** from closed forms: the equivalent rod of the unloaded FEM (condensed cap tangent:
+   EA = L/C_uF, EI = L/C_θM, D_a = √(8 EI/EA), D_eff from the blocked pressure force); from rig data, the
+   base actuator's values.
+3. **Fit** of every candidate model form (:mod:`validation.forms`) with the reduced model in the loop
+   (:mod:`validation.fit`): its tip positions and centreline points (markers at L/4, L/2, 3L/4) are matched
+   to the training states; 95 % CIs, correlations and residuals per state; non-identifiable parameters
+   reported as such.
+4. **Model selection** on held-out states: each form predicts the held-out states it was not fitted to; the
+   form with the smallest held-out RMS error wins, except that a simpler form (fewer parameters) is preferred
+   when its held-out error is within 10 % of the best — evidence, not a default, sets the form.
+
+``from_fem(geometry, material, …)`` and ``from_measurements(path, base=…)`` return an
+:class:`IdentificationResult`: ``values`` / ``ci95`` / ``identifiable`` (keys ``a``, ``b``, ``EA``, ``EI``,
+``D_a``, ``D_eff`` and, for the area forms, ``beta``), ``params`` (an :class:`ancf.ActuatorParams` ready
+to use), ``to_toml(path)`` (loads unchanged with ``ActuatorParams.from_toml``) and ``save(path)`` (the fit data
+as JSON: load cases, the FEM results used, every form's fit, versions and git revision).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+
+from ancf import ActuatorParams, presets
+from ancf.errors import BellowsError, ConfigError, InputError
+from ancf.export import to_jsonable
+from ancf.outputs import atomic_write_text, prepare_output_file
+
+from .experiments import Design, LoadCase, default_design
+from .fit import FitResult, Observations, fit, predict
+from .forms import FORMS, REPORTED, get_form
+from .provenance import provenance
+
+__all__ = ["IdentificationResult", "from_fem", "from_measurements", "identify", "fem_base_params",
+           "observations_from_records", "observations_from_states", "MARKER_FRACTIONS", "PARSIMONY"]
+
+#: Markers used in the fit: centreline points at these fractions of the length.
+MARKER_FRACTIONS = (0.25, 0.5, 0.75)
+#: A simpler form wins when its held-out error is within this factor of the best form's.
+PARSIMONY = 1.10
+
+
+# ---------------------------------------------------------------------------------------------- data
+def observations_from_records(records, marker_s: Optional[Sequence[float]] = None) -> Observations:
+    """Observations (tips and centreline markers) from FEM records (:class:`validation.fem_sweep.FemRecord`)."""
+    recs = list(records)
+    bad = [r.case.label for r in recs if not r.ok]
+    if bad:
+        raise InputError(f"FEM solves failed for {len(bad)} load case(s): {bad[:3]}; fix or drop them first")
+    ms = None if marker_s is None else np.asarray(marker_s, float)
+    return Observations(
+        tensions=np.array([r.case.tensions for r in recs]), pressure=np.array([r.case.pressure for r in recs]),
+        tip_force=np.array([r.case.tip_force for r in recs]), gravity=np.array([r.case.gravity for r in recs]),
+        tip=np.array([r.tip_position for r in recs]),
+        markers=None if ms is None else np.array([r.centreline_at(ms) for r in recs]), marker_s=ms,
+        labels=[r.case.label for r in recs])
+
+
+def observations_from_states(states, gravity: bool = True) -> Observations:
+    """Observations from measured static states (:class:`hardware.static_states.StaticStates`).  A state
+    whose tip load is unknown (NaN) is an error for the fit: say which."""
+    F = np.zeros((states.n_states, 3)) if states.tip_force is None else states.tip_force
+    unknown = np.flatnonzero(np.any(np.isnan(F), axis=1))
+    if unknown.size:
+        raise InputError(f"static states {unknown[:5].tolist()} have an unknown tip load (NaN); the fit needs "
+                         "the load of every state: drop them or state the load")
+    labels = states.label or [f"state {i}" for i in range(states.n_states)]
+    return Observations(states.tensions, states.pressure, F, np.full(states.n_states, bool(gravity)),
+                        states.tip_position, states.tip_position_std, states.markers, states.marker_arclength,
+                        states.markers_std, list(labels))
+
+
+def fem_base_params(geometry, material, *, n_elements: int = 6, tension_max: float = 5.0,
+                    pressure_max: float = 120e3, rod: Optional[dict] = None, name: str = "identified") -> ActuatorParams:
+    """Reduced-model parameters for the FEM design: its length, tendon routing and tip offset, the wall's line
+    mass and the cap as tip mass (known from the geometry and material, not fitted), and the stiffness of the
+    closed-form equivalent rod ``rod`` (``EA``, ``EI``, ``D_a``, ``D_eff``) as the starting point."""
+    from ancf import StiffnessLaw
+    from ancf.params import Tendon
+    g = geometry
+    EA = rod["EA"] if rod else 700.0
+    EI = rod["EI"] if rod else 0.08
+    D_eff = rod["D_eff"] if rod and rod.get("D_eff", 0) > 1e-4 else 0.02
+    mass = (rod or {}).get("wall_mass_kg", g.wall_volume() * material.density)
+    return ActuatorParams(
+        name=name, description=f"identified from the FEM of a {g.n_convolutions}-convolution bellows",
+        length=g.length, n_elements=n_elements, stiffness=StiffnessLaw.constant(EA=EA, EI=EI), D_eff=D_eff,
+        tendons=tuple(Tendon(distance=g.tendon_radius, angle=a) for a in g.tendon_angles),
+        line_mass=mass / g.length, tip_mass=g.cap_mass, tool_offset=g.tip_offset, tension_max=tension_max,
+        pressure_max=pressure_max)
+
+
+def initial_theta(form, rod: Optional[dict], base: ActuatorParams) -> np.ndarray:
+    """Starting point of ``form``: the closed-form rod values (FEM) or the base actuator's law."""
+    if rod:
+        EA, EI, D_eff = rod["EA"], rod["EI"], max(rod.get("D_eff", 0.0), 1e-3)
+    else:
+        EA, EI, D_eff = float(base.stiffness.EA(1.0)), float(base.stiffness.EI(1.0)), base.D_eff
+    D_a = math.sqrt(8 * EI / EA)
+    name = form.name.split("+")[0]
+    th = {"paper": [EA, 0.0, D_a, D_eff], "paper_area": [EA, 0.0, D_a, D_eff, 0.0],
+          "separate": [EA, 0.0, EI, 0.0, D_eff], "separate_area": [EA, 0.0, EI, 0.0, D_eff, 0.0],
+          "constant": [EA, EI, D_eff]}[name]
+    if form.fits_distance:
+        th.append(float(np.mean(base.tendon_distances)))
+    return np.array(th, float)
+
+
+# ---------------------------------------------------------------------------------------------- result
+@dataclass
+class IdentificationResult:
+    """Identified parameters of the reduced model, with their uncertainty and the evidence behind them.
+
+    values / ci95 / identifiable : the reported values of the chosen form (``a``, ``b`` [N], ``EA`` [N],
+        ``EI`` [N m²], ``D_a``, ``D_eff`` [m], ``beta`` [-]); a value that is not identifiable is ``None``
+    params : ActuatorParams of the chosen form (a non-identifiable parameter keeps its starting value and is
+        marked in the TOML file)
+    form : name of the chosen form; fits : {form: FitResult}; comparison : rows per form with the training
+        and held-out errors [m]; heldout_errors : per held-out state [m] for the chosen form
+    source : "fem" or "measurements"; design, records (FEM), rod (closed-form first estimate); provenance
+    """
+    form: str
+    fits: dict
+    comparison: list
+    params: ActuatorParams
+    source: str
+    train: Observations
+    heldout: Optional[Observations] = None
+    design: Optional[Design] = None
+    records: list = field(default_factory=list)
+    rod: Optional[dict] = None
+    provenance: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def fit(self) -> FitResult:
+        return self.fits[self.form]
+
+    @property
+    def values(self) -> dict:
+        return dict(self.fit.values)
+
+    @property
+    def ci95(self) -> dict:
+        return dict(self.fit.values_ci95)
+
+    @property
+    def identifiable(self) -> dict:
+        return dict(self.fit.values_identifiable)
+
+    @property
+    def not_identifiable(self) -> list:
+        return [k for k, ok in self.identifiable.items() if not ok]
+
+    @property
+    def heldout_errors(self) -> Optional[np.ndarray]:
+        row = next(r for r in self.comparison if r["form"] == self.form)
+        return None if row.get("heldout_tip_errors_m") is None else np.asarray(row["heldout_tip_errors_m"])
+
+    # -------------------------------------------------------------------- output
+    def to_toml(self, path=None, *, force: bool = False) -> str:
+        """The identified actuator as TOML (``ActuatorParams.from_toml`` reads it unchanged); written to
+        ``path`` if given (not overwritten without ``force``).  Returns the text."""
+        lines = [f"# Identified by bellows ({self.source}), form '{self.form}': {self.fit.form.description}",
+                 f"# git revision {self.provenance.get('git_revision', 'unknown')}, "
+                 f"created {self.provenance.get('created', '')}"]
+        for k, v in self.values.items():
+            lo, hi = self.ci95.get(k, (float('nan'), float('nan')))
+            unit = REPORTED.get(k, "")
+            lines.append(f"#   {k:6s} = {v:.6g} {unit}  (95 % CI {lo:.6g} .. {hi:.6g})" if v is not None else
+                         f"#   {k:6s} NOT IDENTIFIABLE from these data: the value below is the starting value")
+        text = "\n".join(lines) + "\n" + self.params.to_toml()
+        if path is not None:
+            p = prepare_output_file(path, force=force, suffixes=(".toml",))
+            atomic_write_text(p, text)
+        return text
+
+    def to_dict(self) -> dict:
+        fits = {}
+        for name, f in self.fits.items():
+            fits[name] = {"parameters": dict(zip(f.names, f.theta.tolist())), "units": dict(zip(f.names, f.form.units)),
+                          "ci95": f.ci95, "identifiable": f.identifiable, "correlation": f.correlation,
+                          "values": f.values, "values_ci95": f.values_ci95,
+                          "values_identifiable": f.values_identifiable, "rms_tip_m": f.rms_tip, "dof": f.dof,
+                          "variance_scale": f.s2, "singular_values": f.singular_values, "nfev": f.nfev,
+                          "residuals_m": f.residuals, "description": f.form.description}
+        return to_jsonable({
+            "source": self.source, "form": self.form, "values": self.values, "ci95": self.ci95,
+            "identifiable": self.identifiable, "units": REPORTED, "comparison": self.comparison, "fits": fits,
+            "training_labels": self.train.labels,
+            "heldout_labels": None if self.heldout is None else self.heldout.labels,
+            "design": None if self.design is None else self.design.to_dict(),
+            "fem_records": [r.to_dict() for r in self.records], "rod_estimate": self.rod,
+            "actuator_toml": self.params.to_toml(), "provenance": self.provenance, "meta": self.meta})
+
+    def save(self, path, *, force: bool = False) -> pathlib.Path:
+        """Write the fit data as JSON (see :meth:`to_dict`)."""
+        p = prepare_output_file(path, force=force, suffixes=(".json",))
+        return atomic_write_text(p, json.dumps(self.to_dict(), indent=1))
+
+    def summary_rows(self) -> list[dict]:
+        rows = []
+        for k, v in self.values.items():
+            lo, hi = self.ci95[k]
+            rows.append({"parameter": k, "unit": REPORTED.get(k, ""), "value": v, "ci95_low": lo, "ci95_high": hi,
+                         "identifiable": self.identifiable[k]})
+        return rows
+
+
+# ---------------------------------------------------------------------------------------------- fit all forms
+def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Observations] = None,
+             forms: Sequence[str] = FORMS, rod: Optional[dict] = None, fit_distance: bool = False,
+             absolute_sigma: Optional[bool] = None, source: str = "data", progress=None) -> IdentificationResult:
+    """Fit every form in ``forms`` to ``train``, compare them on ``heldout`` (or on the training error when
+    there is no held-out set) and return the chosen form's result (see the module docstring)."""
+    if not forms:
+        raise InputError("identify: no model form given")
+    fits, rows, failures = {}, [], {}
+    for name in forms:
+        form = get_form(name, fit_distance)
+        try:
+            f = fit(form, train, base, initial_theta(form, rod, base), absolute_sigma=absolute_sigma)
+        except BellowsError as exc:
+            failures[form.name] = f"{type(exc).__name__}: {exc}"
+            rows.append({"form": form.name, "n_params": form.n, "failed": failures[form.name]})
+            continue
+        fits[form.name] = f
+        row = {"form": form.name, "n_params": form.n, "description": form.description,
+               "train_rms_tip_m": f.rms_tip, "train_max_tip_m": float(f.tip_errors().max()),
+               "not_identifiable": [k for k, ok in f.values_identifiable.items() if not ok]}
+        if heldout is not None:
+            try:
+                pred = predict(f.params, heldout)
+                e = np.linalg.norm(pred[:, :3] - heldout.tip, axis=1)
+                row.update(heldout_rms_tip_m=float(np.sqrt(np.mean(e ** 2))), heldout_max_tip_m=float(e.max()),
+                           heldout_tip_errors_m=e.tolist())
+                if heldout.markers is not None:
+                    k = heldout.marker_s.size
+                    em = np.linalg.norm((pred[:, 3:] - heldout.markers.reshape(heldout.n, 3 * k))
+                                        .reshape(heldout.n, k, 3), axis=2)
+                    row["heldout_rms_marker_m"] = float(np.sqrt(np.mean(em ** 2)))
+            except BellowsError as exc:
+                row["heldout_failed"] = f"{type(exc).__name__}: {exc}"
+        rows.append(row)
+        if progress is not None:
+            progress(form.name, row)
+    if not fits:
+        raise ConfigError(f"no model form could be fitted: {failures}")
+    key = "heldout_rms_tip_m" if heldout is not None else "train_rms_tip_m"
+    ok = [r for r in rows if key in r]
+    if not ok:
+        raise ConfigError(f"no fitted form could predict the held-out states: "
+                          f"{[r.get('heldout_failed') for r in rows]}")
+    best = min(r[key] for r in ok)
+    # parsimony: the simplest form within PARSIMONY × the best error
+    chosen = min((r for r in ok if r[key] <= PARSIMONY * best + 1e-15), key=lambda r: (r["n_params"], r[key]))
+    for r in rows:
+        r["chosen"] = r is chosen
+    return IdentificationResult(chosen["form"], fits, rows, fits[chosen["form"]].params, source, train, heldout,
+                                rod=rod, provenance=provenance())
+
+
+def _finalise_params(res: IdentificationResult, base: ActuatorParams) -> None:
+    """Give the chosen parameters the base actuator's name, masses and limits (the fit ran without gravity
+    where the data had none)."""
+    p = res.fit.params
+    res.params = p.replace(line_mass=base.line_mass, tip_mass=base.tip_mass, gravity=base.gravity)
+    for f in res.fits.values():
+        f.params = f.params.replace(line_mass=base.line_mass, tip_mass=base.tip_mass, gravity=base.gravity)
+
+
+# ---------------------------------------------------------------------------------------------- from the FEM
+def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, scheduler=None, cache_dir=None, *,
+             design: Optional[Design] = None, forms: Sequence[str] = FORMS, n_elements: int = 6,
+             tension_max: float = 5.0, pressure_max: float = 120e3, fit_distance: bool = False,
+             progress: bool = True, compliance: bool = True) -> IdentificationResult:
+    """Identify the reduced model from virtual experiments on the FEM of ``geometry`` and ``material``.
+
+    mesh : FEM mesh level ("coarse" for minutes, "reference" for the full report); workers / scheduler :
+    parallel FEM solves (local processes, or a dask scheduler address); cache_dir : on-disk cache of the FEM
+    results (re-runs compute only what changed; an interrupted sweep resumes); design : the load cases
+    (default: :func:`validation.experiments.default_design` for this actuator's range); forms : model forms
+    to compare; compliance : also compute the FEM tip compliances of the held-out states (used by
+    :mod:`validation.compare`).
+    """
+    from .fem_sweep import FemSpec, run_cases, run_rod
+    spec = FemSpec(geometry, material, str(mesh))
+    if design is None:
+        design = default_design(tension_max=tension_max, pressure_max=pressure_max,
+                                tendon_distance=geometry.tendon_radius, length=geometry.length,
+                                n_tendons=len(geometry.tendon_angles))
+    if not design.training:
+        raise InputError("the design has no training cases")
+    rod = run_rod(spec, cache_dir=cache_dir)
+    base = fem_base_params(geometry, material, n_elements=n_elements, tension_max=tension_max,
+                           pressure_max=pressure_max, rod=rod)
+    records = run_cases(spec, design.cases, compliance=(lambda c: c.role == "heldout") if compliance else False,
+                        workers=workers, scheduler=scheduler, cache_dir=cache_dir, progress=progress)
+    marker_s = [f * geometry.length for f in MARKER_FRACTIONS]
+    tr = [r for r in records if r.case.role == "train"]
+    ho = [r for r in records if r.case.role == "heldout"]
+    train = observations_from_records(tr, marker_s)
+    heldout = observations_from_records(ho, marker_s) if ho else None
+    fit_base = base.replace(gravity=(0.0, 0.0, 0.0)) if not np.any(train.gravity) else base
+    res = identify(train, fit_base, heldout=heldout, forms=forms, rod=rod, fit_distance=fit_distance,
+                   absolute_sigma=False, source="fem")
+    _finalise_params(res, base)
+    res.design, res.records = design, records
+    res.meta = {"mesh": str(mesh), "geometry": to_jsonable(vars(geometry)), "material": to_jsonable(vars(material)),
+                "marker_s_m": marker_s}
+    return res
+
+
+# ---------------------------------------------------------------------------------------------- from rig data
+def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Sequence[str] = FORMS,
+                      heldout_fraction: float = 0.25, seed: int = 0, fit_distance: bool = False,
+                      gravity: bool = True, absolute_sigma: Optional[bool] = None) -> IdentificationResult:
+    """Identify the reduced model from measured static states (HDF5 run log / static-states file or CSV;
+    ``docs/data-formats.md``).
+
+    base : the actuator as built (length, tendon routing, masses, limits; default: the ``paper`` preset),
+    whose stiffness is the starting point; heldout_fraction : share of the states held out (random, seeded)
+    to choose the model form (0: choose on the training error); gravity : the states were measured under
+    gravity (the actuator's weight from ``base`` acts).  States with labels starting with ``heldout`` are
+    held out deterministically instead.
+    """
+    from hardware.static_states import StaticStates, read_static_states
+    states = path if isinstance(path, StaticStates) else read_static_states(path)
+    base = presets.paper() if base is None else base
+    if not isinstance(base, ActuatorParams):
+        raise InputError(f"base must be ActuatorParams, got {type(base).__name__}")
+    if states.n_tendons != base.n_tendons:
+        raise InputError(f"the states have {states.n_tendons} tensions per state; the base actuator has "
+                         f"{base.n_tendons} tendons")
+    if not (0.0 <= heldout_fraction < 1.0):
+        raise InputError(f"heldout_fraction must be in [0, 1), got {heldout_fraction}")
+    obs = observations_from_states(states, gravity=gravity)
+    labels = obs.labels
+    ho = np.array([str(lb).startswith("heldout") for lb in labels])
+    if not ho.any() and heldout_fraction > 0:
+        rng = np.random.default_rng(seed)
+        n_ho = int(round(heldout_fraction * obs.n))
+        ho[rng.choice(obs.n, size=n_ho, replace=False)] = True
+    train, heldout = obs.subset(~ho), (obs.subset(ho) if ho.any() else None)
+    fit_base = base if gravity else base.replace(gravity=(0.0, 0.0, 0.0))
+    res = identify(train, fit_base, heldout=heldout, forms=forms, fit_distance=fit_distance,
+                   absolute_sigma=absolute_sigma, source="measurements")
+    _finalise_params(res, base)
+    res.meta = {"path": str(path) if not isinstance(path, StaticStates) else "<StaticStates>",
+                "n_states": obs.n, "n_heldout": int(ho.sum()), "seed": seed}
+    return res
