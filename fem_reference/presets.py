@@ -5,29 +5,29 @@ three tendons at routing distance 27.5 mm, θ = 0, 2π/3, 4π/3, DPI8400 silicon
 end caps.  Identified ANCF parameters (docs/design.md §2–3): EA ≈ 767 N, EI ≈ 0.084 N m², D_a = 29.59 mm,
 D_eff = 26.05 mm.
 
-**How the guessed dimensions were sized** (a sweep over n ∈ {6, 8}, t ∈ {3, 4, 5} mm, root/crest
-radii on a 3-per-convolution mesh, μ = 0.8 MPa, κ = 50 μ; linear stiffness from the condensed cap
-tangent at zero load, as :meth:`BellowsModel.equivalent_rod` computes it: ``EA = L / C_uxFx``,
-``EI = L³/(3 C_uzFz)`` (tip-force cantilever), ``D_a = sqrt(8 EI/EA)``, ``D_eff`` from the
-pressure-elongation rate ``A_eff = (du_x/dp)/C_uxFx``).  The "stiff" row was re-measured on the
-``coarse`` mesh with ``equivalent_rod()``: EA 776 N, EI 0.084 N m² (0.089 from a pure moment),
-D_a 30.3 mm, D_eff 12.0 mm.
+**Variants.**  ``"soft"`` (the default) is calibrated to the product's ``paper`` reading of the
+stiffness law (docs/paper-readings.md; docs/identification.md §Calibration): the paper's k(λ) and
+D_a² k/8 read as per-unit-length stiffnesses times the actuator length, i.e. EA(1) ≈ 120–155 N,
+EI(1) ≈ 0.013–0.017 N m², D_a ≈ 29.6 mm, D_eff ≈ 26 mm.  A Shore-50A wall (μ = 0.8 MPa) of 2.6 mm with
+convolutions from a 10.5 mm root to a 20 mm crest has them (coarse mesh, condensed cap tangent at zero
+load, :meth:`BellowsModel.equivalent_rod`): EA 131 N, EI 0.0152 N m², D_a 30.4 mm, blocked-force
+D_eff 25.4 mm; the secant D_eff under 60 kPa (free elongation λ = 1.21 read through the reduced model's
+axial law) is 26.1 mm.  It is a soft, extensible bellows: 120 kPa lengthens it by about a third.
 
-============  ===  =====  ======  ======  =======  =========  ======  ======
+``"stiff"`` reads the law literally (EA = k(λ) ≈ 767 N, EI ≈ 0.084 N m²); a 4 mm wall is needed for that
+with Shore 50A, and such a wall elongates little under pressure (Poisson coupling of the hoop stress
+cancels most of the cap force): D_eff ≈ 12 mm.  ``"deep"`` matches D_eff and D_a at EA ≈ 410 N.
+
+============  ===  =====  ======  =======  =======  =========  ======  ========
 variant        n   t/mm   r_root  r_crest  EA / N  EI / N m²  D_a/mm  D_eff/mm
-============  ===  =====  ======  ======  =======  =========  ======  ======
-"stiff"        8    4.0    12.0    18.0     ~790    ~0.085     ~29     ~12
-"deep"         8    4.0    10.5    22.0     ~410    ~0.047     ~31     ~24.5
-============  ===  =====  ======  ======  =======  =========  ======  ======
+============  ===  =====  ======  =======  =======  =========  ======  ========
+"soft"         8    2.6    10.5    20.0      131    0.0152      30.4   25.4
+"stiff"        8    4.0    12.0    18.0      776    0.084       30.3   12.0
+"deep"         8    4.0    10.5    22.0     ~410    ~0.047      ~31    ~24.5
+============  ===  =====  ======  =======  =======  =========  ======  ========
 
-(``r_root`` = inner radius at a root, ``r_crest`` = outer radius at a crest.)  No sine bellows of the
-sweep matches all three of EA, EI and D_eff with a Shore-50A modulus: a thick near-incompressible
-wall matching EA and EI elongates little under pressure (Poisson coupling of the hoop stress cancels
-most of the cap force), while the deep-convolution variant matches D_eff and D_a but needs
-μ ≈ 1.5 MPa to reach EA ≈ 767 N.  ``paper_bellows()`` defaults to ``"stiff"`` (it reproduces the
-tip-load behaviour: ≈ 8 mm sag under 50 g, as the ANCF preset); use ``variant="deep"`` for pressure
-studies.  The numbers above are rough (coarse mesh, ±5 %) and are re-measured by
-``validation`` identification.
+(``r_root`` = inner radius at a root, ``r_crest`` = outer radius at a crest; coarse mesh, ±5 %.)  The
+identification (``bellows identify``) re-measures all of them with the reduced model in the loop.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from ancf.errors import ConfigError
 from .geometry import BellowsGeometry
 from .material import Material
 
-__all__ = ["GUESSED", "STATED", "paper_bellows", "paper_material", "straight_tube_test"]
+__all__ = ["GUESSED", "STATED", "VARIANTS", "paper_bellows", "paper_material", "straight_tube_test"]
 
 #: Values taken from the paper (SI).
 STATED = {
@@ -54,9 +54,12 @@ STATED = {
 #: Every dimension/parameter that the paper does not state, in ONE place: (value, unit, reason).
 GUESSED = {
     "n_convolutions": (8, "-", "sized with EA/EI (see module doc); paper figure not available"),
-    "root_radius": ({"stiff": 0.012, "deep": 0.0105}, "m", "inner radius at a root; sized (module doc)"),
-    "crest_radius": ({"stiff": 0.018, "deep": 0.022}, "m", "outer radius at a crest; sized (module doc)"),
-    "wall_thickness": (0.004, "m", "thick wall needed for EA ≈ 767 N with Shore 50A"),
+    "root_radius": ({"soft": 0.0105, "stiff": 0.012, "deep": 0.0105}, "m",
+                    "inner radius at a root; calibrated/sized (module doc)"),
+    "crest_radius": ({"soft": 0.020, "stiff": 0.018, "deep": 0.022}, "m",
+                     "outer radius at a crest; calibrated/sized (module doc)"),
+    "wall_thickness": ({"soft": 0.0026, "stiff": 0.004, "deep": 0.004}, "m",
+                       "soft: calibrated to the length-scaled reading; stiff: EA ≈ 767 N with Shore 50A"),
     "collar_length": (0.005, "m", "straight bonded length at each cap"),
     "profile": ("sine", "-", "only shape implemented"),
     "cap_mass": (0.018, "kg", "PLA disc Ø60 × 5 mm (must hold tendons at 27.5 mm), ρ = 1250 kg/m³"),
@@ -70,17 +73,22 @@ GUESSED = {
 }
 
 
-def paper_bellows(variant: str = "stiff") -> BellowsGeometry:
-    """The paper's actuator (160 mm, tendons at 27.5 mm); guessed dimensions from :data:`GUESSED`."""
-    if variant not in ("stiff", "deep"):
-        raise ConfigError("variant must be 'stiff' or 'deep'")
+#: Geometry variants of :func:`paper_bellows` (module docstring); the first is the default.
+VARIANTS = ("soft", "stiff", "deep")
+
+
+def paper_bellows(variant: str = "soft") -> BellowsGeometry:
+    """The paper's actuator (160 mm, tendons at 27.5 mm); guessed dimensions from :data:`GUESSED`.
+    ``variant``: one of :data:`VARIANTS` (module docstring)."""
+    if variant not in VARIANTS:
+        raise ConfigError(f"variant must be one of {', '.join(VARIANTS)}; got {variant!r}")
     G = {k: v[0] for k, v in GUESSED.items()}
     return BellowsGeometry(
         length=STATED["length"][0],
         n_convolutions=G["n_convolutions"],
         root_radius=G["root_radius"][variant],
         crest_radius=G["crest_radius"][variant],
-        wall_thickness=G["wall_thickness"],
+        wall_thickness=G["wall_thickness"][variant],
         collar_length=G["collar_length"],
         profile=G["profile"],
         tendon_radius=STATED["tendon_radius"][0],

@@ -25,6 +25,12 @@ try:  # the paper's studies (workspace, stiffness, Table I, loading)
 except ImportError:  # pragma: no cover - during development of the studies
     pass
 
+try:  # identification, validation against the FEM, report, calibration (needs scikit-fem for the FEM)
+    from validation import identify_cli
+    identify_cli.register(app)
+except ImportError:  # pragma: no cover - depends on the installation
+    pass
+
 try:  # the FEM reference is optional at run time (scikit-fem)
     from fem_reference.cli import app as fem_app
     app.add_typer(fem_app, name="fem", help="3-D hyperelastic FEM reference of the bellows.")

@@ -1,0 +1,280 @@
+"""``bellows identify | validate | report | calibrate``: identification of the reduced model, its validation
+against the FEM, the HTML report and the calibration of an FEM design (docs/identification.md).
+
+Every command checks its outputs before any work (an existing result is not overwritten without
+``--force``), caches each FEM solve under ``--cache`` (a re-run or an interrupted run computes only what is
+missing) and prints where it wrote what.  Units are in the option names.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import shlex
+import sys
+import time
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from ancf.errors import InputError
+from ancf.export import to_jsonable
+from ancf.outputs import atomic_write_text, prepare_output_dir, prepare_output_file
+
+DESIGN_HELP = "FEM design: a preset (paper, paper_stiff, paper_deep, straight_tube) or a design .toml file."
+CACHE_HELP = "Folder of the on-disk FEM cache (re-runs and interrupted runs compute only what is missing)."
+WORKERS_HELP = "Parallel FEM processes (default: all cores)."
+SCHEDULER_HELP = "dask scheduler address (tcp://host:8786) to run the FEM cases on a cluster."
+FORMS_HELP = "Model forms to compare, comma separated (default: all of paper, paper_area, separate, separate_area, constant)."
+DEFAULT_CACHE = pathlib.Path("bellows_out/fem_cache")
+QUICK_FORMS = ("paper", "separate")
+
+console = Console(width=120)
+
+
+def _forms(text: Optional[str], quick: bool = False) -> tuple:
+    from .forms import FORMS
+    if not text:
+        return QUICK_FORMS if quick else FORMS
+    names = tuple(x.strip() for x in text.split(",") if x.strip())
+    bad = [n for n in names if n not in FORMS]
+    if bad or not names:
+        raise InputError(f"--forms: unknown form(s) {', '.join(bad) or '(none given)'}; choose from {', '.join(FORMS)}")
+    return names
+
+
+def _command_line() -> str:
+    return "bellows " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+
+
+def _print_identification(res) -> None:
+    from .report import DISPLAY
+    t = Table(title=f"Identified parameters (form '{res.form}')")
+    for c in ("parameter", "value", "95 % CI", "unit"):
+        t.add_column(c, justify="left" if c in ("parameter", "unit") else "right")
+    for k, v in res.values.items():
+        scale, unit = DISPLAY.get(k, (1.0, ""))
+        lo, hi = res.ci95[k]
+        if v is None:
+            t.add_row(k, "not identifiable", "", unit)
+        else:
+            t.add_row(k, f"{v * scale:.5g}", f"{lo * scale:.5g} … {hi * scale:.5g}", unit)
+    console.print(t)
+    f = Table(title="Model forms (tip error)")
+    for c in ("form", "params", "train RMS [mm]", "held-out RMS [mm]", "held-out max [mm]", "not identifiable"):
+        f.add_column(c, justify="left" if c in ("form", "not identifiable") else "right")
+    for r in res.comparison:
+        if "failed" in r:
+            f.add_row(r["form"], str(r["n_params"]), "failed", r["failed"], "", "")
+            continue
+        mm = lambda key: "–" if r.get(key) is None else f"{1e3 * r[key]:.2f}"  # noqa: E731
+        f.add_row(r["form"] + (" (chosen)" if r.get("chosen") else ""), str(r["n_params"]), mm("train_rms_tip_m"),
+                  mm("heldout_rms_tip_m"), mm("heldout_max_tip_m"), ", ".join(r.get("not_identifiable", [])) or "–")
+    console.print(f)
+
+
+def _print_validation(val) -> None:
+    if not val.rows:
+        console.print("[red]no held-out state could be compared[/red]")
+        return
+    console.print(f"held-out tip error: mean {val.tip_error_pct['mean']:.2f} %, max {val.tip_error_pct['max']:.2f} % of L; "
+                  f"shape error: mean {val.shape_error_pct['mean']:.2f} %, max {val.shape_error_pct['max']:.2f} % of L")
+    if val.compliance_error_pct:
+        c = val.compliance_error_pct
+        console.print(f"compliance error (Frobenius): tension held mean {c['tension']['mean']:.1f} % (max "
+                      f"{c['tension']['max']:.1f} %), tendons locked mean {c['locked']['mean']:.1f} % "
+                      f"(max {c['locked']['max']:.1f} %)")
+    for name, t in val.targets.items():
+        console.print(f"target {name} < {t['target']} %: {t['value']:.2f} % — " + ("met" if t["met"] else "NOT met"))
+    for f in val.failures:
+        console.print(f"[yellow]not compared: {f['label']} ({f['model']}): {f['error']}[/yellow]")
+
+
+def _identify_fem(design: str, mesh: str, workers, scheduler, cache: Optional[pathlib.Path], forms, fit_distance: bool):
+    from .designs import load_design
+    from .identify import from_fem
+    geo, mat = load_design(design)
+    return from_fem(geo, mat, mesh, workers=workers, scheduler=scheduler, cache_dir=cache, forms=forms,
+                    fit_distance=fit_distance, progress=True)
+
+
+def _identify_measured(measurements: pathlib.Path, base: str, forms, fit_distance: bool, heldout_fraction: float,
+                       gravity: bool):
+    from ancf import presets
+    from .identify import from_measurements
+    return from_measurements(measurements, presets.get(base), forms=forms, heldout_fraction=heldout_fraction,
+                             fit_distance=fit_distance, gravity=gravity)
+
+
+def _source_check(design: Optional[str], measurements: Optional[pathlib.Path]) -> None:
+    if design is not None and measurements is not None:
+        raise InputError("give either --design (virtual experiments on the FEM) or --measurements (rig data), not both")
+    if measurements is not None and not measurements.is_file():
+        raise InputError(f"--measurements: no such file {measurements}")
+
+
+def identify_cmd(
+        design: Optional[str] = typer.Option(None, help=DESIGN_HELP + " Default: paper (unless --measurements)."),
+        measurements: Optional[pathlib.Path] = typer.Option(
+            None, help="Measured static states (.h5 run log or static-states file, or .csv; docs/data-formats.md)."),
+        base: str = typer.Option("paper", help="With --measurements: the actuator as built (preset or .toml) — "
+                                               "length, tendon routing, masses, limits, starting stiffness."),
+        heldout_fraction: float = typer.Option(0.25, help="With --measurements: share of states held out to choose "
+                                                          "the model form (states labelled 'heldout…' are held out instead)."),
+        gravity: bool = typer.Option(True, help="With --measurements: the states were measured under gravity."),
+        mesh: str = typer.Option("coarse", help="FEM mesh level (coarse, medium, fine)."),
+        forms: Optional[str] = typer.Option(None, help=FORMS_HELP),
+        fit_distance: bool = typer.Option(False, help="Also fit the tendon routing distance d."),
+        workers: Optional[int] = typer.Option(None, help=WORKERS_HELP),
+        scheduler: Optional[str] = typer.Option(None, help=SCHEDULER_HELP),
+        cache: pathlib.Path = typer.Option(DEFAULT_CACHE, help=CACHE_HELP),
+        out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/identify"), help="Output folder."),
+        force: bool = typer.Option(False, help="Overwrite results already in --out.")):
+    """Identify the reduced model (k(λ), D_a, D_eff, …) from the FEM or from rig data: actuator.toml + fit.json."""
+    _source_check(design, measurements)
+    names = _forms(forms)
+    d = prepare_output_dir(out, ("actuator.toml", "fit.json"), force=force)
+    t0 = time.perf_counter()
+    if measurements is not None:
+        res = _identify_measured(measurements, base, names, fit_distance, heldout_fraction, gravity)
+    else:
+        res = _identify_fem(design or "paper", mesh, workers, scheduler, cache, names, fit_distance)
+    res.meta["command"] = _command_line()
+    res.to_toml(d / "actuator.toml", force=force)
+    res.save(d / "fit.json", force=force)
+    _print_identification(res)
+    console.print(f"{time.perf_counter() - t0:.0f} s; wrote {d / 'actuator.toml'} and {d / 'fit.json'}")
+
+
+def validate_cmd(
+        params: str = typer.Option(..., help="Reduced model to validate: an actuator .toml file (e.g. from "
+                                             "'bellows identify') or a preset name."),
+        design: str = typer.Option("paper", help=DESIGN_HELP),
+        mesh: str = typer.Option("coarse", help="FEM mesh level."),
+        workers: Optional[int] = typer.Option(None, help=WORKERS_HELP),
+        scheduler: Optional[str] = typer.Option(None, help=SCHEDULER_HELP),
+        cache: pathlib.Path = typer.Option(DEFAULT_CACHE, help=CACHE_HELP),
+        out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/validate"), help="Output folder."),
+        force: bool = typer.Option(False, help="Overwrite results already in --out.")):
+    """Reduced model vs the FEM on the held-out states: tip, shape and compliance errors (validation.json)."""
+    from ancf import presets
+    from .compare import validate
+    from .designs import load_design
+    from .fem_sweep import FemSpec
+    p = presets.get(params)
+    d = prepare_output_dir(out, ("validation.json",), force=force)
+    geo, mat = load_design(design)
+    val = validate(p, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler, cache_dir=cache)
+    atomic_write_text(d / "validation.json", json.dumps(val.to_dict(), indent=1))
+    _print_validation(val)
+    console.print(f"wrote {d / 'validation.json'}")
+
+
+REPORT_FILES = ("report.html", "actuator.toml", "fit.json", "validation.json", "stiffness.json")
+
+
+def report_cmd(
+        design: Optional[str] = typer.Option(None, help=DESIGN_HELP + " Default: paper (unless --measurements)."),
+        measurements: Optional[pathlib.Path] = typer.Option(None, help="Measured static states instead of the FEM."),
+        base: str = typer.Option("paper", help="With --measurements: the actuator as built (preset or .toml)."),
+        quick: bool = typer.Option(False, help="Only the paper and separate-laws forms, no stiffness-vs-tension "
+                                               "study (a few minutes on 2 cores)."),
+        mesh: str = typer.Option("coarse", help="FEM mesh level."),
+        forms: Optional[str] = typer.Option(None, help=FORMS_HELP),
+        fit_distance: bool = typer.Option(False, help="Also fit the tendon routing distance d."),
+        workers: Optional[int] = typer.Option(None, help=WORKERS_HELP),
+        scheduler: Optional[str] = typer.Option(None, help=SCHEDULER_HELP),
+        cache: pathlib.Path = typer.Option(DEFAULT_CACHE, help=CACHE_HELP),
+        out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/report"), help="Output folder."),
+        force: bool = typer.Option(False, help="Overwrite results already in --out.")):
+    """Identify, validate against the FEM and write one self-contained HTML report (report.html) with the
+    actuator file, the fit data and the figures."""
+    from .compare import compare_records, stiffness_vs_tension
+    from .designs import load_design
+    from .fem_sweep import FemSpec
+    from .report import write_report
+    _source_check(design, measurements)
+    names = _forms(forms, quick)
+    d = prepare_output_dir(out, REPORT_FILES, force=force)
+    t0 = time.perf_counter()
+    val = stiff = None
+    if measurements is not None:
+        res = _identify_measured(measurements, base, names, fit_distance, 0.25, True)
+    else:
+        res = _identify_fem(design or "paper", mesh, workers, scheduler, cache, names, fit_distance)
+        val = compare_records(res.params, [r for r in res.records if r.case.role == "heldout"])
+        if not quick:
+            console.print("stiffness vs tension (Fig. 9 protocol) on the FEM …")
+            geo, mat = load_design(design or "paper")
+            stiff = stiffness_vs_tension(res.params, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler,
+                                         cache_dir=cache)
+    res.meta["command"] = _command_line()
+    res.to_toml(d / "actuator.toml", force=force)
+    res.save(d / "fit.json", force=force)
+    if val is not None:
+        atomic_write_text(d / "validation.json", json.dumps(val.to_dict(), indent=1))
+    if stiff is not None:
+        atomic_write_text(d / "stiffness.json", json.dumps(to_jsonable(stiff), indent=1))
+    path = write_report(d / "report.html", res, val, stiff, force=force, figures_dir=d / "figures",
+                        command=_command_line())
+    _print_identification(res)
+    if val is not None:
+        _print_validation(val)
+    console.print(f"{time.perf_counter() - t0:.0f} s; wrote {path} (open it in a browser), actuator.toml, "
+                  f"fit.json{', validation.json' if val else ''}{', stiffness.json' if stiff else ''} and figures/ in {d}")
+
+
+def calibrate_cmd(
+        design: str = typer.Option("paper", help=DESIGN_HELP + " The starting design."),
+        target_ea_n: Optional[float] = typer.Option(None, help="Target axial stiffness EA at rest [N]."),
+        target_ei_n_m2: Optional[float] = typer.Option(None, help="Target bending stiffness EI at rest [N m²]."),
+        target_d_eff_mm: Optional[float] = typer.Option(None, help="Target pressure diameter D_eff [mm] (secant at "
+                                                                   "--pressure-kpa)."),
+        free: str = typer.Option("wall_thickness,root_radius,crest_radius",
+                                 help="Parameters to adjust, comma separated (wall_thickness, root_radius, "
+                                      "crest_radius, collar_length, mu)."),
+        range_factor: float = typer.Option(1.6, help="Each free parameter stays within [start/f, start·f]."),
+        pressure_kpa: float = typer.Option(60.0, help="Pressure of the secant D_eff measure [kPa]."),
+        mesh: str = typer.Option("coarse", help="FEM mesh level."),
+        workers: Optional[int] = typer.Option(None, help=WORKERS_HELP),
+        cache: pathlib.Path = typer.Option(DEFAULT_CACHE, help=CACHE_HELP),
+        out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/calibrated_design.toml"),
+                                         help="Design .toml to write."),
+        force: bool = typer.Option(False, help="Overwrite --out if it exists.")):
+    """Adjust an FEM design so that its rod measures (EA, EI, D_eff) match targets; writes a design .toml."""
+    from .calibrate import GEOMETRY_PARAMETERS, calibrate
+    from .designs import design_to_toml, load_design
+    target = {k: v for k, v in (("EA", target_ea_n), ("EI", target_ei_n_m2),
+                                ("D_eff", None if target_d_eff_mm is None else target_d_eff_mm * 1e-3)) if v is not None}
+    if not target:
+        raise InputError("give at least one of --target-ea-n, --target-ei-n-m2, --target-d-eff-mm")
+    if not (range_factor > 1.0):
+        raise InputError(f"--range-factor must be > 1, got {range_factor}")
+    if not (pressure_kpa > 0):
+        raise InputError(f"--pressure-kpa must be > 0, got {pressure_kpa}")
+    path = prepare_output_file(out, force=force, suffixes=(".toml",))
+    geo, mat = load_design(design)
+    names = [n.strip() for n in free.split(",") if n.strip()]
+    start = {n: getattr(geo, n) if n in GEOMETRY_PARAMETERS else getattr(mat, n, None) for n in names}
+    bad = [n for n, v in start.items() if v is None]
+    if bad:
+        raise InputError(f"--free: cannot adjust {', '.join(bad)}")
+    bounds = {n: (v / range_factor, v * range_factor) for n, v in start.items()}
+    res = calibrate(target, geo, mat, bounds, mesh=mesh, p_mid=pressure_kpa * 1e3, workers=workers, cache_dir=cache)
+    atomic_write_text(path, f"# calibrated by {_command_line()}\n# measures: "
+                      + ", ".join(f"{k} = {v:.5g}" for k, v in res.measures.items())
+                      + "\n" + design_to_toml(res.geometry, res.material, name=f"{design} (calibrated)"))
+    for k, m in res.mismatch_pct.items():
+        console.print(f"{k}: {res.measures[k]:.5g} (target {target[k]:.5g}, {m:+.1f} %)")
+    console.print(("converged" if res.converged else "[yellow]not converged: best design written[/yellow]")
+                  + f"; wrote {path}")
+
+
+def register(app: typer.Typer) -> None:
+    """Attach ``identify``, ``validate``, ``report`` and ``calibrate`` to the root ``bellows`` app."""
+    app.command("identify")(identify_cmd)
+    app.command("validate")(validate_cmd)
+    app.command("report")(report_cmd)
+    app.command("calibrate")(calibrate_cmd)
