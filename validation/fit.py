@@ -37,7 +37,7 @@ import scipy.optimize as so
 import scipy.stats as st
 
 from ancf import ActuatorParams, Model
-from ancf.errors import ConvergenceError, InputError
+from ancf.errors import CollapsedStateError, ConvergenceError, InputError
 
 from .forms import ModelForm, distance_column, position_matrix
 
@@ -45,6 +45,8 @@ __all__ = ["Observations", "FitResult", "fit", "predict"]
 
 RANK_TOL = 1e-7
 NULL_SHARE = 0.01
+#: Weighted residual returned for a trial step whose equilibria cannot be solved (the step is rejected).
+REJECTED_RESIDUAL = 1e6
 #: Signed parameters (slopes, intercepts) for which zero is a meaningful value: rule (2) of the module
 #: docstring (CI wider than the value) does not apply to them.
 SIGNED = frozenset({"a", "b", "beta", "sA", "sI"})
@@ -262,8 +264,18 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         th[free] = x
         return th
 
+    first = [True]
+
     def fun(x):
-        _, pred, _ = ev.evaluate(full(x), jacobian=False)
+        # a trial step whose equilibria cannot be solved (a law that loses its stiffness, a stalled load
+        # path) is answered with a huge residual: the trust region rejects it and shrinks
+        try:
+            _, pred, _ = ev.evaluate(full(x), jacobian=False)
+        except (ConvergenceError, CollapsedStateError, InputError):
+            if first[0]:
+                raise
+            return np.full(y.size, REJECTED_RESIDUAL)
+        first[0] = False
         return (pred.ravel() - y) * w
 
     def jac(x):

@@ -24,6 +24,7 @@ form                law                                                         
 ``paper_area``      as ``paper``, A(λ) = A_eff (1 + β (λ − 1))                           + β [−]
 ``separate``        EA = EA₁ + s_A (λ − 1),  EI = EI₁ + s_I (λ − 1),  A = π D_eff²/4   EA₁ [N], s_A [N], EI₁ [N m²], s_I [N m²], D_eff [m]
 ``separate_area``   as ``separate``, A(λ) = A_eff (1 + β (λ − 1))                        + β [−]
+``quadratic``       EA = EA₁ + s_A (λ − 1) + c_A (λ − 1)²,  EI as ``separate``            EA₁, s_A, c_A [N], EI₁, s_I, D_eff
 ``constant``        EA, EI constant,  A = π D_eff²/4                                     EA [N], EI [N m²], D_eff [m]
 ==================  ===================================================================  =========================
 
@@ -233,6 +234,21 @@ def _separate_jac(th, area=False):
     return cols
 
 
+def _quadratic_laws(th, area=False, dist=False):
+    EA1, sA, cA, EI1, sI, De = th[:6]
+    ea = np.array([EA1 - sA + cA, sA - 2 * cA, cA])   # EA1 + sA (λ − 1) + cA (λ − 1)²
+    ei = np.array([EI1 - sI, sI])
+    return ea, ei, np.array([math.pi * De * De / 4]), (th[-1] if dist else None)
+
+
+def _quadratic_jac(th, area=False):
+    z2, z3 = np.zeros(2), np.zeros(3)
+    zc = np.zeros(1)
+    return [(np.array([1.0, 0.0, 0.0]), z2, zc), (np.array([-1.0, 1.0, 0.0]), z2, zc),
+            (np.array([1.0, -2.0, 1.0]), z2, zc), (z3, np.array([1.0, 0.0]), zc), (z3, np.array([-1.0, 1.0]), zc),
+            (z3, z2, np.array([math.pi * th[5] / 2]))]
+
+
 def _constant_laws(th, area=False, dist=False):
     A = math.pi * th[2] ** 2 / 4
     return np.array([th[0]]), np.array([th[1]]), np.array([A]), (th[-1] if dist else None)
@@ -257,6 +273,10 @@ _DEF = {
     "separate_area": (("EA1", "sA", "EI1", "sI", "D_eff", "beta"), ("N", "N", "N m^2", "N m^2", "m", "-"),
                       (1e-3, -_BIG, 1e-9, -_BIG, 1e-4, -1.9), (_BIG, _BIG, _BIG, _BIG, 1.0, 1.9), _separate_laws,
                       _separate_jac, True, "separate linear laws EA(λ), EI(λ) and a stretch-dependent pressure area"),
+    "quadratic": (("EA1", "sA", "cA", "EI1", "sI", "D_eff"), ("N", "N", "N", "N m^2", "N m^2", "m"),
+                  (1e-3, -_BIG, -_BIG, 1e-9, -_BIG, 1e-4), (_BIG, _BIG, _BIG, _BIG, _BIG, 1.0), _quadratic_laws,
+                  _quadratic_jac, False, "separate laws, EA(λ) quadratic in the stretch, EI(λ) linear, constant "
+                                         "pressure area"),
     "constant": (("EA", "EI", "D_eff"), ("N", "N m^2", "m"), (1e-3, 1e-9, 1e-4), (_BIG, _BIG, 1.0), _constant_laws,
                  _constant_jac, False, "constant EA and EI, constant pressure area"),
 }

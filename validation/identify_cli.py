@@ -31,6 +31,15 @@ FORMS_HELP = "Model forms to compare, comma separated (default: all of paper, pa
 DEFAULT_CACHE = pathlib.Path("bellows_out/fem_cache")
 QUICK_FORMS = ("paper", "separate")
 
+# options shared by several commands (typer reads these as defaults)
+MESH_OPT = typer.Option("coarse", help="FEM mesh level (coarse, medium, fine).")
+FORMS_OPT = typer.Option(None, help=FORMS_HELP)
+FIT_D_OPT = typer.Option(False, help="Also fit the tendon routing distance d.")
+WORKERS_OPT = typer.Option(None, help=WORKERS_HELP)
+SCHEDULER_OPT = typer.Option(None, help=SCHEDULER_HELP)
+CACHE_OPT = typer.Option(DEFAULT_CACHE, help=CACHE_HELP)
+FORCE_OPT = typer.Option(False, help="Overwrite results already in --out.")
+
 console = Console(width=120)
 
 
@@ -124,14 +133,14 @@ def identify_cmd(
         heldout_fraction: float = typer.Option(0.25, help="With --measurements: share of states held out to choose "
                                                           "the model form (states labelled 'heldout…' are held out instead)."),
         gravity: bool = typer.Option(True, help="With --measurements: the states were measured under gravity."),
-        mesh: str = typer.Option("coarse", help="FEM mesh level (coarse, medium, fine)."),
-        forms: Optional[str] = typer.Option(None, help=FORMS_HELP),
-        fit_distance: bool = typer.Option(False, help="Also fit the tendon routing distance d."),
-        workers: Optional[int] = typer.Option(None, help=WORKERS_HELP),
-        scheduler: Optional[str] = typer.Option(None, help=SCHEDULER_HELP),
-        cache: pathlib.Path = typer.Option(DEFAULT_CACHE, help=CACHE_HELP),
+        mesh: str = MESH_OPT,
+        forms: Optional[str] = FORMS_OPT,
+        fit_distance: bool = FIT_D_OPT,
+        workers: Optional[int] = WORKERS_OPT,
+        scheduler: Optional[str] = SCHEDULER_OPT,
+        cache: pathlib.Path = CACHE_OPT,
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/identify"), help="Output folder."),
-        force: bool = typer.Option(False, help="Overwrite results already in --out.")):
+        force: bool = FORCE_OPT):
     """Identify the reduced model (k(λ), D_a, D_eff, …) from the FEM or from rig data: actuator.toml + fit.json."""
     _source_check(design, measurements)
     names = _forms(forms)
@@ -152,12 +161,12 @@ def validate_cmd(
         params: str = typer.Option(..., help="Reduced model to validate: an actuator .toml file (e.g. from "
                                              "'bellows identify') or a preset name."),
         design: str = typer.Option("paper", help=DESIGN_HELP),
-        mesh: str = typer.Option("coarse", help="FEM mesh level."),
-        workers: Optional[int] = typer.Option(None, help=WORKERS_HELP),
-        scheduler: Optional[str] = typer.Option(None, help=SCHEDULER_HELP),
-        cache: pathlib.Path = typer.Option(DEFAULT_CACHE, help=CACHE_HELP),
+        mesh: str = MESH_OPT,
+        workers: Optional[int] = WORKERS_OPT,
+        scheduler: Optional[str] = SCHEDULER_OPT,
+        cache: pathlib.Path = CACHE_OPT,
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/validate"), help="Output folder."),
-        force: bool = typer.Option(False, help="Overwrite results already in --out.")):
+        force: bool = FORCE_OPT):
     """Reduced model vs the FEM on the held-out states: tip, shape and compliance errors (validation.json)."""
     from ancf import presets
     from .compare import validate
@@ -181,14 +190,14 @@ def report_cmd(
         base: str = typer.Option("paper", help="With --measurements: the actuator as built (preset or .toml)."),
         quick: bool = typer.Option(False, help="Only the paper and separate-laws forms, no stiffness-vs-tension "
                                                "study (a few minutes on 2 cores)."),
-        mesh: str = typer.Option("coarse", help="FEM mesh level."),
-        forms: Optional[str] = typer.Option(None, help=FORMS_HELP),
-        fit_distance: bool = typer.Option(False, help="Also fit the tendon routing distance d."),
-        workers: Optional[int] = typer.Option(None, help=WORKERS_HELP),
-        scheduler: Optional[str] = typer.Option(None, help=SCHEDULER_HELP),
-        cache: pathlib.Path = typer.Option(DEFAULT_CACHE, help=CACHE_HELP),
+        mesh: str = MESH_OPT,
+        forms: Optional[str] = FORMS_OPT,
+        fit_distance: bool = FIT_D_OPT,
+        workers: Optional[int] = WORKERS_OPT,
+        scheduler: Optional[str] = SCHEDULER_OPT,
+        cache: pathlib.Path = CACHE_OPT,
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/report"), help="Output folder."),
-        force: bool = typer.Option(False, help="Overwrite results already in --out.")):
+        force: bool = FORCE_OPT):
     """Identify, validate against the FEM and write one self-contained HTML report (report.html) with the
     actuator file, the fit data and the figures."""
     from .compare import compare_records, stiffness_vs_tension
@@ -237,9 +246,9 @@ def calibrate_cmd(
                                       "crest_radius, collar_length, mu)."),
         range_factor: float = typer.Option(1.6, help="Each free parameter stays within [start/f, start·f]."),
         pressure_kpa: float = typer.Option(60.0, help="Pressure of the secant D_eff measure [kPa]."),
-        mesh: str = typer.Option("coarse", help="FEM mesh level."),
-        workers: Optional[int] = typer.Option(None, help=WORKERS_HELP),
-        cache: pathlib.Path = typer.Option(DEFAULT_CACHE, help=CACHE_HELP),
+        mesh: str = MESH_OPT,
+        workers: Optional[int] = WORKERS_OPT,
+        cache: pathlib.Path = CACHE_OPT,
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/calibrated_design.toml"),
                                          help="Design .toml to write."),
         force: bool = typer.Option(False, help="Overwrite --out if it exists.")):

@@ -18,6 +18,7 @@ TRUE = {
     "paper_area": [767.2, 1336.0, 0.02959, 0.02605, -0.4],
     "separate": [700.0, 900.0, 0.09, 0.15, 0.024],
     "separate_area": [700.0, 900.0, 0.09, 0.15, 0.024, 0.3],
+    "quadratic": [700.0, 900.0, 2500.0, 0.09, 0.15, 0.024],
     "constant": [767.2, 0.0839, 0.02605],
 }
 MARKERS = np.array([0.04, 0.08, 0.12])
@@ -141,6 +142,6 @@ def test_bad_inputs_are_typed_errors():
     with pytest.raises(InputError):
         fit(form, obs, BASE, TRUE["paper"], fixed=("nonsense",))
     with pytest.raises(InputError):
-        get_form("quadratic")
+        get_form("cubic")
     with pytest.raises(BellowsError):
         Observations([[1, 0, 0]], [np.nan], [[0, 0, 0]], [False], [[0.16, 0, 0]])
