@@ -2,8 +2,10 @@
 
 For p ∈ {0, 25, 50} kPa and top-tendon tension T1 ∈ {0, 1, ..., 5} N (others 0), with gravity:
 solve the equilibrium, then the vertical tip stiffness under a 50 g payload both at constant tension
-and with the motors locked (cable length fixed), (a) from the condensed tangent (linearised) and
-(b) from the nonlinear solve with the payload, k = 0.05·9.81/(z_unload − z_load).
+and with the motors locked (every cable length fixed; a locked cable may go slack, never push — the same
+experiment as the reduced model's exact locked compliance), (a) from the condensed tangent (linearised,
+:func:`validation.fem_sweep.locked_compliance`) and (b) from the nonlinear solve with the payload,
+k = 0.05·9.81/(z_unload − z_load).  ``bellows report`` runs the same protocol on both models.
 
 Run:  python examples/fem_locked_stiffness.py [--mesh coarse] [--quick]
 """
@@ -17,6 +19,7 @@ import numpy as np
 
 def main(argv=None):
     from fem_reference import BellowsModel, presets
+    from validation.fem_sweep import locked_compliance
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--mesh", default="coarse")
@@ -34,8 +37,8 @@ def main(argv=None):
             res = model.solve(tensions=(T1, 0, 0), pressure=p, gravity=True, initial=prev)
             prev = res
             kt = 1 / model.tip_compliance(res, "tension")[2, 2]
-            kl = 1 / model.tip_compliance(res, "locked")[2, 2]
-            locked = [float(res.tendon_lengths[0]) if T1 > 0 else None, None, None]
+            kl = 1 / locked_compliance(model, res, (0.0, 0.0, -1.0))[0][2, 2]
+            locked = [float(x) for x in res.tendon_lengths]
             loaded = model.solve(tensions=(T1, 0, 0), pressure=p, gravity=True, tip_force=(0, 0, -W),
                                  locked_lengths=locked, initial=res)
             knl = W / (res.tip_position[2] - loaded.tip_position[2])

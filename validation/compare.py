@@ -7,7 +7,7 @@ For every held-out state (loads never used in the fit) both models are solved an
   length (17 points along the body) [m], in % of L;
 * tip compliance 3×3 [m/N], tensions held (``C_t``) and all tendons locked (``C_l``), both models with the
   same rule for which locked tendons are taut (complementarity along a small downward load, see
-  :func:`ancf.compliance.active_set` and :func:`validation.fem_sweep._locked_compliance`); the FEM's from its
+  :func:`ancf.compliance.active_set` and :func:`validation.fem_sweep.locked_compliance`); the FEM's from its
   condensed tangent;
 * per-direction stiffness k(u) = 1/(uᵀ C u) along x, y, z [N/m] and its relative error; the relative error of
   the whole matrix ‖C_ANCF − C_FEM‖_F / ‖C_FEM‖_F; the locked/constant-tension stiffness ratio along z.

@@ -32,7 +32,7 @@ from ancf.errors import BellowsError, InputError
 from .experiments import LoadCase
 from .runner import ResultCache, run_tasks, source_fingerprint
 
-__all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "fem_model", "solve_task", "plan_chains"]
+__all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "fem_model", "solve_task", "plan_chains", "locked_compliance"]
 
 
 @dataclass(frozen=True)
@@ -172,7 +172,7 @@ def solve_chain(task: dict) -> list:
                         iterations=res.iterations)
         if want_c:
             rec.compliance_tension = model.tip_compliance(res, mode="tension")
-            locked, active = _locked_compliance(model, res, task.get("locked_direction", (0.0, 0.0, -1.0)))
+            locked, active = locked_compliance(model, res, task.get("locked_direction", (0.0, 0.0, -1.0)))
             rec.compliance_locked, rec.extra["locked_active"] = locked, active
         rec.seconds = time.perf_counter() - t0
         out.append(rec)
@@ -209,7 +209,7 @@ def plan_chains(cases: Sequence[LoadCase], max_length: int = 4) -> list[list[int
     return chains
 
 
-def _locked_compliance(model, res, direction) -> tuple[np.ndarray, list]:
+def locked_compliance(model, res, direction) -> tuple[np.ndarray, list]:
     """FEM tip compliance with *all* tendons locked at their current lengths, the taut set chosen by the
     complementarity rule of the reduced model's exact locked compliance (:func:`ancf.compliance.active_set`,
     ``rule="exact"``), so that both models run the same experiment: tendons carrying tension stay taut; a

@@ -1,0 +1,69 @@
+"""Design files of an FEM bellows: units converted, unknown keys and missing units rejected, exact round trip."""
+
+import dataclasses
+
+import pytest
+
+pytest.importorskip("skfem")
+
+from ancf.errors import ConfigError  # noqa: E402
+from validation.designs import PRESETS, design_to_toml, load_design  # noqa: E402
+
+DOC_EXAMPLE = """
+name = "my bellows"
+length_mm = 160
+n_convolutions = 8
+root_radius_mm = 10.0
+crest_radius_mm = 19.5
+wall_thickness_mm = 1.6
+collar_length_mm = 5
+tendon_radius_mm = 27.5
+tendon_angles_deg = [0, 120, 240]
+cap_mass_g = 18
+cap_com_offset_mm = 2.5
+tip_offset_mm = 0
+
+[material]
+model = "neo_hookean"
+mu_MPa = 0.8
+kappa_MPa = 40
+density_kg_per_m3 = 1100
+"""
+
+
+def test_units_are_converted(tmp_path):
+    p = tmp_path / "d.toml"
+    p.write_text(DOC_EXAMPLE)
+    g, m = load_design(p)
+    assert g.length == pytest.approx(0.160) and g.wall_thickness == pytest.approx(1.6e-3)
+    assert g.tendon_angles[1] == pytest.approx(2.0943951, rel=1e-7) and g.cap_mass == pytest.approx(0.018)
+    assert m.mu == pytest.approx(0.8e6) and m.kappa == pytest.approx(40e6)
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_every_preset_round_trips_exactly(tmp_path, name):
+    g, m = load_design(name)
+    p = tmp_path / f"{name}.toml"
+    p.write_text(design_to_toml(g, m, name))
+    g2, m2 = load_design(p)
+    assert dataclasses.asdict(g2) == dataclasses.asdict(g) and m2 == m
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("wall_thickness_mm = 1.6", "wall_thickness = 1.6"), "unit"),
+    (("tip_offset_mm = 0", "tip_offset_mm = 0\ncolour = 'red'"), "colour"),
+    (("length_mm = 160", "length_mm = '160'"), "length"),
+    (("n_convolutions = 8", "n_convolutions = 8.5"), "n_convolutions"),
+    (("mu_MPa = 0.8", "mu_furlongs = 0.8"), "mu"),
+    (('model = "neo_hookean"', 'model = "rubbery"'), "model"),
+])
+def test_bad_files_are_config_errors(tmp_path, edit, message):
+    p = tmp_path / "bad.toml"
+    p.write_text(DOC_EXAMPLE.replace(*edit))
+    with pytest.raises(ConfigError, match=message):
+        load_design(p)
+
+
+def test_unknown_preset_or_suffix_is_a_config_error():
+    with pytest.raises(ConfigError, match="preset"):
+        load_design("paper_wobbly")
