@@ -22,6 +22,16 @@ unknown keys and missing units are errors)::
     kappa_MPa = 40
     density_kg_per_m3 = 1100
 
+    [limits]                     # optional: the operating range the identification spans
+    tension_max_N = 5
+    pressure_max_kPa = 120
+
+The operating range (:func:`design_limits`; default 5 N, 120 kPa) sets the loads of the virtual experiments.
+The ``paper`` preset (the soft, calibrated bellows) states 100 kPa: its FEM has an inflation limit point
+between 105 and 115 kPa (neo-Hookean wall, coarse mesh — no equilibrium beyond it; the Newton solve fails
+there after many load-step cut-backs), so a design reaching 120 kPa would spend minutes on cases that
+cannot converge.
+
 :func:`load_design` takes such a file or a preset name (:data:`PRESETS`) and returns
 ``(BellowsGeometry, Material)``; :func:`design_to_toml` writes one back in SI units (read back unchanged).
 """
@@ -39,7 +49,7 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["load_design", "design_to_toml", "PRESETS"]
+__all__ = ["load_design", "design_to_toml", "design_limits", "PRESETS", "DEFAULT_LIMITS"]
 
 GEOMETRY_FIELDS = {"name": None, "description": None, "length": "length", "n_convolutions": "dimensionless",
                    "root_radius": "length", "crest_radius": "length", "wall_thickness": "length",
@@ -61,6 +71,38 @@ def _presets():
 
 #: Names accepted by :func:`load_design` besides file paths.
 PRESETS = ("paper", "paper_stiff", "paper_deep", "straight_tube")
+#: Operating range of a design without a [limits] table: tendon tension [N], pressure [Pa].
+DEFAULT_LIMITS = {"tension_max": 5.0, "pressure_max": 120e3}
+_PRESET_LIMITS = {"paper": {"tension_max": 5.0, "pressure_max": 100e3}}
+LIMIT_FIELDS = {"tension_max": "force", "pressure_max": "pressure"}
+
+
+def design_limits(source) -> dict:
+    """Operating range ``{"tension_max": N, "pressure_max": Pa}`` of a preset or a design file (its optional
+    ``[limits]`` table; module docstring)."""
+    if isinstance(source, str) and source in PRESETS:
+        return dict(DEFAULT_LIMITS, **_PRESET_LIMITS.get(source, {}))
+    raw = _read(source)
+    lim = raw.get("limits", {})
+    if not isinstance(lim, dict):
+        raise ConfigError(f"{source}: [limits] must be a table")
+    out = dict(DEFAULT_LIMITS, **_parse_table(dict(lim), LIMIT_FIELDS, f"{source}[limits]"))
+    for k, v in out.items():
+        if isinstance(v, (str, bool)) or not (v > 0):
+            raise ConfigError(f"{source}[limits]: {k} must be a positive number, got {v!r}")
+    return out
+
+
+def _read(source) -> dict:
+    path = pathlib.Path(source)
+    if path.suffix.lower() != ".toml":
+        raise ConfigError(f"design {source!r} is neither a preset ({', '.join(PRESETS)}) nor a .toml file")
+    try:
+        return tomllib.loads(path.read_text())
+    except OSError as exc:
+        raise ConfigError(f"cannot read design file {path}: {exc.strerror or exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
 
 
 def load_design(source):
@@ -69,14 +111,9 @@ def load_design(source):
     if isinstance(source, str) and source in PRESETS:
         return _presets()[source]()
     path = pathlib.Path(source)
-    if path.suffix.lower() != ".toml":
-        raise ConfigError(f"design {source!r} is neither a preset ({', '.join(PRESETS)}) nor a .toml file")
-    try:
-        raw = tomllib.loads(path.read_text())
-    except OSError as exc:
-        raise ConfigError(f"cannot read design file {path}: {exc.strerror or exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    raw = _read(source)
+    design_limits(source)                      # the optional [limits] table is checked here too
+    raw.pop("limits", None)
     mat_raw = raw.pop("material", None)
     if not isinstance(mat_raw, dict):
         raise ConfigError(f"{path}: missing [material] table")
@@ -115,9 +152,9 @@ def load_design(source):
     return geometry, material
 
 
-def design_to_toml(geometry, material, name: str = "bellows") -> str:
+def design_to_toml(geometry, material, name: str = "bellows", limits: dict | None = None) -> str:
     """The design as TOML in the format of :func:`load_design`, in SI units (m, kg, rad, Pa) so that it reads
-    back exactly."""
+    back exactly; ``limits`` ({"tension_max": N, "pressure_max": Pa}) adds the [limits] table."""
     g = geometry
     lines = [f'name = "{name}"', f"length_m = {g.length!r}", f"n_convolutions = {int(g.n_convolutions)}",
              f"root_radius_m = {g.root_radius!r}", f"crest_radius_m = {g.crest_radius!r}",
@@ -130,4 +167,7 @@ def design_to_toml(geometry, material, name: str = "bellows") -> str:
     else:
         lines += ['model = "neo_hookean"', f"mu_Pa = {material.mu!r}", f'formulation = "{material.formulation}"']
     lines += [f"kappa_Pa = {material.kappa!r}", f"density_kg_per_m3 = {material.density!r}"]
+    if limits:
+        lines += ["", "[limits]", f"tension_max_N = {float(limits['tension_max'])!r}",
+                  f"pressure_max_Pa = {float(limits['pressure_max'])!r}"]
     return "\n".join(lines) + "\n"

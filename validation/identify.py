@@ -35,7 +35,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from ancf import ActuatorParams, presets
-from ancf.errors import BellowsError, ConfigError, InputError
+from ancf.errors import BellowsError, ConfigError, ConvergenceError, InputError
 from ancf.export import to_jsonable
 from ancf.outputs import atomic_write_text, prepare_output_file
 
@@ -113,6 +113,7 @@ def initial_theta(form, rod: Optional[dict], base: ActuatorParams) -> np.ndarray
     name = form.name.split("+")[0]
     th = {"paper": [EA, 0.0, D_a, D_eff], "paper_area": [EA, 0.0, D_a, D_eff, 0.0],
           "separate": [EA, 0.0, EI, 0.0, D_eff], "separate_area": [EA, 0.0, EI, 0.0, D_eff, 0.0],
+          "quadratic": [EA, 0.0, 0.0, EI, 0.0, D_eff],
           "constant": [EA, EI, D_eff]}[name]
     if form.fits_distance:
         th.append(float(np.mean(base.tendon_distances)))
@@ -310,8 +311,13 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     records = run_cases(spec, design.cases, compliance=(lambda c: c.role == "heldout") if compliance else False,
                         workers=workers, scheduler=scheduler, cache_dir=cache_dir, progress=progress)
     marker_s = [f * geometry.length for f in MARKER_FRACTIONS]
-    tr = [r for r in records if r.case.role == "train"]
-    ho = [r for r in records if r.case.role == "heldout"]
+    failed = [{"label": r.case.label, "role": r.case.role, "error": r.error} for r in records if not r.ok]
+    tr = [r for r in records if r.case.role == "train" and r.ok]
+    ho = [r for r in records if r.case.role == "heldout" and r.ok]
+    if len(tr) < max(4, len(design.training) // 2):
+        raise ConvergenceError(f"the FEM failed on {len(design.training) - len(tr)} of {len(design.training)} "
+                               f"training cases (e.g. {failed[0]['label']}: {failed[0]['error']}); too few remain "
+                               "to identify the model — lower the design's loads or refine the mesh")
     train = observations_from_records(tr, marker_s)
     heldout = observations_from_records(ho, marker_s) if ho else None
     fit_base = base.replace(gravity=(0.0, 0.0, 0.0)) if not np.any(train.gravity) else base
@@ -320,7 +326,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     _finalise_params(res, base)
     res.design, res.records = design, records
     res.meta = {"mesh": str(mesh), "geometry": to_jsonable(vars(geometry)), "material": to_jsonable(vars(material)),
-                "marker_s_m": marker_s}
+                "marker_s_m": marker_s, "failed_cases": failed}
     return res
 
 

@@ -39,6 +39,8 @@ WORKERS_OPT = typer.Option(None, help=WORKERS_HELP)
 SCHEDULER_OPT = typer.Option(None, help=SCHEDULER_HELP)
 CACHE_OPT = typer.Option(DEFAULT_CACHE, help=CACHE_HELP)
 FORCE_OPT = typer.Option(False, help="Overwrite results already in --out.")
+TMAX_OPT = typer.Option(None, help="Largest tendon tension of the virtual experiments [N] (default: the design's).")
+PMAX_OPT = typer.Option(None, help="Largest pressure of the virtual experiments [kPa] (default: the design's).")
 
 console = Console(width=120)
 
@@ -101,12 +103,28 @@ def _print_validation(val) -> None:
         console.print(f"[yellow]not compared: {f['label']} ({f['model']}): {f['error']}[/yellow]")
 
 
-def _identify_fem(design: str, mesh: str, workers, scheduler, cache: Optional[pathlib.Path], forms, fit_distance: bool):
+def _limits(design: str, tension_max_n: Optional[float], pressure_max_kpa: Optional[float]) -> dict:
+    """The design's operating range, overridden by the options that were given (a given 0 is rejected)."""
+    from .designs import design_limits
+    lim = design_limits(design)
+    for key, val, scale, opt in (("tension_max", tension_max_n, 1.0, "--tension-max-n"),
+                                 ("pressure_max", pressure_max_kpa, 1e3, "--pressure-max-kpa")):
+        if val is not None:
+            if not (val > 0):
+                raise InputError(f"{opt} must be > 0, got {val}")
+            lim[key] = val * scale
+    return lim
+
+
+def _identify_fem(design: str, mesh: str, workers, scheduler, cache: Optional[pathlib.Path], forms, fit_distance: bool,
+                  limits: dict):
     from .designs import load_design
     from .identify import from_fem
     geo, mat = load_design(design)
+    console.print(f"design {design}: operating range {limits['tension_max']:g} N, {limits['pressure_max'] / 1e3:g} kPa")
     return from_fem(geo, mat, mesh, workers=workers, scheduler=scheduler, cache_dir=cache, forms=forms,
-                    fit_distance=fit_distance, progress=True)
+                    fit_distance=fit_distance, progress=True, tension_max=limits["tension_max"],
+                    pressure_max=limits["pressure_max"])
 
 
 def _identify_measured(measurements: pathlib.Path, base: str, forms, fit_distance: bool, heldout_fraction: float,
@@ -133,6 +151,8 @@ def identify_cmd(
         heldout_fraction: float = typer.Option(0.25, help="With --measurements: share of states held out to choose "
                                                           "the model form (states labelled 'heldout…' are held out instead)."),
         gravity: bool = typer.Option(True, help="With --measurements: the states were measured under gravity."),
+        tension_max_n: Optional[float] = TMAX_OPT,
+        pressure_max_kpa: Optional[float] = PMAX_OPT,
         mesh: str = MESH_OPT,
         forms: Optional[str] = FORMS_OPT,
         fit_distance: bool = FIT_D_OPT,
@@ -149,7 +169,8 @@ def identify_cmd(
     if measurements is not None:
         res = _identify_measured(measurements, base, names, fit_distance, heldout_fraction, gravity)
     else:
-        res = _identify_fem(design or "paper", mesh, workers, scheduler, cache, names, fit_distance)
+        res = _identify_fem(design or "paper", mesh, workers, scheduler, cache, names, fit_distance,
+                            _limits(design or "paper", tension_max_n, pressure_max_kpa))
     res.meta["command"] = _command_line()
     res.to_toml(d / "actuator.toml", force=force)
     res.save(d / "fit.json", force=force)
@@ -190,6 +211,8 @@ def report_cmd(
         base: str = typer.Option("paper", help="With --measurements: the actuator as built (preset or .toml)."),
         quick: bool = typer.Option(False, help="Only the paper and separate-laws forms, no stiffness-vs-tension "
                                                "study (a few minutes on 2 cores)."),
+        tension_max_n: Optional[float] = TMAX_OPT,
+        pressure_max_kpa: Optional[float] = PMAX_OPT,
         mesh: str = MESH_OPT,
         forms: Optional[str] = FORMS_OPT,
         fit_distance: bool = FIT_D_OPT,
@@ -212,7 +235,8 @@ def report_cmd(
     if measurements is not None:
         res = _identify_measured(measurements, base, names, fit_distance, 0.25, True)
     else:
-        res = _identify_fem(design or "paper", mesh, workers, scheduler, cache, names, fit_distance)
+        res = _identify_fem(design or "paper", mesh, workers, scheduler, cache, names, fit_distance,
+                            _limits(design or "paper", tension_max_n, pressure_max_kpa))
         val = compare_records(res.params, [r for r in res.records if r.case.role == "heldout"])
         if not quick:
             console.print("stiffness vs tension (Fig. 9 protocol) on the FEM …")

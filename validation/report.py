@@ -149,6 +149,10 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
                  f"EA = {r.get('EA', float('nan')):.4g} N, EI = {r.get('EI', float('nan')):.4g} N m², "
                  f"D_a = {1e3 * r.get('D_a', float('nan')):.2f} mm, blocked-force D_eff = "
                  f"{1e3 * r.get('D_eff', float('nan')):.2f} mm.")
+    failed = (ident.meta or {}).get("failed_cases") or []
+    if failed:
+        d.append(f"The FEM did not converge on {len(failed)} load case(s), left out of the fit and the validation: "
+                 + "; ".join(f"{f['label']} ({f['role']})" for f in failed) + ".")
     if ident.not_identifiable:
         d.append("Not identifiable: " + ", ".join(ident.not_identifiable) + ". The fit fixed these at their "
                  "starting values and refitted the rest; the actuator file marks them.")
@@ -172,6 +176,8 @@ def _provenance_rows(ident: IdentificationResult, command: Optional[str]) -> lis
             ("platform", p.get("platform", ""))]
     rows += [(f"version of {k}", v) for k, v in sorted(p.get("versions", {}).items())]
     for k, v in (ident.meta or {}).items():
+        if k == "failed_cases":
+            continue
         if k in ("geometry", "material"):
             v = ", ".join(f"{kk}={vv}" for kk, vv in v.items())
         rows.append((k, v))

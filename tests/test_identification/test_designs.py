@@ -67,3 +67,22 @@ def test_bad_files_are_config_errors(tmp_path, edit, message):
 def test_unknown_preset_or_suffix_is_a_config_error():
     with pytest.raises(ConfigError, match="preset"):
         load_design("paper_wobbly")
+
+
+def test_operating_limits_from_presets_and_files(tmp_path):
+    from validation.designs import DEFAULT_LIMITS, design_limits
+    assert design_limits("paper")["pressure_max"] == pytest.approx(100e3)      # inflation limit point above
+    assert design_limits("paper_stiff") == DEFAULT_LIMITS
+    p = tmp_path / "d.toml"
+    p.write_text(DOC_EXAMPLE + "\n[limits]\ntension_max_N = 4\npressure_max_kPa = 80\n")
+    assert design_limits(p) == {"tension_max": 4.0, "pressure_max": 80e3}
+    g, m = load_design(p)                                                     # the table is accepted
+    back = tmp_path / "back.toml"
+    back.write_text(design_to_toml(g, m, "x", limits=design_limits(p)))
+    assert design_limits(back) == design_limits(p)
+    for bad in ("pressure_max = 80", "pressure_max_kPa = -5", "pressure_max_kPa = true", "speed_max_kPa = 3"):
+        p.write_text(DOC_EXAMPLE + f"\n[limits]\n{bad}\n")
+        with pytest.raises(ConfigError):
+            design_limits(p)
+        with pytest.raises(ConfigError):
+            load_design(p)

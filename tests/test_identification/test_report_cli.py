@@ -135,6 +135,7 @@ def test_cli_identify_and_report_from_measurements(measured_files):
     (("identify", "--measurements", "states.h5", "--forms", "bogus"), "unknown form"),
     (("report", "--design", "nope.toml"), "nope.toml"),
     (("calibrate", "--design", "paper"), "at least one"),
+    (("identify", "--design", "paper", "--pressure-max-kpa", "0"), "--pressure-max-kpa"),
     (("validate", "--params", "no_such_preset"), "unknown preset"),
 ])
 def test_cli_bad_inputs_exit_2_with_one_line(measured_files, args, message):
