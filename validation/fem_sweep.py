@@ -30,7 +30,7 @@ import numpy as np
 from ancf.errors import BellowsError, InputError
 
 from .experiments import LoadCase
-from .runner import ResultCache, run_tasks, source_fingerprint
+from .runner import ResultCache, RunInterrupted, run_tasks, source_fingerprint
 
 __all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "fem_model", "solve_task", "plan_chains", "locked_compliance"]
 
@@ -279,9 +279,16 @@ def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, wor
         return {**task["spec"].key(), "cases": task["cases"], "compliance": task["compliance"],
                 "locked_direction": task.get("locked_direction", (0.0, 0.0, -1.0))}
 
-    out = run_tasks(solve_task, tasks, workers=workers, scheduler=scheduler, progress=progress,
-                    description=f"FEM ({spec.mesh} mesh, {len(cases)} cases)", cache=cache, key_inputs=key_inputs,
-                    on_result=on_result, weights=[len(t["cases"]) for t in tasks])
+    try:
+        out = run_tasks(solve_task, tasks, workers=workers, scheduler=scheduler, progress=progress,
+                        description=f"FEM ({spec.mesh} mesh, {len(cases)} cases)", cache=cache, key_inputs=key_inputs,
+                        on_result=on_result, weights=[len(t["cases"]) for t in tasks])
+    except RunInterrupted as exc:
+        done = sum(len(tasks[i]["cases"]) for i in exc.completed)
+        where = (f"they are cached in {cache_dir}: run the same command again to resume" if cache is not None
+                 else "without a cache folder they are not kept (use --cache)")
+        raise RunInterrupted(f"interrupted: {done} of {len(cases)} FEM cases were finished; {where}",
+                             completed=exc.completed, total=exc.total, saved_to=cache_dir) from None
     records: list = [None] * len(cases)
     for ch, recs in zip(chains, out.results):
         for i, r in zip(ch, recs):
