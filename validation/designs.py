@@ -38,7 +38,6 @@ cannot converge.
 
 from __future__ import annotations
 
-import math
 import pathlib
 
 from ancf.errors import ConfigError

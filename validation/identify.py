@@ -39,7 +39,7 @@ from ancf.errors import BellowsError, ConfigError, ConvergenceError, InputError
 from ancf.export import to_jsonable
 from ancf.outputs import atomic_write_text, prepare_output_file
 
-from .experiments import Design, LoadCase, default_design
+from .experiments import Design, default_design
 from .fit import FitResult, Observations, fit, predict
 from .forms import FORMS, REPORTED, get_form
 from .provenance import provenance

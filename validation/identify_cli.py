@@ -27,7 +27,8 @@ DESIGN_HELP = "FEM design: a preset (paper, paper_stiff, paper_deep, straight_tu
 CACHE_HELP = "Folder of the on-disk FEM cache (re-runs and interrupted runs compute only what is missing)."
 WORKERS_HELP = "Parallel FEM processes (default: all cores)."
 SCHEDULER_HELP = "dask scheduler address (tcp://host:8786) to run the FEM cases on a cluster."
-FORMS_HELP = "Model forms to compare, comma separated (default: all of paper, paper_area, separate, separate_area, constant)."
+FORMS_HELP = ("Model forms to compare, comma separated (default: all of paper, paper_area, separate, separate_area, "
+              "quadratic, constant).")
 DEFAULT_CACHE = pathlib.Path("bellows_out/fem_cache")
 QUICK_FORMS = ("paper", "separate")
 
@@ -149,7 +150,8 @@ def identify_cmd(
         base: str = typer.Option("paper", help="With --measurements: the actuator as built (preset or .toml) — "
                                                "length, tendon routing, masses, limits, starting stiffness."),
         heldout_fraction: float = typer.Option(0.25, help="With --measurements: share of states held out to choose "
-                                                          "the model form (states labelled 'heldout…' are held out instead)."),
+                                                          "the model form (states labelled 'heldout…' are held out "
+                                                          "instead)."),
         gravity: bool = typer.Option(True, help="With --measurements: the states were measured under gravity."),
         tension_max_n: Optional[float] = TMAX_OPT,
         pressure_max_kpa: Optional[float] = PMAX_OPT,

@@ -153,6 +153,21 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
     if failed:
         d.append(f"The FEM did not converge on {len(failed)} load case(s), left out of the fit and the validation: "
                  + "; ".join(f"{f['label']} ({f['role']})" for f in failed) + ".")
+    if ident.rod:
+        for key, what in (("EA", "axial"), ("EI", "bending")):
+            fitted, lin = v.get(key), ident.rod.get(key)
+            if fitted is not None and lin and abs(fitted / lin - 1) > 0.10:
+                d.append(f"The fitted {what} stiffness at rest ({key} = {fitted:.4g}) differs by "
+                         f"{100 * (fitted / lin - 1):+.0f} % "
+                         f"from the FEM's small-load tangent ({lin:.4g}): over the training loads the FEM "
+                         f"{'stiffens' if fitted > lin else 'softens'} with deformation in a way the law's stretch "
+                         "dependence cannot follow (e.g. convolutions closing under compression or on the inner side "
+                         "of a bend — a curvature-dependent stiffness); expect the largest errors at the largest and "
+                         "smallest deformations.")
+        if ident.rod.get("EI_tip_force") and ident.rod.get("EI"):
+            sh = ident.rod["EI"] / ident.rod["EI_tip_force"] - 1
+            d.append(f"Shear: a tip force bends the unloaded FEM {100 * sh:.1f} % more than its pure-moment EI predicts; "
+                     "the reduced model (no shear compliance) misses that share of lateral-force deflections.")
     if ident.not_identifiable:
         d.append("Not identifiable: " + ", ".join(ident.not_identifiable) + ". The fit fixed these at their "
                  "starting values and refitted the rest; the actuator file marks them.")
