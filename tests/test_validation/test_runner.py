@@ -96,3 +96,24 @@ def test_ctrl_c_stops_workers_promptly_and_keeps_finished_results(tmp_path):
 def test_run_interrupted_is_a_bellows_error():
     exc = RunInterrupted("sweep interrupted", completed={0: 1}, total=3, saved_to="x.json")
     assert isinstance(exc, BellowsError) and "1 of 3" in str(exc) and "x.json" in str(exc)
+
+
+def test_dask_scheduler_address_gives_the_serial_results(tmp_path):
+    """``--scheduler ADDRESS``: the tasks run on a dask cluster reached by its address, results in order, and
+    the cache is filled as on local cores."""
+    distributed = pytest.importorskip("dask.distributed")
+    tasks = [{"x": k} for k in range(5)]
+    serial = run_tasks(T.square, tasks, workers=1, progress=False)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster:
+        out = run_tasks(T.square, tasks, scheduler=cluster.scheduler_address, progress=False,
+                        cache=ResultCache(tmp_path, "v1"))
+    assert out.backend.startswith("dask") and cluster.scheduler_address in out.backend
+    assert [r["y"] for r in out.results] == [r["y"] for r in serial.results]
+    assert len(list(tmp_path.glob("*.pkl"))) == len(tasks)
+
+
+def test_unreachable_dask_scheduler_is_a_typed_error():
+    pytest.importorskip("dask.distributed")
+    with pytest.raises(BellowsError, match="cannot reach the dask scheduler"):
+        run_tasks(T.square, [{"x": 1}], scheduler="tcp://127.0.0.1:9", progress=False)
