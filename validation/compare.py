@@ -20,6 +20,8 @@ T1 ∈ {0, …, 5} N at p ∈ {0, 25, 50} kPa, with gravity, tensions held and t
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 from typing import Optional, Sequence
 
@@ -70,9 +72,32 @@ class ValidationResult:
                                                          "targets", "failures")} | {"params": self.params.to_toml()})
 
 
+def _max_abs(x) -> float:
+    x = np.abs(np.asarray([v for v in x if v is not None and np.isfinite(v)], float))
+    return float(x.max()) if x.size else float("nan")
+
+
 def _stats(x) -> dict:
     x = np.asarray([v for v in x if v is not None and np.isfinite(v)], float)
     return {"mean": float(x.mean()), "max": float(x.max())} if x.size else {"mean": float("nan"), "max": float("nan")}
+
+
+#: A compliance along an axis below this share of the matrix norm counts as rigid (e.g. the axial direction
+#: with every inextensible tendon locked and taut: exactly zero up to round-off).
+RIGID_SHARE = 1e-9
+
+
+def _axis_stiffness(C: np.ndarray, u: np.ndarray) -> float:
+    """1/(uᵀ C u) [N/m]; ``inf`` where the compliance along u vanishes (rigid direction)."""
+    c = float(u @ C @ u)
+    return float("inf") if c <= RIGID_SHARE * float(np.linalg.norm(C)) else 1.0 / c
+
+
+def _stiffness_error_pct(ka: float, kf: float) -> float:
+    """100 (k_ANCF/k_FEM − 1); 0 when both are rigid, NaN when only one is (reported, not averaged)."""
+    if math.isinf(ka) or math.isinf(kf):
+        return 0.0 if math.isinf(ka) and math.isinf(kf) else float("nan")
+    return 100 * (ka / kf - 1)
 
 
 def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, load_direction=(0.0, 0.0, -1.0),
@@ -117,9 +142,9 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
             for mode, Ca, Cf in (("tension", Ct, rec.compliance_tension), ("locked", Cl.C_p, rec.compliance_locked)):
                 row[f"C_{mode}_error_pct"] = float(100 * np.linalg.norm(Ca - Cf) / np.linalg.norm(Cf))
                 for ax, u in AXES.items():
-                    ka, kf = 1.0 / float(u @ Ca @ u), 1.0 / float(u @ Cf @ u)
+                    ka, kf = _axis_stiffness(Ca, u), _axis_stiffness(Cf, u)
                     row[f"k_{mode}_{ax}_ancf_N_per_m"], row[f"k_{mode}_{ax}_fem_N_per_m"] = ka, kf
-                    row[f"k_{mode}_{ax}_error_pct"] = 100 * (ka / kf - 1)
+                    row[f"k_{mode}_{ax}_error_pct"] = _stiffness_error_pct(ka, kf)
             for who in ("ancf", "fem"):
                 row[f"ratio_z_{who}"] = row[f"k_locked_z_{who}_N_per_m"] / row[f"k_tension_z_{who}_N_per_m"]
         rows.append(row)
@@ -131,7 +156,7 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
     with_c = [r for r in rows if "C_tension_error_pct" in r]
     if with_c:
         out.compliance_error_pct = {m: _stats([r[f"C_{m}_error_pct"] for r in with_c]) for m in ("tension", "locked")}
-        out.stiffness_error_pct = {m: {ax: float(max(abs(r[f"k_{m}_{ax}_error_pct"]) for r in with_c)) for ax in AXES}
+        out.stiffness_error_pct = {m: {ax: _max_abs([r[f"k_{m}_{ax}_error_pct"] for r in with_c]) for ax in AXES}
                                    for m in ("tension", "locked")}
         out.ratio = {"ancf": _stats([r["ratio_z_ancf"] for r in with_c]), "fem": _stats([r["ratio_z_fem"] for r in with_c])}
     out.targets = {
