@@ -59,7 +59,9 @@ import numpy as np
 
 from ancf import InfeasibleTargetError, Model
 from ancf import compliance as cp
-from ancf.errors import InputError, check_finite
+from ancf.errors import InputError
+
+from .errors import check_finite, number
 
 from .base import Controller, StepReport
 
@@ -101,26 +103,25 @@ class LACC(Controller):
                  max_step_force: Optional[float] = 1.0, rcond: float = 0.05, gain: float = 1.0,
                  fallback_gain: float = 1.0, backtracks: int = 3, on_infeasible: str = "fallback"):
         super().__init__(model, pressure, tolerance=tolerance)
-        if compliance not in COMPLIANCE_METHODS:
+        if not isinstance(compliance, str) or compliance not in COMPLIANCE_METHODS:
             raise InputError(f"LACC compliance must be one of {COMPLIANCE_METHODS}, got {compliance!r}")
         self.compliance = compliance
-        self.constraint_weight = float(constraint_weight)
+        self.constraint_weight = number("constraint_weight", constraint_weight, strict=True)
         self.active_rule = active_rule or ("exact" if compliance == "exact" else "paper")
-        if self.active_rule not in ("paper", "exact"):
+        if not isinstance(self.active_rule, str) or self.active_rule not in ("paper", "exact"):
             raise InputError(f"active_rule must be 'paper' or 'exact', got {active_rule!r}")
-        for nm, v in (("validity_force", validity_force), ("rcond", rcond), ("gain", gain),
-                      ("fallback_gain", fallback_gain)):
-            if not (np.isfinite(v) and v > 0):
-                raise InputError(f"{nm} must be a finite positive number, got {v}")
-        if max_step_force is not None and not (np.isfinite(max_step_force) and max_step_force > 0):
-            raise InputError(f"max_step_force must be positive [N] or None, got {max_step_force}")
-        self.validity_force = float(validity_force)
-        self.max_step_force = None if max_step_force is None else float(max_step_force)
-        self.rcond = float(rcond)
-        self.gain = float(gain)
-        self.fallback_gain = float(fallback_gain)
+        self.validity_force = number("validity_force", validity_force, strict=True)
+        self.max_step_force = None if max_step_force is None else number("max_step_force", max_step_force,
+                                                                         strict=True)
+        self.rcond = number("rcond", rcond, strict=True)
+        if self.rcond >= 1:
+            raise InputError(f"rcond must be in (0, 1), got {rcond!r}")
+        self.gain = number("gain", gain, strict=True)
+        self.fallback_gain = number("fallback_gain", fallback_gain, strict=True)
+        if isinstance(backtracks, bool) or not isinstance(backtracks, (int, np.integer)) or backtracks < 0:
+            raise InputError(f"backtracks must be an integer >= 0, got {backtracks!r}")
         self.backtracks = int(backtracks)
-        if on_infeasible not in ("fallback", "raise"):
+        if not isinstance(on_infeasible, str) or on_infeasible not in ("fallback", "raise"):
             raise InputError(f"on_infeasible must be 'fallback' or 'raise', got {on_infeasible!r}")
         self.on_infeasible = on_infeasible
         self._F = np.zeros(3)
