@@ -87,7 +87,7 @@ def _describe_controller(ctrl: Controller) -> dict:
 def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.Path, None, object] = None,
                force: bool = False, max_iterations: Optional[int] = 20, duration: Optional[float] = None,
                idle_period: float = 0.1, initial_load=(0.0, 0.0, 0.0), sim_compute_time="measured",
-               record_static: bool = True, status: Optional[Callable[[dict], None]] = None,
+               record_static: bool = True, applied_load=None, status: Optional[Callable[[dict], None]] = None,
                run_info: Optional[dict] = None) -> RunResult:
     """Run ``controller`` on ``rig`` towards ``target`` (3,) [m]; see the module docstring.
 
@@ -98,6 +98,9 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
     idle_period : wait between measurements while within tolerance [s]
     sim_compute_time : on a simulated rig, how long a controller step takes on the rig clock: "measured"
         (its wall-clock compute time), a fixed time [s], or 0
+    applied_load : the tip load the experiment applies, if it is known (calibrated weights; zero): (3,) [N]
+        or a callable of the rig time t [s]; it becomes the static states' ``tip_force`` (None: unknown, NaN).
+        The controller never sees it.
     status : called with a dict after every sample (for a status line)
     """
     if not isinstance(controller, Controller):
@@ -115,6 +118,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         raise InputError("idle_period must be > 0 s when holding for a duration")
     if sim_compute_time != "measured":
         sim_compute_time = number("sim_compute_time [s] (or 'measured')", sim_compute_time)
+    if applied_load is not None and not callable(applied_load):
+        applied_load = check_finite("applied_load [N]", applied_load, (3,))
     from hardware.errors import DriveFault, HardwareError, RunAborted
     from hardware.runlog import RunLog
 
@@ -173,8 +178,10 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                     rig.event("converged", f"tip error {rep.error_norm * 1e3:.4f} mm < tolerance "
                                            f"{controller.tolerance * 1e3:.4f} mm after {k} corrections")
                     if record_static and runlog is not None and np.all(np.isfinite(readings["tensions"])):
+                        F_known = (None if applied_load is None else
+                                   applied_load(t) if callable(applied_load) else applied_load)
                         runlog.static_state(time=t, tensions=np.maximum(readings["tensions"], 0.0),
-                                            pressure=readings["pressure"], tip=pm,
+                                            pressure=readings["pressure"], tip=pm, tip_force=F_known,
                                             label=f"converged after {k} corrections")
                         result.static_states += 1
                 was_converged = True

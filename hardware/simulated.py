@@ -391,6 +391,7 @@ class SimulatedRig(Rig):
         p0 = float(check_finite("pressure", pressure, ()))
         limits = limits or SafetyLimits.around(model.params.length)
         self._plant = _Plant(model, p0, options)
+        self.pace = 0.0            # > 0: the rig clock runs at most ``pace`` × the wall clock (1 = real time)
         m = model.m
         speed = options.length_rate if math.isfinite(options.length_rate) else limits.speed_max
         super().__init__([SimDrive(self._plant, i) for i in range(m)],
@@ -479,6 +480,9 @@ class SimulatedRig(Rig):
             self._plant.time += dt
         else:
             self._plant.advance(dt)
+        if self.pace > 0 and dt > 0:
+            import time
+            time.sleep(dt / self.pace)
 
     def advance(self, dt: Optional[float] = None) -> None:
         """Let ``dt`` seconds pass (None: until the motors reach their command)."""
