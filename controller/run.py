@@ -87,7 +87,8 @@ def _describe_controller(ctrl: Controller) -> dict:
 def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.Path, None, object] = None,
                force: bool = False, max_iterations: Optional[int] = 20, duration: Optional[float] = None,
                idle_period: float = 0.1, initial_load=(0.0, 0.0, 0.0), sim_compute_time="measured",
-               record_static: bool = True, applied_load=None, status: Optional[Callable[[dict], None]] = None,
+               average_frames: int = 1, record_static: bool = True, applied_load=None,
+               status: Optional[Callable[[dict], None]] = None,
                run_info: Optional[dict] = None) -> RunResult:
     """Run ``controller`` on ``rig`` towards ``target`` (3,) [m]; see the module docstring.
 
@@ -98,6 +99,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
     idle_period : wait between measurements while within tolerance [s]
     sim_compute_time : on a simulated rig, how long a controller step takes on the rig clock: "measured"
         (its wall-clock compute time), a fixed time [s], or 0
+    average_frames : tracker frames averaged per measurement (distinct frames; noise / √n)
     applied_load : the tip load the experiment applies, if it is known (calibrated weights; zero): (3,) [N]
         or a callable of the rig time t [s]; it becomes the static states' ``tip_force`` (None: unknown, NaN).
         The controller never sees it.
@@ -118,6 +120,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         raise InputError("idle_period must be > 0 s when holding for a duration")
     if sim_compute_time != "measured":
         sim_compute_time = number("sim_compute_time [s] (or 'measured')", sim_compute_time)
+    if isinstance(average_frames, bool) or not isinstance(average_frames, (int, np.integer)) or average_frames < 1:
+        raise InputError(f"average_frames must be an integer >= 1, got {average_frames!r}")
     if applied_load is not None and not callable(applied_load):
         applied_load = check_finite("applied_load [N]", applied_load, (3,))
     from hardware.errors import DriveFault, HardwareError, RunAborted
@@ -152,7 +156,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         k = 0
         while True:
             readings = rig.check_health()
-            pm = rig.measure()
+            pm = rig.measure(average_frames) if average_frames > 1 else rig.measure()
             t = rig.clock.now()
             truth = rig.true_tip() if simulated else None
             rep = controller.step(pm)

@@ -204,8 +204,27 @@ class Rig:
         self._last_pose = pose
         return pose
 
-    def measure(self) -> np.ndarray:
-        """Tip position (3,) [m] from a valid, fresh tracker frame; else TrackingLost / SensorTimeout."""
+    def measure(self, frames: int = 1) -> np.ndarray:
+        """Tip position (3,) [m] from a valid, fresh tracker frame — the mean of ``frames`` distinct frames
+        (tracker noise / √frames) — else TrackingLost / SensorTimeout."""
+        if frames == 1:
+            return self._measure_one()
+        tips, seen, t0 = [], set(), self.clock.now()
+        while len(tips) < frames:
+            tip = self._measure_one()
+            if self._last_pose.frame not in seen:
+                seen.add(self._last_pose.frame)
+                tips.append(tip)
+            elif self.clock.now() - t0 > self.limits.sensor_timeout:
+                exc = SensorTimeout(f"tracker gave {len(tips)} distinct frames of {frames} within "
+                                    f"{self.limits.sensor_timeout:g} s", device=self.tracker.name)
+                self.event("fault", exc.reason)
+                raise exc
+            else:
+                self.clock.sleep(0.002)
+        return np.mean(tips, axis=0)
+
+    def _measure_one(self) -> np.ndarray:
         pose = self.read_pose()
         if not pose.valid or not np.all(np.isfinite(pose.position)):
             exc = TrackingLost(f"no valid tip pose (frame {pose.frame})", device=self.tracker.name)
