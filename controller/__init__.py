@@ -8,6 +8,7 @@ Sec. IV-B, VF-CC baseline [25]    :mod:`controller.vfcc`
 plant protocol                    :mod:`controller.plant` (the simulated rig: :mod:`hardware.simulated`)
 loops (Table I, Sec. V-E timing)  :mod:`controller.loop`
 runs on a rig, with a run log     :mod:`controller.run`
+Sec. V-B open-loop IK tracking     :mod:`controller.feedforward`
 errors                            :mod:`controller.errors`
 ================================  ==========================================================
 
@@ -28,10 +29,11 @@ from .vfcc import VFCC
 from .plant import Plant
 from .loop import EpisodeResult, TimedResult, run_iterations, run_timed
 from .run import RunResult, run_on_rig
+from .feedforward import OpenLoopResult, run_open_loop
 
 __all__ = ["ControllerError", "NotConvergedError", "Controller", "StepReport", "LACC", "COMPLIANCE_METHODS",
            "VFCC", "Plant", "PlantOptions", "SimulatedPlant", "EpisodeResult", "TimedResult", "run_iterations",
-           "run_timed", "RunResult", "run_on_rig"]
+           "run_timed", "RunResult", "run_on_rig", "OpenLoopResult", "run_open_loop"]
 
 
 def __getattr__(name):

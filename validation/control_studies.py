@@ -575,9 +575,195 @@ def loading(*, pressure: float = PRESSURE, tensions=None, peak_mass: Optional[fl
     return res
 
 
+# ============================================================================== Sec. V-B / V-D / V-E on the rig
+_LETTERS = {   # strokes in a 1 × 1.4 box (y right, z up); pen moves between strokes are traced too
+    "S": [(1.0, 1.3), (0.8, 1.4), (0.2, 1.4), (0.0, 1.2), (0.0, 0.9), (0.2, 0.7), (0.8, 0.7), (1.0, 0.5),
+          (1.0, 0.2), (0.8, 0.0), (0.2, 0.0), (0.0, 0.1)],
+    "J": [(0.3, 1.4), (1.0, 1.4), (0.7, 1.4), (0.7, 0.2), (0.5, 0.0), (0.2, 0.0), (0.0, 0.2)],
+    "T": [(0.0, 1.4), (1.0, 1.4), (0.5, 1.4), (0.5, 0.0)],
+    "U": [(0.0, 1.4), (0.0, 0.2), (0.2, 0.0), (0.8, 0.0), (1.0, 0.2), (1.0, 1.4)],
+}
+TRAJECTORIES = ("circle", "rose", "SJTU")
+
+
+def _resample(poly: np.ndarray, n: int) -> np.ndarray:
+    seg = np.linalg.norm(np.diff(poly, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    u = np.linspace(0.0, s[-1], n)
+    return np.column_stack([np.interp(u, s, poly[:, j]) for j in range(poly.shape[1])])
+
+
+def trajectory_points(name: str, center, *, points: int = 60, scale: float = 1.0, length: float = 0.16) -> np.ndarray:
+    """Waypoints (points, 3) [m] of the paper's Sec. V-B geometries around ``center`` (3,) [m], in the plane
+    normal to the base axis: "circle" (30 mm diameter), "rose" (50 mm diameter four-petal rose r = R cos 2θ
+    on a dome x = x_c − r² / (2 L)), "SJTU" (letters 10 × 14 mm, 49 mm wide, traced as one path).
+    ``scale`` multiplies the sizes."""
+    c = np.asarray(center, float)
+    if name == "circle":
+        th = np.linspace(0, 2 * np.pi, points)
+        R = 0.015 * scale
+        return c + np.column_stack([np.zeros(points), R * np.cos(th), R * np.sin(th)])
+    if name == "rose":
+        th = np.linspace(0, 2 * np.pi, points)
+        R = 0.025 * scale
+        r = R * np.cos(2 * th)
+        y, z = r * np.cos(th), r * np.sin(th)
+        return c + np.column_stack([-(y ** 2 + z ** 2) / (2 * length), y, z])
+    if name == "SJTU":
+        poly = np.concatenate([np.array(_LETTERS[ch]) + [1.3 * k, 0.0] for k, ch in enumerate("SJTU")])
+        poly = (poly - [2.45, 0.7]) * 0.010 * scale
+        yz = _resample(poly, points)
+        return c + np.column_stack([np.zeros(points), yz])
+    raise BellowsError(f"unknown trajectory {name!r}; one of {', '.join(TRAJECTORIES)}")
+
+
+def _feasible(model, pts, pressure, load) -> bool:
+    prev = model.droop(pressure)
+    for p in pts:
+        try:
+            prev = model.ik(p, pressure, load, q0=prev.q, tensions0=prev.tensions)
+        except BellowsError:
+            return False
+    return True
+
+
+def trajectory_tracking(*, params=None, shapes: Sequence[str] = TRAJECTORIES, points: int = 60,
+                        pressure: float = 0.0, center_tension: Optional[float] = None,
+                        plant_options: Optional[PlantOptions] = None, mismatch: bool = True,
+                        out: PathLike = None) -> dict:
+    """Open-loop trajectory tracking by IK (Sec. V-B, Fig. 7) on the simulated rig: RMSE [m] and % of the
+    actuator length per geometry.
+
+    The geometries are centred on the tip with equal tensions ``center_tension`` (default tension_max / 2)
+    at ``pressure`` (paper: 0 kPa).  Each is scaled down (bisection, noted in ``scale``) if the preset
+    cannot reach all of it within its tension limits.  The plant is mismatched by default
+    (:meth:`PlantOptions.mismatched` around the preset: other parameters, friction, tracker noise) — a
+    perfect plant would reproduce the IK exactly; the controller's model is the preset.
+    """
+    from controller import run_open_loop
+    params = params or presets.paper()
+    model = Model(params)
+    c = params.tension_max / 2 if center_tension is None else float(center_tension)
+    center = model.fk([c] * model.m, pressure, (0, 0, 0)).tip
+    opts = plant_options or (PlantOptions.mismatched(base=params) if mismatch else PlantOptions())
+    L = params.length
+    res: dict = {"shapes": {}}
+    rows = []
+    for name in shapes:
+        scale = 1.0
+        if not _feasible(model, trajectory_points(name, center, points=points, length=L), pressure, (0, 0, 0)):
+            lo, hi = 0.0, 1.0
+            for _ in range(6):
+                mid = 0.5 * (lo + hi)
+                ok = _feasible(model, trajectory_points(name, center, points=points, scale=mid, length=L), pressure,
+                               (0, 0, 0))
+                lo, hi = (mid, hi) if ok else (lo, mid)
+            scale = lo
+            if scale <= 0:
+                raise BellowsError(f"trajectory {name}: not reachable at any scale around {center.tolist()} m")
+        pts = trajectory_points(name, center, points=points, scale=scale, length=L)
+        rig = SimulatedPlant(model, pressure, options=opts)
+        r = run_open_loop(model, rig, pts, pressure=pressure)
+        rmse = r.rmse()
+        res["shapes"][name] = {"scale": scale, "rmse": rmse, "rmse_mm": rmse * 1e3, "rmse_percent_length": 100 * rmse / L,
+                               "max_error_mm": float(r.true_errors.max() * 1e3), "targets": pts, "reached": r.true}
+        rows.append([name, f"{scale:.3f}", f"{rmse * 1e3:.3f}", f"{100 * rmse / L:.2f}", "< 2.5"])
+    res["table"] = _fmt_table(["trajectory", "size scale", "RMSE mm", "RMSE % L", "paper % L"], rows)
+    res["settings"] = {"pressure_Pa": pressure, "center_m": center, "center_tension_N": c, "points": points,
+                       "actuator": params.name, "plant": repr(opts)}
+    fig = None
+    if out is not None:
+        plt = _pyplot()
+        fig, axs = plt.subplots(1, len(shapes), figsize=(4.2 * len(shapes), 3.8))
+        for ax, name in zip(np.atleast_1d(axs), shapes):
+            e = res["shapes"][name]
+            ax.plot(e["targets"][:, 1] * 1e3, e["targets"][:, 2] * 1e3, "k--", lw=0.8, label="target")
+            ax.plot(e["reached"][:, 1] * 1e3, e["reached"][:, 2] * 1e3, "C0.-", ms=3, label="reached (open loop)")
+            ax.set_aspect("equal")
+            ax.set_title(f"{name}: RMSE {e['rmse_mm']:.2f} mm ({e['rmse_percent_length']:.2f} % L)")
+            ax.set_xlabel("y [mm]")
+        np.atleast_1d(axs)[0].set_ylabel("z [mm]")
+        np.atleast_1d(axs)[0].legend(fontsize=8)
+        fig.tight_layout()
+    _write(out, "trajectories", res, fig)
+    return res
+
+
+FIG8_MASSES = (0.015, 0.040, 0.065, 0.115)     # 15 g container + 25 + 25 + 50 g of water
+
+
+def feedforward_loading(*, params=None, masses: Sequence[float] = FIG8_MASSES, directions: Optional[dict] = None,
+                        pressure: float = PRESSURE, plant_options: Optional[PlantOptions] = None,
+                        mismatch: bool = True, out: PathLike = None) -> dict:
+    """Fig. 8 protocol: hold a tip position under stepped, *known* loads by recomputing the IK for each
+    (feed-forward, no feedback).  Per configuration and mass: the steady-state error [m] on the simulated
+    rig (mismatched by default).  Masses the preset cannot carry within its tension limits are reported
+    as infeasible, not dropped silently."""
+    from controller import run_open_loop
+    params = params or presets.paper()
+    model = Model(params)
+    directions = directions or {"horizontal": DIRECTIONS["horizontal"], "downward": DIRECTIONS["downward"]}
+    conf = configurations(params, pressure=pressure, directions=directions, max_load_mass=0.0)
+    opts = plant_options or (PlantOptions.mismatched(base=params) if mismatch else PlantOptions())
+    res: dict = {"configurations": {}}
+    rows = []
+    for name, cfg in conf.items():
+        out_c = {}
+        for mass in masses:
+            F = np.array([0.0, 0.0, -G * mass])
+            rig = SimulatedPlant(model, pressure, load=F, options=opts)
+            try:
+                r = run_open_loop(model, rig, cfg["target"][None, :], pressure=pressure, load=F)
+                err = float(r.true_errors[0])
+                out_c[f"{mass * 1e3:.0f}g"] = {"error": err, "error_mm": err * 1e3, "tensions_N": r.tensions[0]}
+                rows.append([name, f"{mass * 1e3:.0f}", f"{err * 1e3:.3f}", "< 1 (mean)"])
+            except InfeasibleTargetError as exc:
+                out_c[f"{mass * 1e3:.0f}g"] = {"error": None, "infeasible": str(exc)[:200]}
+                rows.append([name, f"{mass * 1e3:.0f}", "infeasible", ""])
+        errs = [v["error"] for v in out_c.values() if v.get("error") is not None]
+        out_c["mean_error_mm"] = 1e3 * float(np.mean(errs)) if errs else None
+        res["configurations"][name] = out_c
+    res["table"] = _fmt_table(["configuration", "load g", "error mm", "paper mm"], rows)
+    res["settings"] = {"pressure_Pa": pressure, "masses_kg": list(masses), "actuator": params.name, "plant": repr(opts)}
+    _write(out, "feedforward_loading", res)
+    return res
+
+
+def loading_replay(*, params=None, profile: str = "continuous", duration: Optional[float] = None,
+                   mass: Optional[float] = None, pressure: float = PRESSURE, compliance: str = "exact",
+                   plant_options: Optional[PlantOptions] = None, seed: int = 0, log=None, force: bool = False,
+                   sim_compute_time="measured") -> dict:
+    """Replay a loading experiment (Sec. V-D/E) on the simulated rig through :func:`controller.run_on_rig`
+    — the code path of a real run (limits, health checks, run log).  ``profile``: step | stochastic |
+    continuous | cyclic (:mod:`hardware.loads`); default durations: step 10 s, stochastic 30 s, continuous
+    50 s, cyclic 4 periods.  Returns the true maximum tip error after the first correction [m], the
+    uncontrolled drift is not part of this (see :func:`loading`)."""
+    from controller import run_on_rig
+    from hardware.loads import load_profile
+    params = params or presets.paper()
+    model = Model(params)
+    kw = {} if mass is None else {"mass": mass}
+    if mass is None and profile in ("continuous", "cyclic"):
+        kw["mass"] = PAPER_PEAK_MASS if profile == "continuous" else PAPER_CYCLIC_MASS
+    prof = load_profile(profile, seed=seed, **kw)
+    dur = duration or {"step": 10.0, "stochastic": 30.0, "continuous": 50.0, "cyclic": 32.0, "none": 5.0}[profile]
+    tensions = configurations(params, pressure=pressure, directions={"loading": LOADING_DIRECTION},
+                              max_load_mass=kw.get("mass", 0.06))["loading"]["tensions"]
+    target = model.fk(tensions, pressure, (0, 0, 0)).tip
+    opts = plant_options or PlantOptions(length_rate=5e-3, seed=seed)
+    rig = SimulatedPlant(model, options=opts, load=prof)
+    r = run_on_rig(LACC(model, pressure, compliance=compliance), rig, target, log=log, force=force, duration=dur,
+                   idle_period=0.1, sim_compute_time=sim_compute_time)
+    te = np.array(r.true_errors)
+    return {"profile": profile, "status": r.status, "corrections": r.iterations, "max_error": float(te.max()),
+            "max_error_mm": float(te.max() * 1e3), "rms_error_mm": float(np.sqrt(np.mean(te ** 2)) * 1e3),
+            "samples": r.samples, "log": None if r.log_path is None else str(r.log_path), "duration_s": r.duration,
+            "target_m": target}
+
+
 if __name__ == "__main__":   # pragma: no cover
     import sys
     outdir = sys.argv[1] if len(sys.argv) > 1 else "bellows_out/control"
-    for fn in (table1, compliance_ablation, loading):
+    for fn in (table1, compliance_ablation, loading, trajectory_tracking, feedforward_loading):
         r = fn(out=outdir)
         print(f"\n== {fn.__name__}\n{r['table']}")
