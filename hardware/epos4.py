@@ -60,25 +60,18 @@ CW_NEW_SETPOINT, CW_CHANGE_IMMEDIATELY, CW_HALT = 1 << 4, 1 << 5, 1 << 8
 SW_FAULT, SW_TARGET_REACHED, SW_SETPOINT_ACK, SW_FOLLOWING_ERROR = 1 << 3, 1 << 10, 1 << 12, 1 << 13
 
 
+#: (mask, value, state) of the CiA 402 statusword, tried in order
+STATES = ((0x4F, 0x00, "NOT READY TO SWITCH ON"), (0x4F, 0x40, "SWITCH ON DISABLED"),
+          (0x6F, 0x21, "READY TO SWITCH ON"), (0x6F, 0x23, "SWITCHED ON"), (0x6F, 0x27, "OPERATION ENABLED"),
+          (0x6F, 0x07, "QUICK STOP ACTIVE"), (0x4F, 0x0F, "FAULT REACTION ACTIVE"), (0x4F, 0x08, "FAULT"))
+
+
 def state_of(statusword: int) -> str:
     """CiA 402 power state from the statusword."""
     sw = int(statusword)
-    if sw & 0x4F == 0x00:
-        return "NOT READY TO SWITCH ON"
-    if sw & 0x4F == 0x40:
-        return "SWITCH ON DISABLED"
-    if sw & 0x6F == 0x21:
-        return "READY TO SWITCH ON"
-    if sw & 0x6F == 0x23:
-        return "SWITCHED ON"
-    if sw & 0x6F == 0x27:
-        return "OPERATION ENABLED"
-    if sw & 0x6F == 0x07:
-        return "QUICK STOP ACTIVE"
-    if sw & 0x4F == 0x0F:
-        return "FAULT REACTION ACTIVE"
-    if sw & 0x4F == 0x08:
-        return "FAULT"
+    for mask, value, name in STATES:
+        if sw & mask == value:
+            return name
     return f"UNKNOWN (0x{sw:04X})"
 
 

@@ -46,6 +46,11 @@ def _as_vector(name: str, value, n: Optional[int]) -> np.ndarray:
     return a
 
 
+def _worst(mask: np.ndarray, excess: np.ndarray) -> Optional[int]:
+    """Index of the worst violation (largest ``excess`` where ``mask``), or None."""
+    return int(np.argmax(np.where(mask, excess, -np.inf))) if np.any(mask) else None
+
+
 def _as_scalar(name: str, value) -> float:
     if isinstance(value, (bool, str, bytes)) or value is None:
         raise LimitError(f"{name} must be a number, got {value!r}: refused")
@@ -102,8 +107,8 @@ class SafetyLimits:
         if current is not None:
             c = _as_vector("current tendon lengths", current, a.shape[0])
             step = np.abs(a - c)
-            if np.any(step > self.max_step):
-                i = int(np.argmax(step))
+            i = _worst(step > self.max_step, step)
+            if i is not None:
                 raise LimitError(f"tendon {i + 1} step {step[i] * 1e3:.3f} mm exceeds the largest step "
                                  f"{self.max_step * 1e3:.3f} mm per command: nothing sent")
         return a
@@ -117,12 +122,12 @@ class SafetyLimits:
     def check_tensions(self, tensions, *, what: str = "expected") -> np.ndarray:
         """Tensions (n,) [N] within [tension_min, tension_max] (min only for expected tensions)."""
         T = _as_vector(f"{what} tensions", tensions, None)
-        if np.any(T > self.tension_max):
-            i = int(np.argmax(T))
+        i = _worst(T > self.tension_max, T)
+        if i is not None:
             raise LimitError(f"{what} tension of tendon {i + 1} {T[i]:.3f} N exceeds the limit "
                              f"{self.tension_max:.3f} N")
-        if what == "expected" and self.tension_min > 0 and np.any(T < self.tension_min):
-            i = int(np.argmin(T))
+        i = _worst((T < self.tension_min) & (what == "expected" and self.tension_min > 0), -T)
+        if i is not None:
             raise LimitError(f"expected tension of tendon {i + 1} {T[i]:.3f} N is below the minimum "
                              f"{self.tension_min:.3f} N (slack tendon)")
         return T

@@ -184,47 +184,16 @@ class LineTransport:
 
 
 # ============================================================================================ devices
-class SerialForceSensor(ForceSensor):
-    """One channel of a serial load-cell board: tension = scale · counts + offset [N]."""
+class _SerialDevice:
+    """Shared open/close of a device on a (possibly shared) line transport."""
 
-    def __init__(self, port: str, *, channel: int, channels: int = 3, baudrate: int = 115200, scale: float = 1.0,
-                 offset: float = 0.0, timeout: float = 0.5, transport: Optional[LineTransport] = None):
-        if not 1 <= int(channel) <= int(channels):
-            raise LimitError(f"force channel {channel} outside 1…{channels}")
-        self.port, self.channel, self.baudrate, self.timeout = port, int(channel), baudrate, timeout
-        self.scale, self.offset = float(scale), float(offset)
-        self.protocol = ForceProtocol(channels)
+    port: str
+    baudrate: int
+    timeout: float
+    name: str
+
+    def _attach(self, transport: Optional[LineTransport]) -> None:
         self.transport, self._own = transport, transport is None
-        self.name = f"force sensor {self.channel} ({port})"
-        self.last_seq: Optional[int] = None
-
-    def open(self) -> None:
-        if self.transport is None:
-            self.transport = LineTransport.shared(self.port, self.baudrate, self.timeout)
-
-    def close(self) -> None:
-        if self._own and self.transport is not None:
-            self.transport.release()
-            self.transport = None
-
-    def read(self) -> float:
-        if self.transport is None:
-            raise CommunicationError("sensor is not open", device=self.name)
-        seq, counts = self.protocol.parse(self.transport.ask(self.protocol.request()), self.name)
-        self.last_seq = seq
-        return self.scale * counts[self.channel - 1] + self.offset
-
-
-class SerialPressureSupply(PressureSupply):
-    """Valve controller with a micro pressure sensor on a serial line."""
-
-    def __init__(self, port: str, *, baudrate: int = 115200, timeout: float = 0.5,
-                 transport: Optional[LineTransport] = None):
-        self.port, self.baudrate, self.timeout = port, baudrate, timeout
-        self.protocol = PressureProtocol()
-        self.transport, self._own = transport, transport is None
-        self.name = f"pressure supply ({port})"
-        self._setpoint: Optional[float] = None
 
     def open(self) -> None:
         if self.transport is None:
@@ -237,8 +206,40 @@ class SerialPressureSupply(PressureSupply):
 
     def _t(self) -> LineTransport:
         if self.transport is None:
-            raise CommunicationError("pressure supply is not open", device=self.name)
+            raise CommunicationError("device is not open", device=self.name)
         return self.transport
+
+
+class SerialForceSensor(_SerialDevice, ForceSensor):
+    """One channel of a serial load-cell board: tension = scale · counts + offset [N]."""
+
+    def __init__(self, port: str, *, channel: int, channels: int = 3, baudrate: int = 115200, scale: float = 1.0,
+                 offset: float = 0.0, timeout: float = 0.5, transport: Optional[LineTransport] = None):
+        if not 1 <= int(channel) <= int(channels):
+            raise LimitError(f"force channel {channel} outside 1…{channels}")
+        self.port, self.channel, self.baudrate, self.timeout = port, int(channel), baudrate, timeout
+        self.scale, self.offset = float(scale), float(offset)
+        self.protocol = ForceProtocol(channels)
+        self._attach(transport)
+        self.name = f"force sensor {self.channel} ({port})"
+        self.last_seq: Optional[int] = None
+
+    def read(self) -> float:
+        seq, counts = self.protocol.parse(self._t().ask(self.protocol.request()), self.name)
+        self.last_seq = seq
+        return self.scale * counts[self.channel - 1] + self.offset
+
+
+class SerialPressureSupply(_SerialDevice, PressureSupply):
+    """Valve controller with a micro pressure sensor on a serial line."""
+
+    def __init__(self, port: str, *, baudrate: int = 115200, timeout: float = 0.5,
+                 transport: Optional[LineTransport] = None):
+        self.port, self.baudrate, self.timeout = port, baudrate, timeout
+        self.protocol = PressureProtocol()
+        self._attach(transport)
+        self.name = f"pressure supply ({port})"
+        self._setpoint: Optional[float] = None
 
     def set(self, pressure: float) -> None:
         self.protocol.parse_ack(self._t().ask(self.protocol.set_request(pressure)), "PSET", self.name)

@@ -80,6 +80,14 @@ def _pyplot():
     return plt
 
 
+def _finish_axes(fig, axs, ylabel: str) -> None:
+    """Shared end of the one-row figures: y label and legend on the first axes, tight layout."""
+    first = np.atleast_1d(axs)[0]
+    first.set_ylabel(ylabel)
+    first.legend(fontsize=8)
+    fig.tight_layout()
+
+
 def _fmt_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     w = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
     line = lambda r: "  ".join(str(c).rjust(w[i]) if i else str(c).ljust(w[i]) for i, c in enumerate(r))
@@ -280,9 +288,7 @@ def table1(*, iterations: int = 5, seed: int = 0, pressure: float = PRESSURE,
             ax.axhline(0.2, color="k", lw=0.8, ls="--")
             ax.set_title(f"{name}: {e['load_mass_g']:.0f} g")
             ax.set_xlabel("iteration")
-        np.atleast_1d(axs)[0].set_ylabel("tip error [mm]")
-        np.atleast_1d(axs)[0].legend(fontsize=8)
-        fig.tight_layout()
+        _finish_axes(fig, axs, "tip error [mm]")
     _write(out, "table1", res, fig)
     return res
 
@@ -682,9 +688,7 @@ def trajectory_tracking(*, params=None, shapes: Sequence[str] = TRAJECTORIES, po
             ax.set_aspect("equal")
             ax.set_title(f"{name}: RMSE {e['rmse_mm']:.2f} mm ({e['rmse_percent_length']:.2f} % L)")
             ax.set_xlabel("y [mm]")
-        np.atleast_1d(axs)[0].set_ylabel("z [mm]")
-        np.atleast_1d(axs)[0].legend(fontsize=8)
-        fig.tight_layout()
+        _finish_axes(fig, axs, "z [mm]")
     _write(out, "trajectories", res, fig)
     return res
 
