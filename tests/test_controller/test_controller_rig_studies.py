@@ -4,7 +4,7 @@ rig code path (controller.run_open_loop / run_on_rig on the simulated rig)."""
 import numpy as np
 import pytest
 
-from ancf import Model, presets
+from ancf import presets
 from hardware.runlog import read_run_log
 from validation import control_studies as cs
 

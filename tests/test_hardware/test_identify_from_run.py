@@ -1,7 +1,6 @@
 """Static states recorded by control runs on the simulated rig feed validation.identify.from_measurements,
 which recovers the plant's stiffness law from them."""
 
-import numpy as np
 
 from ancf import Model, presets
 from controller import LACC, run_on_rig

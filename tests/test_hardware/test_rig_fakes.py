@@ -53,7 +53,7 @@ def bench(tmp_path, quiet_canopen):
     with FakeSerialInstrument(forces=[2200, 1600, 1600]) as loadcells, FakeSerialInstrument() as valves:
         for d in drives:
             d.__enter__()
-        toml = f'''
+        toml = '''
 name = "fake bench"
 backend = "hardware"
 actuator = "paper"
