@@ -46,10 +46,21 @@ class FakeNatNet:
         self._t.join(timeout=1)
 
 
+def _free_udp_port() -> int:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
 @pytest.fixture
-def bench(tmp_path, quiet_canopen):
+def fake_bench(tmp_path, quiet_canopen):
+    """The fake instruments running, and a rig file describing them: (path, drives, loadcells, valves, natnet)."""
     ch = f"bench-{uuid.uuid4().hex[:8]}"
     drives = [FakeEpos4(node_id=i + 1, channel=ch, initial_counts=165_000) for i in range(3)]
+    nat = FakeNatNet()
+    port = _free_udp_port()
     with FakeSerialInstrument(forces=[2200, 1600, 1600]) as loadcells, FakeSerialInstrument() as valves:
         for d in drives:
             d.__enter__()
@@ -87,24 +98,29 @@ port = "{valves.port}"
 [tracker]
 backend = "natnet"
 address = "127.0.0.1"
-port = 0
+port = {port}
 '''
         path = tmp_path / "rig.toml"
         path.write_text(toml)
-        rig = Rig.from_config(RigConfig.from_toml(path))
-        nat = FakeNatNet()
+        nat.start(port)
         try:
-            with rig:
-                nat.start(rig.tracker.port)
-                yield rig, drives, loadcells, valves, nat
+            yield path, drives, loadcells, valves, nat
         finally:
             nat.stop()
             for d in drives:
                 d.__exit__(None, None, None)
 
 
+@pytest.fixture
+def bench(fake_bench):
+    path, drives, loadcells, valves, nat = fake_bench
+    with Rig.from_config(RigConfig.from_toml(path)) as rig:
+        yield rig, drives, loadcells, valves, nat
+
+
 def test_rig_runs_against_the_fakes(bench):
     rig, drives, loadcells, valves, nat = bench
+    time.sleep(0.05)
     assert all(d.state == "OPERATION ENABLED" for d in drives)
     rig.set_pressure(60e3)
     assert valves.setpoint == 60e3
@@ -163,3 +179,40 @@ def test_each_fault_on_the_fake_backends(bench, fault):
     else:
         assert all(cw & e4.CW_HALT for cw in cws)                           # drives halted, holding
     assert any(k == "stop" for _, k, _ in rig.events)
+
+
+def test_bellows_control_on_the_fake_hardware(fake_bench, tmp_path):
+    """The CLI drives the fake bench end to end: the tracker reports the target, so LACC converges at once;
+    the log holds the hardware readings and a static state; the drives are disabled after the run."""
+    import json
+    from typer.testing import CliRunner
+    from ancf import Model, presets
+    from hardware.runlog import read_run_log
+    from hardware.static_states import read_static_states
+    from validation.cli import app
+    path, drives, loadcells, valves, nat = fake_bench
+    target = Model(presets.paper()).fk((2.2, 1.6, 1.6), 60e3).tip
+    nat.position = tuple(target)
+    log = tmp_path / "hw.h5"
+    res = CliRunner().invoke(app, ["control", "--rig", str(path), "--target-mm", ",".join(f"{x * 1e3:.6f}" for x in target),
+                                   "--pressure-kpa", "60", "--max-iterations", "3", "--log", str(log), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    assert out["status"] == "converged" and out["iterations"] == 0
+    d = read_run_log(log)
+    assert not d.attrs["rig"]["simulated"] and d.attrs["rig"]["drives"] == ["Epos4Drive"] * 3
+    np.testing.assert_allclose(d.samples["tension"][0], [2.2, 1.6, 1.6])
+    assert np.all(np.isnan(d.samples["true_tip"]))                         # no truth on hardware
+    st = read_static_states(log)
+    assert st.n_states == 1 and st.pressure[0] == 60e3
+    assert all(d.halt and d.state == "OPERATION ENABLED" for d in drives)   # holding position after the run
+    with pytest.raises(SystemExit):                                         # sim-only options refused
+        from validation.cli import main
+        import sys
+        old = sys.argv
+        sys.argv = ["bellows", "control", "--rig", str(path), "--target-mm", "170,0,0", "--pressure-kpa", "60",
+                    "--mismatch"]
+        try:
+            main()
+        finally:
+            sys.argv = old
