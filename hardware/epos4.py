@@ -254,9 +254,22 @@ class Epos4Drive(TendonDrive):
             time.sleep(0.002)
 
     # ----------------------------------------------------------------------------------- motion
+    def __enter__(self):
+        """Connect and enable (profile position mode, OPERATION ENABLED)."""
+        self.open()
+        try:
+            self.enable()
+        except BaseException:
+            self.__exit__(*__import__("sys").exc_info())
+            raise
+        return self
+
     def enable(self) -> None:
-        """Profile position mode, then shutdown → switch on → enable operation (each confirmed)."""
+        """Profile position mode, then shutdown → switch on → enable operation (each confirmed).  A drive
+        that is already enabled in profile position mode is left as it is (no power-stage cycle)."""
         self.check()
+        if self.state() == "OPERATION ENABLED" and self._read(MODE_DISPLAY) == PROFILE_POSITION:
+            return
         self._write(MODE, PROFILE_POSITION)
         t0 = time.monotonic()
         while self._read(MODE_DISPLAY) != PROFILE_POSITION:

@@ -38,11 +38,12 @@ def wait_reached(d, timeout=2.0):
 
 def test_state_machine_and_profile_position(bus):
     fake, ch = bus
-    with drive(ch) as d:
-        d.enable()
+    with drive(ch) as d:                                               # connects and enables
         assert d.state() == "OPERATION ENABLED" and fake.mode == e4.PROFILE_POSITION
         cws = [v for i, v in fake.writes if i == e4.CONTROLWORD]
-        assert cws[-3:] == [0x06, 0x07, 0x0F]                          # shutdown → switch on → enable
+        assert cws == [0x06, 0x07, 0x0F]                                # shutdown → switch on → enable
+        d.enable()                                                      # idempotent: no power-stage cycle
+        assert [v for i, v in fake.writes if i == e4.CONTROLWORD] == cws
         assert d.position() == pytest.approx(0.160)
         d.move_to(0.1605)
         assert fake.target == 160_500
@@ -137,7 +138,7 @@ def test_no_drive_on_the_bus_is_a_communication_error(quiet_canopen):
     d = Epos4Drive(node_id=5, channel=f"empty-{uuid.uuid4().hex[:6]}", interface="virtual", counts_per_metre=CPM)
     with pytest.raises(CommunicationError):
         with d:
-            d.enable()
+            pass
 
 
 def test_bad_parameters():
