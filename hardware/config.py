@@ -61,7 +61,9 @@ A complete file (every key documented in docs/rig.md)::
     address = "0.0.0.0"
     port = 1511
     rigid_body_id = 1
-    offset_mm = [0.0, 0.0, 0.0]      # world frame of the actuator in tracker coordinates
+    offset_mm = [0.0, 0.0, 0.0]      # p_actuator = rotation · p_tracker + offset
+    rotation = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]   # tracker (y up) → actuator axes; default identity
+    max_error_mm = 2.0               # larger mean marker error: invalid pose
 """
 
 from __future__ import annotations
@@ -93,7 +95,7 @@ DIMENSIONS = {
     "force_per_count": {"N_per_count": 1.0},
     "counts_per_length": {"per_m": 1.0, "per_mm": 1e3},
 }
-INT, STR, BOOL, NUM, LIST3 = "int", "str", "bool", "num", "list3"
+INT, STR, BOOL, NUM, MATRIX3 = "int", "str", "bool", "num", "matrix3"
 
 TOP = {"name": STR, "backend": STR, "actuator": STR, "on_fault_pressure": STR, "settle_time": "time",
        "speed": "speed"}
@@ -109,7 +111,7 @@ FORCE = {"backend": STR, "port": STR, "baudrate": INT, "channel": INT, "scale": 
          "offset": "force"}
 PRESSURE = {"backend": STR, "port": STR, "baudrate": INT}
 TRACKER = {"backend": STR, "address": STR, "port": INT, "rigid_body_id": INT, "offset": "length",
-           "timeout": "time"}
+           "rotation": MATRIX3, "multicast_group": STR, "timeout": "time", "max_error": "length"}
 BACKENDS = {"drives": ("sim", "epos4"), "force_sensors": ("sim", "serial"), "pressure": ("sim", "serial"),
             "tracker": ("sim", "natnet")}
 
@@ -126,6 +128,17 @@ def _spellings(spec: dict) -> dict:
 
 
 def _value(v: Any, kind: str, fac: float, where: str):
+    if kind == MATRIX3:
+        import numpy as np
+        try:
+            R = np.array(v, dtype=float)
+        except (TypeError, ValueError):
+            raise RigConfigError(f"{where}: expected a 3 × 3 matrix [[...], [...], [...]]") from None
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+            raise RigConfigError(f"{where}: expected a finite 3 × 3 matrix, got shape {R.shape}")
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise RigConfigError(f"{where}: not a rotation matrix (orthonormal, det +1)")
+        return R.tolist()
     if kind == STR:
         if not isinstance(v, str):
             raise RigConfigError(f"{where}: expected text, got {v!r}")
@@ -344,7 +357,8 @@ def build_rig(cfg: RigConfig, **sim_overrides):
     t = cfg.tracker
     tracker = NatNetTracker(address=t.get("address", "0.0.0.0"), port=t.get("port", 1511),
                             rigid_body_id=t.get("rigid_body_id", 1), offset=t.get("offset", (0.0, 0.0, 0.0)),
-                            timeout=t.get("timeout", limits.sensor_timeout))
+                            rotation=t.get("rotation"), multicast_group=t.get("multicast_group"),
+                            timeout=t.get("timeout", limits.sensor_timeout), max_error=t.get("max_error", 2e-3))
     return Rig(drives, forces, pressure, tracker, limits=limits, on_fault_pressure=cfg.on_fault_pressure,
                settle_time=cfg.settle_time, speed=cfg.speed, name=cfg.name, config=cfg.to_dict(),
                params=cfg.actuator_params())

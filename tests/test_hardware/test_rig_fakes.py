@@ -99,6 +99,7 @@ port = "{valves.port}"
 backend = "natnet"
 address = "127.0.0.1"
 port = {port}
+rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
 '''
         path = tmp_path / "rig.toml"
         path.write_text(toml)
