@@ -44,7 +44,8 @@ def control(
     target_mm: str = typer.Option(..., "--target-mm", help="desired tip position X,Y,Z [mm]"),
     pressure_kpa: float = typer.Option(..., "--pressure-kpa", help="chamber pressure [kPa], held constant"),
     controller: str = typer.Option("lacc", "--controller", help="lacc | vfcc"),
-    compliance: str = typer.Option("exact", "--compliance", help="LACC compliance: exact | ik (eq. 15/16) | paper (eq. 13)"),
+    compliance: Optional[str] = typer.Option(None, "--compliance",
+                                             help="LACC compliance: exact (default) | ik (eq. 15/16) | paper (eq. 13)"),
     tolerance_mm: float = typer.Option(0.2, "--tolerance-mm", help="stop correcting below this tip error [mm]"),
     load_profile: str = typer.Option("none", "--load-profile",
                                      help="simulated rig only: none | step | stochastic | continuous | cyclic"),
@@ -64,7 +65,9 @@ def control(
     force: bool = typer.Option(False, "--force", help="overwrite an existing run log"),
     json_out: bool = typer.Option(False, "--json", help="print the result as JSON"),
 ):
-    """Run a tip-position controller live on a rig (simulated or real) with a status line and a run log."""
+    """Run a tip-position controller live on a rig (simulated or real) with a status line and a run log.
+    Exit status 0 when the run held or converged, 1 when --max-iterations ended without convergence, 2 on
+    an error (a fault, a limit, Ctrl-C: the rig is made safe first)."""
     import json
 
     from ancf import Model
@@ -83,7 +86,7 @@ def control(
         raise InputError(f"--tolerance-mm must be >= 0 mm, got {tolerance_mm}")
     if controller not in ("lacc", "vfcc"):
         raise InputError(f"--controller must be 'lacc' or 'vfcc', got {controller!r}")
-    if controller == "vfcc" and compliance != "exact":
+    if controller == "vfcc" and compliance is not None:
         raise InputError("--compliance applies to LACC only; VF-CC has no compliance option")
     if duration_s is not None and not (duration_s > 0):
         raise InputError(f"--duration-s must be > 0 s, got {duration_s}")
@@ -120,7 +123,7 @@ def control(
         the_rig.pace = 1.0
     model = Model(cfg.actuator_params())
     p = pressure_kpa * 1e3
-    ctrl = (LACC(model, p, compliance=compliance, tolerance=tolerance_mm * 1e-3) if controller == "lacc"
+    ctrl = (LACC(model, p, compliance=compliance or "exact", tolerance=tolerance_mm * 1e-3) if controller == "lacc"
             else VFCC(model, p, tolerance=tolerance_mm * 1e-3))
     duration = duration_s if duration_s is not None else (None if max_iterations is not None else math.inf)
     where = f"; run log: {log}" if log else ""

@@ -139,9 +139,14 @@ class RunLog:
         unknown = set(values) - set(self.fields)
         if unknown:
             raise InputError(f"run log: unknown sample fields {sorted(unknown)}")
+        rows = {}
         for name, (shape, _) in self.fields.items():
             v = values.get(name)
-            a = np.full(shape, np.nan) if v is None else np.asarray(v, float).reshape(shape)
+            try:
+                rows[name] = np.full(shape, np.nan) if v is None else np.asarray(v, float).reshape(shape)
+            except (TypeError, ValueError):
+                raise InputError(f"run log: sample field {name} must be numeric with shape {shape}, got {v!r}") from None
+        for name, a in rows.items():
             self._append(self.samples[name], a)
         self.rows += 1
         self.f.flush()
@@ -154,12 +159,16 @@ class RunLog:
 
     def static_state(self, *, time: float, tensions, pressure: float, tip, tip_force=None, label: str = "") -> None:
         """Append one measured equilibrium to ``/static_states`` (tip force NaN = unknown)."""
-        T = np.asarray(tensions, float).reshape(self.m)
+        try:
+            T = np.asarray(tensions, float).reshape(self.m)
+            vals = {"tensions": T, "pressure": float(pressure), "tip_position": np.asarray(tip, float).reshape(3),
+                    "tip_force": np.full(3, np.nan) if tip_force is None else np.asarray(tip_force, float).reshape(3),
+                    "time": float(time)}
+        except (TypeError, ValueError):
+            raise InputError("static state: tensions (m,), pressure, tip (3,), tip_force (3,) and time must be "
+                             "numeric with those shapes") from None
         if np.any(~np.isfinite(T)) or np.any(T < 0):
             raise InputError(f"static state: tensions must be finite and >= 0 N, got {T.tolist()}")
-        vals = {"tensions": T, "pressure": float(pressure), "tip_position": np.asarray(tip, float).reshape(3),
-                "tip_force": np.full(3, np.nan) if tip_force is None else np.asarray(tip_force, float).reshape(3),
-                "time": float(time)}
         for name, v in vals.items():
             self._append(self.static[name], v)
         self._append(self.static_label, str(label))

@@ -16,6 +16,7 @@ from hardware.limits import SafetyLimits  # noqa: E402
 
 CPM = 1e6                                   # counts per metre (1 count = 1 µm of tendon)
 LIMITS = SafetyLimits(length_min=0.10, length_max=0.22)
+from fakes.fixtures import quiet_canopen  # noqa: E402,F401  (fixture)
 
 
 @pytest.fixture

@@ -18,6 +18,7 @@ from fakes.serial_instruments import FakeSerialInstrument  # noqa: E402
 from hardware import DriveFault, LimitError, PressureFault, Rig, RigConfig, SensorTimeout, TrackingLost  # noqa: E402
 from hardware import epos4 as e4  # noqa: E402
 from hardware.tracking import build_frame_packet  # noqa: E402
+from fakes.fixtures import quiet_canopen  # noqa: E402,F401  (fixture)
 
 
 class FakeNatNet:

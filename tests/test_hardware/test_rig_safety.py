@@ -13,6 +13,7 @@ from hardware.limits import SafetyLimits
 from hardware.runlog import read_run_log
 
 P = 60e3
+from fakes.fixtures import target  # noqa: E402,F401  (fixture)
 
 
 def fresh_rig(paper_model, target, **kw):

@@ -30,6 +30,10 @@ def test_log_layout_units_and_refusals(tmp_path):
             log.sample(bogus=1.0)
         with pytest.raises(InputError):
             log.static_state(time=0.0, tensions=[-1, 2, 3], pressure=6e4, tip=[0.17, 0, 0])
+        with pytest.raises(InputError):
+            log.sample(tip=[1.0, 2.0])                                  # wrong shape: typed error, nothing written
+        with pytest.raises(InputError):
+            log.static_state(time=0.0, tensions=[1, 2], pressure="x", tip=[0.17, 0, 0])
     d = read_run_log(path)
     assert d.rows == 1 and d.units["tip"] == "m" and d.units["tension"] == "N" and d.units["pressure"] == "Pa"
     np.testing.assert_array_equal(d.samples["tension"][0], [1, 2, 3])
@@ -134,6 +138,8 @@ def test_control_cli_runs_and_logs(tmp_path):
     (["--pressure-kpa", "-5"], "--pressure-kpa"),
     (["--controller", "pid"], "--controller"),
     (["--controller", "vfcc", "--compliance", "ik"], "LACC only"),
+    (["--controller", "vfcc", "--compliance", "exact"], "LACC only"),
+    (["--compliance", "magic"], "compliance must be one of"),
     (["--duration-s", "0"], "--duration-s"),
     (["--duration-s", "1", "--max-iterations", "3"], "not both"),
     (["--load-profile", "sine"], "unknown load profile"),

@@ -1,3 +1,8 @@
+"""Fixtures shared by the rig tests (imported into the test modules: a conftest.py in a test sub-folder
+would shadow the top-level ``conftest`` module that other tests import helpers from)."""
+
+import logging
+
 import pytest
 
 P = 60e3
@@ -11,6 +16,6 @@ def target(paper_model):
 
 @pytest.fixture
 def quiet_canopen():
-    import logging
+    """canopen logs every SDO fallback and timeout; keep the test output readable."""
     logging.getLogger("canopen").setLevel(logging.ERROR)
     yield
