@@ -5,27 +5,41 @@ paper                             module
 ================================  ==========================================================
 Sec. III-E, Algorithm 1 (LACC)    :mod:`controller.lacc`
 Sec. IV-B, VF-CC baseline [25]    :mod:`controller.vfcc`
-simulated rig (locked FK + load)  :mod:`controller.plant`
+plant protocol                    :mod:`controller.plant` (the simulated rig: :mod:`hardware.simulated`)
 loops (Table I, Sec. V-E timing)  :mod:`controller.loop`
+runs on a rig, with a run log     :mod:`controller.run`
+Sec. V-B open-loop IK tracking     :mod:`controller.feedforward`
 errors                            :mod:`controller.errors`
 ================================  ==========================================================
 
 All quantities SI (m, N, Pa, s).  Typical use::
 
     from ancf import Model, presets
-    from controller import LACC, SimulatedPlant, run_iterations
+    from hardware import SimulatedRig
+    from controller import LACC, run_on_rig
     m = Model(presets.paper())
-    plant = SimulatedPlant(m, 60e3, load=(0, 0, -0.49))        # 50 g the controller does not know
-    res = run_iterations(LACC(m, 60e3), plant, target, iterations=10)
+    rig = SimulatedRig(m, load=(0, 0, -0.49), seed=0)          # 50 g the controller does not know
+    res = run_on_rig(LACC(m, 60e3), rig, target, log="run.h5", max_iterations=20)
 """
 
 from .errors import ControllerError, NotConvergedError
 from .base import Controller, StepReport
 from .lacc import LACC, COMPLIANCE_METHODS
 from .vfcc import VFCC
-from .plant import Plant, PlantOptions, SimulatedPlant
+from .plant import Plant
 from .loop import EpisodeResult, TimedResult, run_iterations, run_timed
+from .run import RunResult, run_on_rig
+from .feedforward import OpenLoopResult, run_open_loop
 
 __all__ = ["ControllerError", "NotConvergedError", "Controller", "StepReport", "LACC", "COMPLIANCE_METHODS",
            "VFCC", "Plant", "PlantOptions", "SimulatedPlant", "EpisodeResult", "TimedResult", "run_iterations",
-           "run_timed"]
+           "run_timed", "RunResult", "run_on_rig", "OpenLoopResult", "run_open_loop"]
+
+
+def __getattr__(name):
+    """``SimulatedPlant`` / ``PlantOptions``: the one simulated rig, :mod:`hardware.simulated` (imported on
+    first use, so that importing ``controller`` never imports ``hardware``)."""
+    if name in ("SimulatedPlant", "PlantOptions"):
+        from . import plant
+        return getattr(plant, name)
+    raise AttributeError(f"module 'controller' has no attribute {name!r}")

@@ -21,7 +21,9 @@ from typing import Optional
 import numpy as np
 
 from ancf import Equilibrium, Model
-from ancf.errors import InputError, check_finite
+from ancf.errors import InputError
+
+from .errors import check_finite, number
 
 
 @dataclass
@@ -74,10 +76,8 @@ class Controller(abc.ABC):
         if not isinstance(model, Model):
             raise InputError(f"controller needs an ancf.Model, got {type(model).__name__}")
         self.model = model
-        self.pressure = float(check_finite("pressure", pressure, ()))
-        if not (tolerance >= 0 and np.isfinite(tolerance)):
-            raise InputError(f"tolerance must be a finite number >= 0 m, got {tolerance}")
-        self.tolerance = float(tolerance)
+        self.pressure = number("pressure [Pa]", pressure)
+        self.tolerance = number("tolerance [m]", tolerance)
         self.target: Optional[np.ndarray] = None
         self.state: Optional[Equilibrium] = None      # the controller's last IK solution
 

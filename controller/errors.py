@@ -43,3 +43,34 @@ class NotConvergedError(ControllerError):
             f"{message}: tip error {self.error * 1e3:.4f} mm > tolerance {self.tolerance * 1e3:.4f} mm after "
             f"{self.iterations} iterations ({self.error / self.tolerance:.2f}× the tolerance; "
             f"history [mm]: {[round(h * 1e3, 4) for h in self.history]})")
+
+
+def check_finite(name: str, value, shape=None):
+    """:func:`ancf.errors.check_finite` that also turns non-numeric input (text, None, ragged lists) into
+    :class:`~ancf.errors.InputError` instead of a ValueError/TypeError."""
+    from ancf.errors import InputError, check_finite as _cf
+    if isinstance(value, (str, bytes)) or value is None:
+        raise InputError(f"{name} must be numeric, got {value!r}")
+    try:
+        return _cf(name, value, shape)
+    except InputError:
+        raise
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{name} must be numeric{'' if shape is None else f' with shape {shape}'}, "
+                         f"got {value!r}") from None
+
+
+def number(name: str, value, *, lower: float = 0.0, strict: bool = False, allow_inf: bool = False) -> float:
+    """A real number ≥ ``lower`` (> with ``strict``), finite unless ``allow_inf``; else InputError."""
+    import math
+    from ancf.errors import InputError
+    if isinstance(value, (bool, str, bytes)) or value is None:
+        raise InputError(f"{name} must be a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{name} must be a number, got {value!r}") from None
+    if math.isnan(x) or (math.isinf(x) and not allow_inf) or x < lower or (strict and x == lower):
+        raise InputError(f"{name} must be {'>' if strict else '>='} {lower:g}"
+                         f"{'' if allow_inf else ' and finite'}, got {value!r}")
+    return x

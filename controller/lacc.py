@@ -8,7 +8,8 @@ Per episode (desired tip p_d [m], pressure p [Pa], initial estimate F̂⁰ [N]):
         C_q  ← constant-tension compliance at (q, T, p)                        eq. (8)
         A    ← taut set from δl = J_l C_q δF̂  (δF̂ = C_p⁻¹ e, the constant-
                 tension estimate of the load increment, gives the direction)   Sec. III-D
-        C'_p ← locked compliance with A (``compliance=``: "ik" eq. 15/16, "paper" eq. 13, "exact" KKT)
+        C'_p ← locked compliance with A (``compliance=``: "exact" KKT — the default —, "ik" eq. 15/16,
+                "paper" eq. 13)
         F̂    ← F̂ + C'_p⁻¹ (p_m − p_d)                                          line 10
         [q, T] ← IK(p_d, p, F̂)   warm-started from the previous IK solution
         send l_c(q)                                                              eq. (5)
@@ -39,15 +40,16 @@ Load-estimate safeguards (all explicit, all parameters):
    limits.  (An infeasible *initial* target always propagates from :meth:`LACC.start`.)
 5. **Gain.**  ``gain`` multiplies ΔF̂ (default 1.0 = Algorithm 1).
 
-Compliance choices (``compliance=``): ``"ik"`` is the paper's default (eq. 15/16, the stacked IK Jacobian
-by pseudo-inverse), ``"paper"`` the FK-derived eq. (13), ``"exact"`` the exact locked linearisation (KKT).
+Compliance choices (``compliance=``): ``"exact"`` (the default) is the exact locked linearisation (KKT
+of the locked equilibrium), ``"ik"`` the paper's eq. (15/16) (the stacked IK Jacobian by
+pseudo-inverse), ``"paper"`` the FK-derived eq. (13).  With the exact compliance each step is a
+Newton-like iteration: Table I comes out ≈ 1e-5 mm after five iterations (the paper's form: 0.2–0.44 mm).
 With the literal unweighted stacks (``constraint_weight=1``) the two paper forms come out close to the
 constant-tension compliance — about 3× the plant's locked compliance — so LACC with them is a stable but
 slow integral law (measured error ratio ≈ 0.74 per step for "ik", 0.77 for "paper": 7–8 iterations to
-0.2 mm from ≈ 2 mm), with ``"exact"`` it is a Newton-like iteration (1 iteration).
-``validation.control_studies.compliance_ablation`` measures this.  The stacked forms also misjudge the
-axial compliance, so with the literal inverse an axial error (e.g. from model mismatch) builds a spurious
-axial load estimate; safeguard 1 prevents it.
+0.2 mm from ≈ 2 mm).  ``validation.control_studies.compliance_ablation`` measures this.  The stacked forms
+also misjudge the axial compliance, so with the literal inverse an axial error (e.g. from model mismatch)
+builds a spurious axial load estimate; safeguard 1 prevents it.
 """
 
 from __future__ import annotations
@@ -59,7 +61,9 @@ import numpy as np
 
 from ancf import InfeasibleTargetError, Model
 from ancf import compliance as cp
-from ancf.errors import InputError, check_finite
+from ancf.errors import InputError
+
+from .errors import check_finite, number
 
 from .base import Controller, StepReport
 
@@ -80,7 +84,7 @@ class LACC(Controller):
     Parameters (SI)
     ----------
     model : controller's :class:`ancf.Model`;  pressure : p [Pa]
-    compliance : "ik" (paper default, eq. 15/16) | "paper" (eq. 13, FK-derived) | "exact" (KKT)
+    compliance : "exact" (default, KKT) | "ik" (the paper's eq. 15/16) | "paper" (eq. 13, FK-derived)
     constraint_weight : weight of the constraint rows of the stacked "ik"/"paper" forms [N/m]; 1 = literal
     active_rule : "paper" (δl > 0) | "exact" (complementarity) for the taut set; default "paper" for the
         stacked forms, "exact" for ``compliance="exact"``
@@ -96,31 +100,30 @@ class LACC(Controller):
 
     name = "LACC"
 
-    def __init__(self, model: Model, pressure: float, *, compliance: str = "ik", constraint_weight: float = 1.0,
+    def __init__(self, model: Model, pressure: float, *, compliance: str = "exact", constraint_weight: float = 1.0,
                  active_rule: Optional[str] = None, tolerance: float = 2e-4, validity_force: float = 0.2 * G,
                  max_step_force: Optional[float] = 1.0, rcond: float = 0.05, gain: float = 1.0,
                  fallback_gain: float = 1.0, backtracks: int = 3, on_infeasible: str = "fallback"):
         super().__init__(model, pressure, tolerance=tolerance)
-        if compliance not in COMPLIANCE_METHODS:
+        if not isinstance(compliance, str) or compliance not in COMPLIANCE_METHODS:
             raise InputError(f"LACC compliance must be one of {COMPLIANCE_METHODS}, got {compliance!r}")
         self.compliance = compliance
-        self.constraint_weight = float(constraint_weight)
+        self.constraint_weight = number("constraint_weight", constraint_weight, strict=True)
         self.active_rule = active_rule or ("exact" if compliance == "exact" else "paper")
-        if self.active_rule not in ("paper", "exact"):
+        if not isinstance(self.active_rule, str) or self.active_rule not in ("paper", "exact"):
             raise InputError(f"active_rule must be 'paper' or 'exact', got {active_rule!r}")
-        for nm, v in (("validity_force", validity_force), ("rcond", rcond), ("gain", gain),
-                      ("fallback_gain", fallback_gain)):
-            if not (np.isfinite(v) and v > 0):
-                raise InputError(f"{nm} must be a finite positive number, got {v}")
-        if max_step_force is not None and not (np.isfinite(max_step_force) and max_step_force > 0):
-            raise InputError(f"max_step_force must be positive [N] or None, got {max_step_force}")
-        self.validity_force = float(validity_force)
-        self.max_step_force = None if max_step_force is None else float(max_step_force)
-        self.rcond = float(rcond)
-        self.gain = float(gain)
-        self.fallback_gain = float(fallback_gain)
+        self.validity_force = number("validity_force", validity_force, strict=True)
+        self.max_step_force = None if max_step_force is None else number("max_step_force", max_step_force,
+                                                                         strict=True)
+        self.rcond = number("rcond", rcond, strict=True)
+        if self.rcond >= 1:
+            raise InputError(f"rcond must be in (0, 1), got {rcond!r}")
+        self.gain = number("gain", gain, strict=True)
+        self.fallback_gain = number("fallback_gain", fallback_gain, strict=True)
+        if isinstance(backtracks, bool) or not isinstance(backtracks, (int, np.integer)) or backtracks < 0:
+            raise InputError(f"backtracks must be an integer >= 0, got {backtracks!r}")
         self.backtracks = int(backtracks)
-        if on_infeasible not in ("fallback", "raise"):
+        if not isinstance(on_infeasible, str) or on_infeasible not in ("fallback", "raise"):
             raise InputError(f"on_infeasible must be 'fallback' or 'raise', got {on_infeasible!r}")
         self.on_infeasible = on_infeasible
         self._F = np.zeros(3)

@@ -22,11 +22,13 @@ from typing import Optional, Union
 
 import numpy as np
 
-from ancf.errors import BellowsError, InputError, check_finite
+from ancf.errors import BellowsError, InputError
+
+from .errors import check_finite, number
 
 from .base import Controller, StepReport
 from .errors import NotConvergedError
-from .plant import Plant, SimulatedPlant
+from .plant import Plant
 
 
 @dataclass
@@ -87,8 +89,8 @@ def run_iterations(controller: Controller, plant: Plant, target, *, iterations: 
     """
     pd = check_finite("target", target, (3,))
     truth = getattr(plant, "true_tip", None) or plant.measure     # a real rig only has its measurement
-    if iterations < 0:
-        raise InputError(f"iterations must be >= 0, got {iterations}")
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
+        raise InputError(f"iterations must be an integer >= 0, got {iterations!r}")
     plant.command(controller.start(pd, initial_load))
     plant.advance(None)
     errors = [float(np.linalg.norm(truth() - pd))]
@@ -169,7 +171,7 @@ class TimedResult:
                 "idle_checks": self.idle_checks}
 
 
-def run_timed(controller: Controller, plant: SimulatedPlant, target, *, duration: float,
+def run_timed(controller: Controller, plant: Plant, target, *, duration: float,
               compute_time: Union[str, float] = "measured", compute_scale: float = 1.0,
               actuation_latency: float = 0.0, settle_time: float = 0.0, idle_period: float = 1.0 / 30,
               sample_dt: float = 0.05, initial_load=(0.0, 0.0, 0.0)) -> TimedResult:
@@ -182,9 +184,14 @@ def run_timed(controller: Controller, plant: SimulatedPlant, target, *, duration
         tip error is recorded [s].
     """
     pd = check_finite("target", target, (3,))
-    if not (duration > 0 and sample_dt > 0 and idle_period > 0):
-        raise InputError("duration, sample_dt and idle_period must be > 0 s")
-    if not (compute_time == "measured" or (isinstance(compute_time, (int, float)) and compute_time >= 0)):
+    duration = number("duration", duration, strict=True)
+    sample_dt = number("sample_dt", sample_dt, strict=True)
+    idle_period = number("idle_period", idle_period, strict=True)
+    compute_scale = number("compute_scale", compute_scale)
+    actuation_latency = number("actuation_latency", actuation_latency)
+    settle_time = number("settle_time", settle_time)
+    if not (compute_time == "measured" or (isinstance(compute_time, (int, float)) and not isinstance(compute_time, bool)
+                                           and 0 <= compute_time < float("inf"))):
         raise InputError(f"compute_time must be 'measured' or a time >= 0 s, got {compute_time!r}")
     plant.time = 0.0
     plant.command(controller.start(pd, initial_load))

@@ -25,7 +25,9 @@ import time
 import numpy as np
 
 from ancf import Model
-from ancf.errors import InputError, check_finite
+from ancf.errors import InputError
+
+from .errors import check_finite
 
 from .base import Controller, StepReport
 
@@ -46,10 +48,13 @@ class VFCC(Controller):
     def __init__(self, model: Model, pressure: float, *, chi=10.0, law: str = "proportional",
                  tolerance: float = 2e-4):
         super().__init__(model, pressure, tolerance=tolerance)
-        chi = np.broadcast_to(check_finite("chi", chi), (3,)).astype(float).copy()
+        chi = check_finite("chi", chi)
+        if chi.shape not in ((), (1,), (3,)):
+            raise InputError(f"chi must be a scalar or (3,) [N/m], got shape {chi.shape}")
+        chi = np.broadcast_to(chi, (3,)).astype(float).copy()
         if np.any(chi < 0):
             raise InputError(f"chi must be >= 0 N/m, got {chi}")
-        if law not in ("proportional", "integral"):
+        if not isinstance(law, str) or law not in ("proportional", "integral"):
             raise InputError(f"VF-CC law must be 'proportional' or 'integral', got {law!r}")
         self.chi = chi
         self.law = law

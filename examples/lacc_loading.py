@@ -23,7 +23,7 @@ def main(argv=None, verbose: bool = True) -> dict:
     ap.add_argument("--seconds", type=float, default=6.0)
     ap.add_argument("--peak-g", type=float, default=60.0)
     ap.add_argument("--loop-s", type=float, default=0.0, help="fixed compute time per step [s]; 0: measured")
-    ap.add_argument("--compliance", default="ik", choices=["ik", "paper", "exact"])
+    ap.add_argument("--compliance", default="exact", choices=["exact", "ik", "paper"])
     a = ap.parse_args(argv)
 
     model = Model(presets.paper())

@@ -19,7 +19,7 @@ def main(argv=None, verbose: bool = True) -> dict:
     from controller import LACC, VFCC, PlantOptions, SimulatedPlant, run_iterations
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--compliance", default="ik", choices=["ik", "paper", "exact"])
+    ap.add_argument("--compliance", default="exact", choices=["exact", "ik", "paper"])
     ap.add_argument("--mass-g", type=float, default=40.0)
     ap.add_argument("--iterations", type=int, default=12)
     ap.add_argument("--mismatch", action="store_true", help="imperfect plant (PlantOptions.mismatched)")

@@ -204,7 +204,10 @@ def read_static_states(path, *, group: Optional[str] = None) -> StaticStates:
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
-        raise ConfigError(f"{path}: not a readable HDF5 file ({exc})") from None
+        try:   # a run log still being written in SWMR mode, or whose writer was killed
+            f = h5py.File(path, "r", libver="latest", swmr=True)
+        except OSError:
+            raise ConfigError(f"{path}: not a readable HDF5 file ({exc})") from None
     with f:
         if group is not None:
             if group not in f:

@@ -37,6 +37,10 @@ try:  # the FEM reference is optional at run time (scikit-fem)
 except ImportError:  # pragma: no cover - depends on the installation
     pass
 
+from hardware import cli as rig_cli  # noqa: E402  (rig: control runs and run logs)
+app.command("control")(rig_cli.control)
+app.add_typer(rig_cli.log_app, name="log", help="Inspect run logs: show | export.")
+
 
 def main() -> None:
     try:

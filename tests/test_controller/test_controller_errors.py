@@ -62,7 +62,7 @@ def test_load_beyond_tension_limits_propagates(paper_model, target):
 def test_non_convergence_says_by_how_much(paper_model, target):
     plant = SimulatedPlant(paper_model, P, load=(0, 0, -0.45))
     with pytest.raises(NotConvergedError) as info:
-        run_iterations(LACC(paper_model, P), plant, target, iterations=2, require_convergence=True)
+        run_iterations(LACC(paper_model, P, compliance="ik"), plant, target, iterations=2, require_convergence=True)
     e = info.value
     assert e.iterations == 2 and e.error > e.tolerance == 2e-4
     assert "after 2 iterations" in str(e) and "mm" in str(e)

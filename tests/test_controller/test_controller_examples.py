@@ -29,3 +29,11 @@ def test_lacc_loading():
     assert out["corrections"] >= 3
     assert out["final_error_mm"] < 0.25                       # held after the ramp (0.2 mm deadband)
     assert out["compute_ms_median"] < 100
+
+
+def test_rig_quickstart():
+    out = load("rig_quickstart").main(["--seconds", "6"], verbose=False)
+    assert out["status"] == "held" and out["corrections"] >= 2
+    assert out["max_true_error_mm"] > 1.0                     # the loads really move the tip
+    assert out["settled_max_true_error_mm"] < 0.2             # and LACC holds it once settled
+    assert out["static_states"] >= 2 and out["samples"] > 20

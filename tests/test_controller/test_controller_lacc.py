@@ -29,10 +29,10 @@ def test_exact_compliance_converges_fast_and_estimates_the_load(paper_model, tar
 
 
 def test_paper_ik_form_contracts_at_the_rate_its_compliance_predicts(paper_model, target):
-    """Default LACC (eq. 15/16): one step maps e → (I − C_L C'_p⁻¹) e with C_L the exact locked
+    """The paper's LACC (eq. 15/16): one step maps e → (I − C_L C'_p⁻¹) e with C_L the exact locked
     compliance of the plant; the measured contraction must match that prediction."""
     m = paper_model
-    ctrl = LACC(m, P, tolerance=0.0)
+    ctrl = LACC(m, P, compliance="ik", tolerance=0.0)
     plant = SimulatedPlant(m, P, load=LOAD)
     plant.command(ctrl.start(target))
     plant.advance()
@@ -51,7 +51,7 @@ def test_paper_ik_form_contracts_at_the_rate_its_compliance_predicts(paper_model
     assert np.linalg.norm(e2) < np.linalg.norm(e1)
     assert np.linalg.norm(e2 - predicted) < 0.1 * np.linalg.norm(e1)
     # and it keeps converging to the paper's 0.2 mm
-    res = run_iterations(LACC(m, P), SimulatedPlant(m, P, load=LOAD), target, iterations=25)
+    res = run_iterations(LACC(m, P, compliance="ik"), SimulatedPlant(m, P, load=LOAD), target, iterations=25)
     assert res.converged
     assert all(b < a for a, b in zip(res.errors[:-1], res.errors[1:]))
 
@@ -100,10 +100,14 @@ def test_axial_direction_is_not_estimated_by_default(paper_model):
     opts = PlantOptions.mismatched(noise_std=0.0)
     est = {}
     for rc in (1e-3, 0.05):
-        ctrl = LACC(m, P, rcond=rc, tolerance=0.0)
+        ctrl = LACC(m, P, compliance="ik", rcond=rc, tolerance=0.0)
         run_iterations(ctrl, SimulatedPlant(m, P, load=(0, 0, -0.3), options=opts), target, iterations=2,
                        on_error="stop")
         est[rc] = ctrl.estimate
     assert abs(est[1e-3][0]) > 0.3
     assert abs(est[0.05][0]) < 0.1
     assert est[0.05][2] < -0.1                                   # the vertical load is still estimated
+
+
+def test_exact_compliance_is_the_default(paper_model):
+    assert LACC(paper_model, P).compliance == "exact"

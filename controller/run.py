@@ -1,0 +1,249 @@
+r"""Run a controller on a rig — simulated or real — through one code path, with a crash-safe run log.
+
+:func:`run_on_rig` drives any object with the rig interface of :class:`hardware.Rig` (``set_pressure``,
+``command(lengths, expected_tensions)``, ``advance``, ``measure``, ``check_health``, ``safe_stop``,
+``clock``, ``events``/``listeners``).  One cycle::
+
+    readings ← rig.check_health()        drive faults, sensor timeouts, tension and pressure limits
+    p_m      ← rig.measure()             tracker: TrackingLost / SensorTimeout on a bad frame
+    report   ← controller.step(p_m)      LACC / VF-CC correction (or "within tolerance")
+    log one sample (measured, commanded, estimated; the truth too on a simulated rig)
+    rig.command(l_c, expected_tensions)  limits are checked before anything is sent
+    rig.advance()                        until the drives reach their targets (+ settle time)
+
+When the error first drops below the controller's tolerance the equilibrium is recorded as a static state
+(measured tensions, pressure, tip) in the log's ``/static_states``.  Without ``duration`` the run ends
+at convergence (or after ``max_iterations`` corrections); with ``duration`` [s] it holds the target until
+the rig clock has advanced that long (``math.inf``: until Ctrl-C), re-measuring every ``idle_period``.
+
+Faults: any :class:`~ancf.errors.BellowsError` during the run (hardware fault, limit, infeasible IK) makes
+the rig safe (:meth:`hardware.Rig.safe_stop`: drives hold — quick stop after a drive fault — pressure held
+or vented), writes the reason to the log, closes it and re-raises the error with ``.log_path`` and the
+partial ``.result`` attached.  Ctrl-C does the same and raises :class:`hardware.errors.RunAborted`.
+
+This module imports :mod:`hardware` only inside :func:`run_on_rig` (for the run log and RunAborted).
+"""
+
+from __future__ import annotations
+
+import pathlib
+from dataclasses import dataclass, field
+from typing import Callable, Optional, Union
+
+import numpy as np
+
+from ancf.errors import BellowsError, InputError
+
+from .errors import check_finite, number
+
+from .base import Controller
+
+
+@dataclass
+class RunResult:
+    """Outcome of :func:`run_on_rig` (SI).  ``status``: converged | not converged | held (duration runs) |
+    fault | interrupted; ``errors``: measured ‖p_m − p_d‖ per sample [m]; ``true_errors``: the same from
+    the simulated truth (empty on hardware); ``log_path``: the run log or None."""
+    controller: str
+    target: np.ndarray
+    status: str = "running"
+    reason: str = ""
+    iterations: int = 0
+    samples: int = 0
+    errors: list = field(default_factory=list)
+    true_errors: list = field(default_factory=list)
+    static_states: int = 0
+    estimate: Optional[np.ndarray] = None
+    duration: float = 0.0
+    log_path: Optional[pathlib.Path] = None
+
+    @property
+    def converged(self) -> bool:
+        return self.status in ("converged", "held")
+
+    @property
+    def final_error(self) -> float:
+        return self.errors[-1] if self.errors else float("nan")
+
+    def to_dict(self) -> dict:
+        return {"controller": self.controller, "target_m": self.target.tolist(), "status": self.status,
+                "reason": self.reason, "iterations": self.iterations, "samples": self.samples,
+                "final_error_m": self.final_error, "errors_m": [float(e) for e in self.errors],
+                "true_errors_m": [float(e) for e in self.true_errors], "static_states": self.static_states,
+                "estimate_N": None if self.estimate is None else self.estimate.tolist(),
+                "duration_s": self.duration, "log": None if self.log_path is None else str(self.log_path)}
+
+
+def _describe_controller(ctrl: Controller) -> dict:
+    out = {"name": ctrl.name, "class": type(ctrl).__name__}
+    for k, v in vars(ctrl).items():
+        if isinstance(v, (bool, int, float, str)) and not k.startswith("_"):
+            out[k] = v
+        elif isinstance(v, np.ndarray) and v.size <= 3 and k not in ("target", "command_target"):
+            out[k] = v.tolist()
+    return out
+
+
+def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.Path, None, object] = None,
+               force: bool = False, max_iterations: Optional[int] = 20, duration: Optional[float] = None,
+               idle_period: float = 0.1, initial_load=(0.0, 0.0, 0.0), sim_compute_time="measured",
+               average_frames: int = 1, record_static: bool = True, applied_load=None,
+               status: Optional[Callable[[dict], None]] = None,
+               run_info: Optional[dict] = None) -> RunResult:
+    """Run ``controller`` on ``rig`` towards ``target`` (3,) [m]; see the module docstring.
+
+    log : path of the run log (``.h5``; refused if it exists unless ``force``), an open
+        :class:`hardware.runlog.RunLog`, or None
+    max_iterations : corrections before an iteration run stops (None: no limit — needs ``duration``)
+    duration : rig-clock seconds to hold the target (``math.inf``: until Ctrl-C); None: stop at convergence
+    idle_period : wait between measurements while within tolerance [s]
+    sim_compute_time : on a simulated rig, how long a controller step takes on the rig clock: "measured"
+        (its wall-clock compute time), a fixed time [s], or 0
+    average_frames : tracker frames averaged per measurement (distinct frames; noise / √n)
+    applied_load : the tip load the experiment applies, if it is known (calibrated weights; zero): (3,) [N]
+        or a callable of the rig time t [s]; it becomes the static states' ``tip_force`` (None: unknown, NaN).
+        The controller never sees it.
+    status : called with a dict after every sample (for a status line)
+    """
+    if not isinstance(controller, Controller):
+        raise InputError(f"run_on_rig needs a Controller, got {type(controller).__name__}")
+    pd = check_finite("target", target, (3,))
+    if max_iterations is not None:
+        if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 0:
+            raise InputError(f"max_iterations must be an integer >= 0 or None, got {max_iterations!r}")
+    if duration is not None:
+        duration = number("duration [s]", duration, allow_inf=True)
+    elif max_iterations is None:
+        raise InputError("give max_iterations or a duration (a run without either never ends)")
+    idle_period = number("idle_period [s]", idle_period)
+    if idle_period == 0 and duration is not None:
+        raise InputError("idle_period must be > 0 s when holding for a duration")
+    if sim_compute_time != "measured":
+        sim_compute_time = number("sim_compute_time [s] (or 'measured')", sim_compute_time)
+    if isinstance(average_frames, bool) or not isinstance(average_frames, (int, np.integer)) or average_frames < 1:
+        raise InputError(f"average_frames must be an integer >= 1, got {average_frames!r}")
+    if applied_load is not None and not callable(applied_load):
+        applied_load = check_finite("applied_load [N]", applied_load, (3,))
+    from hardware.errors import DriveFault, HardwareError, RunAborted
+    from hardware.runlog import RunLog
+
+    result = RunResult(controller.name, pd)
+    own_log = isinstance(log, (str, pathlib.Path))
+    runlog = None
+    if own_log:
+        info = {"target_m": pd, "pressure_Pa": controller.pressure, "max_iterations": max_iterations,
+                "duration_s": duration, "idle_period_s": idle_period, **(run_info or {})}
+        runlog = RunLog(log, n_tendons=rig.m, force=force, rig=rig.describe(),
+                        controller=_describe_controller(controller), run=info,
+                        actuator_toml=controller.model.params.to_toml())
+    elif log is not None:
+        runlog = log
+    if runlog is not None:
+        result.log_path = runlog.path
+        rig.listeners.append(runlog.event)
+    opened_here = not getattr(rig, "_open", True)
+    simulated = bool(getattr(rig, "simulated", False))
+    t_start = None
+    was_converged = False
+    try:
+        if opened_here:
+            rig.open()
+        t_start = rig.clock.now()
+        rig.set_pressure(controller.pressure)
+        lengths = controller.start(pd, initial_load)
+        rig.command(lengths, expected_tensions=controller.state.tensions)
+        rig.advance(None)
+        k = 0
+        while True:
+            readings = rig.check_health()
+            pm = rig.measure(average_frames) if average_frames > 1 else rig.measure()
+            t = rig.clock.now()
+            truth = rig.true_tip() if simulated else None
+            rep = controller.step(pm)
+            if simulated and rep.command is not None and sim_compute_time != 0:
+                rig.advance(rep.compute_time if sim_compute_time == "measured" else float(sim_compute_time))
+            row = {"t": t, "iteration": k, "tip": pm, "error": rep.error, "error_norm": rep.error_norm,
+                   "command": rep.command, "position": readings["positions"], "tension": readings["tensions"],
+                   "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time}
+            if simulated:
+                row["true_tip"], row["true_load"] = truth, rig.load(t)
+                result.true_errors.append(float(np.linalg.norm(truth - pd)))
+            if runlog is not None:
+                runlog.sample(**row)
+            result.samples += 1
+            result.errors.append(rep.error_norm)
+            result.estimate = np.asarray(rep.estimate, float).copy()
+            if status is not None:
+                status({"t": t - t_start, "iteration": k, "error_m": rep.error_norm, "mode": rep.mode,
+                        "estimate_N": rep.estimate, "pressure_Pa": readings["pressure"],
+                        "tensions_N": readings["tensions"]})
+            if rep.command is None:
+                if not was_converged:
+                    rig.event("converged", f"tip error {rep.error_norm * 1e3:.4f} mm < tolerance "
+                                           f"{controller.tolerance * 1e3:.4f} mm after {k} corrections")
+                    if record_static and runlog is not None and np.all(np.isfinite(readings["tensions"])):
+                        F_known = (None if applied_load is None else
+                                   applied_load(t) if callable(applied_load) else applied_load)
+                        runlog.static_state(time=t, tensions=np.maximum(readings["tensions"], 0.0),
+                                            pressure=readings["pressure"], tip=pm, tip_force=F_known,
+                                            label=f"converged after {k} corrections")
+                        result.static_states += 1
+                was_converged = True
+                if duration is None:
+                    result.status = "converged"
+                    break
+                if rig.clock.now() - t_start >= duration:
+                    result.status = "held"
+                    break
+                rig.advance(idle_period)
+                continue
+            was_converged = False
+            if duration is None and max_iterations is not None and k >= max_iterations:
+                result.status = "not converged"
+                result.reason = (f"tip error {rep.error_norm * 1e3:.4f} mm after {k} corrections "
+                                 f"(tolerance {controller.tolerance * 1e3:.4f} mm)")
+                break
+            rig.command(rep.command, expected_tensions=controller.state.tensions)
+            rig.advance(None)
+            k += 1
+            result.iterations = k
+            if duration is not None and rig.clock.now() - t_start >= duration:
+                result.status = "held"
+                break
+    except KeyboardInterrupt:
+        rig.safe_stop("interrupted (Ctrl-C)")
+        result.status, result.reason = "interrupted", "Ctrl-C"
+        where = f"; log: {result.log_path}" if result.log_path else ""
+        exc = RunAborted(f"run interrupted by Ctrl-C after {result.iterations} corrections; rig made safe{where}")
+        exc.log_path, exc.result = result.log_path, result
+        _finish(rig, runlog, own_log, opened_here, result, t_start)
+        raise exc from None
+    except BellowsError as exc:
+        result.status, result.reason = "fault", f"{type(exc).__name__}: {exc}"
+        rig.safe_stop(f"run stopped: {result.reason}", quick=isinstance(exc, DriveFault))
+        if not isinstance(exc, HardwareError):
+            rig.event("error", result.reason)
+        exc.log_path, exc.result = result.log_path, result
+        _finish(rig, runlog, own_log, opened_here, result, t_start)
+        raise
+    except BaseException as exc:
+        result.status, result.reason = "fault", f"{type(exc).__name__}: {exc}"
+        rig.safe_stop(f"run stopped by an unexpected error: {result.reason}")
+        _finish(rig, runlog, own_log, opened_here, result, t_start)
+        raise
+    _finish(rig, runlog, own_log, opened_here, result, t_start)
+    return result
+
+
+def _finish(rig, runlog, own_log, opened_here, result: RunResult, t_start) -> None:
+    now = rig.clock.now()
+    result.duration = 0.0 if t_start is None else now - t_start
+    if runlog is not None:
+        try:
+            rig.listeners.remove(runlog.event)
+        except ValueError:
+            pass
+        if own_log:
+            runlog.close(result.status, result.reason, t=now)
+    if opened_here:
+        rig.close()

@@ -1,0 +1,169 @@
+"""``bellows control`` (run LACC / VF-CC on a rig, live, with a run log) and ``bellows log show|export``.
+
+Units are in the option names; an option that is given is used or rejected, never replaced; the run log
+is checked before any motion and never overwritten without ``--force``; handled errors are one
+``error:`` line with exit status 2 (:func:`validation.cli.main`); Ctrl-C stops the run, leaves the rig
+safe (drives holding, pressure held or vented as configured), closes the log and says where it is.
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import sys
+import time
+from typing import Optional
+
+import typer
+
+from ancf.errors import InputError
+
+log_app = typer.Typer(help="Inspect run logs (HDF5) written by 'bellows control'.", no_args_is_help=True,
+                      add_completion=False, rich_markup_mode=None)
+
+
+def _status_printer(stream=None, every_s: float = 0.5):
+    stream = stream or sys.stderr
+    tty = stream.isatty()
+    last = [-math.inf]
+
+    def status(s: dict) -> None:
+        if not tty and s["t"] - last[0] < every_s:
+            return
+        last[0] = s["t"]
+        F = s["estimate_N"]
+        line = (f"t {s['t']:8.2f} s  iter {s['iteration']:4d}  tip error {s['error_m'] * 1e3:8.4f} mm  "
+                f"{s['mode']:8s}  F̂ [{F[0]:+.3f} {F[1]:+.3f} {F[2]:+.3f}] N  p {s['pressure_Pa'] / 1e3:6.2f} kPa")
+        stream.write(("\r" + line) if tty else (line + "\n"))
+        stream.flush()
+    return status
+
+
+def control(
+    rig: str = typer.Option("sim", "--rig", help="'sim' (simulated rig, paper preset) or a rig TOML file"),
+    target_mm: str = typer.Option(..., "--target-mm", help="desired tip position X,Y,Z [mm]"),
+    pressure_kpa: float = typer.Option(..., "--pressure-kpa", help="chamber pressure [kPa], held constant"),
+    controller: str = typer.Option("lacc", "--controller", help="lacc | vfcc"),
+    compliance: Optional[str] = typer.Option(None, "--compliance",
+                                             help="LACC compliance: exact (default) | ik (eq. 15/16) | paper (eq. 13)"),
+    tolerance_mm: float = typer.Option(0.2, "--tolerance-mm", help="stop correcting below this tip error [mm]"),
+    load_profile: str = typer.Option("none", "--load-profile",
+                                     help="simulated rig only: none | step | stochastic | continuous | cyclic"),
+    load_mass_g: Optional[float] = typer.Option(None, "--load-mass-g",
+                                                help="simulated rig: mass of the step/continuous/cyclic load [g]"),
+    seed: Optional[int] = typer.Option(None, "--seed", help="simulated rig: random seed (noise, stochastic load)"),
+    mismatch: bool = typer.Option(False, "--mismatch", help="simulated rig: imperfect plant (other parameters, "
+                                                           "friction, tracker noise, motor limits)"),
+    duration_s: Optional[float] = typer.Option(None, "--duration-s",
+                                               help="hold the target this long [s]; default: until Ctrl-C"),
+    max_iterations: Optional[int] = typer.Option(None, "--max-iterations",
+                                                 help="stop after this many corrections or at convergence "
+                                                      "(instead of holding)"),
+    realtime: bool = typer.Option(True, "--realtime/--fast", help="simulated rig: pace the simulation to the "
+                                                                  "wall clock (--fast: as fast as it computes)"),
+    log: Optional[pathlib.Path] = typer.Option(None, "--log", help="run log to write (.h5)"),
+    force: bool = typer.Option(False, "--force", help="overwrite an existing run log"),
+    json_out: bool = typer.Option(False, "--json", help="print the result as JSON"),
+):
+    """Run a tip-position controller live on a rig (simulated or real) with a status line and a run log.
+    Exit status 0 when the run held or converged, 1 when --max-iterations ended without convergence, 2 on
+    an error (a fault, a limit, Ctrl-C: the rig is made safe first)."""
+    import json
+
+    from ancf import Model
+    from ancf.cli import parse_vector
+    from ancf.outputs import prepare_output_file
+    from controller import LACC, VFCC, run_on_rig
+    from hardware.config import RigConfig, build_rig
+    from hardware.errors import RunAborted
+    from hardware.loads import load_profile as make_profile
+    from hardware.runlog import SUFFIXES
+
+    target = parse_vector(target_mm, 3, "--target-mm") * 1e-3
+    if not (math.isfinite(pressure_kpa) and pressure_kpa >= 0):
+        raise InputError(f"--pressure-kpa must be a finite pressure >= 0 kPa, got {pressure_kpa}")
+    if not (math.isfinite(tolerance_mm) and tolerance_mm >= 0):
+        raise InputError(f"--tolerance-mm must be >= 0 mm, got {tolerance_mm}")
+    if controller not in ("lacc", "vfcc"):
+        raise InputError(f"--controller must be 'lacc' or 'vfcc', got {controller!r}")
+    if controller == "vfcc" and compliance is not None:
+        raise InputError("--compliance applies to LACC only; VF-CC has no compliance option")
+    if duration_s is not None and not (duration_s > 0):
+        raise InputError(f"--duration-s must be > 0 s, got {duration_s}")
+    if max_iterations is not None and max_iterations < 0:
+        raise InputError(f"--max-iterations must be >= 0, got {max_iterations}")
+    if duration_s is not None and max_iterations is not None:
+        raise InputError("give --duration-s (hold the target) or --max-iterations (stop at convergence), not both")
+    if log is not None:
+        prepare_output_file(log, force=force, suffixes=SUFFIXES)        # before any work or motion
+    cfg = RigConfig(name="simulated rig") if rig == "sim" else RigConfig.from_toml(rig)
+    simulated = cfg.backend == "sim"
+    sim_only = {"--load-profile": load_profile != "none", "--load-mass-g": load_mass_g is not None,
+                "--seed": seed is not None, "--mismatch": mismatch, "--fast": not realtime}
+    if not simulated and any(sim_only.values()):
+        raise InputError(f"{', '.join(k for k, v in sim_only.items() if v)}: only for a simulated rig "
+                         f"(the rig file says backend = 'hardware')")
+    overrides = {}
+    if simulated:
+        kw = {} if load_mass_g is None else {"mass": load_mass_g * 1e-3}
+        if load_mass_g is not None and load_profile in ("none", "stochastic"):
+            raise InputError(f"--load-mass-g does not apply to --load-profile {load_profile} "
+                             f"(stochastic draws 20–60 g)")
+        overrides["load"] = make_profile(load_profile, seed=cfg.simulation.get("seed", 0) if seed is None else seed,
+                                         **kw)
+        if seed is not None:
+            overrides["seed"] = seed
+        if mismatch:
+            from hardware.simulated import PlantOptions
+            mm = PlantOptions.mismatched(base=cfg.actuator_params())
+            overrides.update({k: getattr(mm, k) for k in ("params", "noise_std", "length_resolution", "length_rate",
+                                                          "tendon_friction", "tendon_stiffness")})
+    the_rig = build_rig(cfg, **overrides)
+    if simulated and realtime:
+        the_rig.pace = 1.0
+    model = Model(cfg.actuator_params())
+    p = pressure_kpa * 1e3
+    ctrl = (LACC(model, p, compliance=compliance or "exact", tolerance=tolerance_mm * 1e-3) if controller == "lacc"
+            else VFCC(model, p, tolerance=tolerance_mm * 1e-3))
+    duration = duration_s if duration_s is not None else (None if max_iterations is not None else math.inf)
+    where = f"; run log: {log}" if log else ""
+    typer.echo(f"{ctrl.name} on {the_rig.name} ({'simulated' if simulated else 'hardware'}): target "
+               f"{[round(float(x) * 1e3, 3) for x in target]} mm at {pressure_kpa:g} kPa"
+               + (f", load profile {load_profile}" if simulated else "")
+               + ("; Ctrl-C stops" if duration == math.inf else "") + where, err=True)
+    t0 = time.monotonic()
+    try:
+        res = run_on_rig(ctrl, the_rig, target, log=log, force=force, duration=duration,
+                         max_iterations=max_iterations, status=_status_printer(),
+                         run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": load_profile})
+    except RunAborted as exc:
+        sys.stderr.write("\n")
+        raise RunAborted(f"{exc}") from None
+    sys.stderr.write("\n")
+    out = res.to_dict()
+    out["wall_s"] = time.monotonic() - t0
+    if json_out:
+        typer.echo(json.dumps(out))
+    else:
+        typer.echo(f"{res.status}: tip error {res.final_error * 1e3:.4f} mm after {res.iterations} corrections, "
+                   f"{res.duration:.2f} s rig time" + (f"; {res.reason}" if res.reason else "")
+                   + (f"; run log {res.log_path}" if res.log_path else ""))
+    if res.status == "not converged":
+        raise typer.Exit(1)
+
+
+@log_app.command("show")
+def log_show(path: pathlib.Path = typer.Argument(..., help="run log (.h5)")):
+    """Summary of a run log: rig, controller, samples, errors, static states, last events."""
+    from hardware.runlog import summary
+    typer.echo(summary(path))
+
+
+@log_app.command("export")
+def log_export(path: pathlib.Path = typer.Argument(..., help="run log (.h5)"),
+               csv: pathlib.Path = typer.Option(..., "--csv", help="CSV file to write (units in the headers)"),
+               force: bool = typer.Option(False, "--force", help="overwrite an existing CSV file")):
+    """Export the samples of a run log as CSV (one column per component, unit in each header)."""
+    from hardware.runlog import export_csv
+    out = export_csv(path, csv, force=force)
+    typer.echo(f"wrote {out}")

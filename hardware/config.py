@@ -1,0 +1,364 @@
+"""Rig description files (TOML): which backend drives each device, ports, node ids, unit conversions,
+limits and calibration.  Units are part of the key names, as in actuator files (``tension_max_N``,
+``pressure_max_kPa``, ``counts_per_mm``); a dimensioned key without a unit, an unknown unit, an unknown
+key or a missing required key is a :class:`~hardware.errors.RigConfigError` naming the key.
+
+A complete file (every key documented in docs/rig.md)::
+
+    name = "bench A"
+    backend = "sim"                  # "sim" (SimulatedRig) | "hardware" (the device backends below)
+    actuator = "paper"               # preset name, or an actuator TOML path (relative to this file)
+    on_fault_pressure = "hold"       # "hold" | "vent"
+    settle_time_s = 0.1
+    speed_mm_per_s = 5               # tendon speed asked of the drives (<= limits.speed_max)
+
+    [limits]
+    length_min_mm = 100
+    length_max_mm = 220
+    max_step_mm = 10
+    speed_max_mm_per_s = 10
+    tension_max_N = 30
+    pressure_max_kPa = 160
+    pressure_band_kPa = 10
+    sensor_timeout_s = 0.5
+
+    [simulation]                     # backend = "sim" only
+    seed = 0
+    plant_actuator = "paper"         # the plant's parameters (model mismatch), default = actuator
+    tracker_noise_mm = 0.05
+    tracker_latency_s = 0.0
+    force_noise_N = 0.02
+    pressure_noise_kPa = 0.1
+    length_resolution_mm = 0.001
+    length_rate_mm_per_s = 5
+    tendon_friction_N = 0.1
+    tendon_stiffness_N_per_mm = 20
+
+    [[drives]]                       # backend = "hardware": one table per tendon, in tendon order
+    backend = "epos4"
+    node_id = 1
+    interface = "socketcan"
+    channel = "can0"
+    bitrate = 1000000
+    counts_per_mm = 2000.0           # encoder counts per mm of tendon length
+    zero_length_mm = 160.0           # tendon length at encoder count 0
+
+    [[force_sensors]]
+    backend = "serial"
+    port = "/dev/ttyUSB0"
+    baudrate = 115200
+    channel = 1
+    scale_N_per_count = 0.001
+    offset_N = 0.0
+
+    [pressure]
+    backend = "serial"
+    port = "/dev/ttyUSB1"
+    baudrate = 115200
+
+    [tracker]
+    backend = "natnet"
+    address = "0.0.0.0"
+    port = 1511
+    rigid_body_id = 1
+    offset_mm = [0.0, 0.0, 0.0]      # p_actuator = rotation · p_tracker + offset
+    rotation = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]   # tracker (y up) → actuator axes; default identity
+    max_error_mm = 2.0               # larger mean marker error: invalid pose
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import pathlib
+from dataclasses import dataclass, field
+from typing import Any, Optional
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover
+    import tomli as tomllib
+
+from ancf.errors import ConfigError
+
+from .errors import LimitError, RigConfigError
+from .limits import SafetyLimits
+
+# dimension -> {unit suffix: factor to SI}
+DIMENSIONS = {
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3},
+    "force": {"N": 1.0},
+    "pressure": {"Pa": 1.0, "kPa": 1e3, "bar": 1e5},
+    "time": {"s": 1.0, "ms": 1e-3},
+    "speed": {"m_per_s": 1.0, "mm_per_s": 1e-3},
+    "stiffness": {"N_per_m": 1.0, "N_per_mm": 1e3},
+    "force_per_count": {"N_per_count": 1.0},
+    "counts_per_length": {"per_m": 1.0, "per_mm": 1e3},
+}
+INT, STR, BOOL, NUM, MATRIX3 = "int", "str", "bool", "num", "matrix3"
+
+TOP = {"name": STR, "backend": STR, "actuator": STR, "on_fault_pressure": STR, "settle_time": "time",
+       "speed": "speed"}
+LIMITS = {"length_min": "length", "length_max": "length", "max_step": "length", "speed_max": "speed",
+          "tension_max": "force", "tension_min": "force", "pressure_max": "pressure", "pressure_band": "pressure",
+          "sensor_timeout": "time"}
+SIMULATION = {"seed": INT, "plant_actuator": STR, "tracker_noise": "length", "tracker_latency": "time",
+              "force_noise": "force", "pressure_noise": "pressure", "length_resolution": "length",
+              "length_rate": "speed", "tendon_friction": "force", "tendon_stiffness": "stiffness"}
+DRIVE = {"backend": STR, "node_id": INT, "interface": STR, "channel": STR, "bitrate": INT,
+         "counts": "counts_per_length", "zero_length": "length", "current_limit_A": NUM}
+FORCE = {"backend": STR, "port": STR, "baudrate": INT, "channel": INT, "scale": "force_per_count",
+         "offset": "force"}
+PRESSURE = {"backend": STR, "port": STR, "baudrate": INT}
+TRACKER = {"backend": STR, "address": STR, "port": INT, "rigid_body_id": INT, "offset": "length",
+           "rotation": MATRIX3, "multicast_group": STR, "timeout": "time", "max_error": "length"}
+BACKENDS = {"drives": ("sim", "epos4"), "force_sensors": ("sim", "serial"), "pressure": ("sim", "serial"),
+            "tracker": ("sim", "natnet")}
+
+
+def _spellings(spec: dict) -> dict:
+    out = {}
+    for f, kind in spec.items():
+        if kind in DIMENSIONS:
+            for u, fac in DIMENSIONS[kind].items():
+                out[f"{f}_{u}"] = (f, kind, fac)
+        else:
+            out[f] = (f, kind, 1.0)
+    return out
+
+
+def _value(v: Any, kind: str, fac: float, where: str):
+    if kind == MATRIX3:
+        import numpy as np
+        try:
+            R = np.array(v, dtype=float)
+        except (TypeError, ValueError):
+            raise RigConfigError(f"{where}: expected a 3 × 3 matrix [[...], [...], [...]]") from None
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+            raise RigConfigError(f"{where}: expected a finite 3 × 3 matrix, got shape {R.shape}")
+        if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise RigConfigError(f"{where}: not a rotation matrix (orthonormal, det +1)")
+        return R.tolist()
+    if kind == STR:
+        if not isinstance(v, str):
+            raise RigConfigError(f"{where}: expected text, got {v!r}")
+        return v
+    if kind == BOOL:
+        if not isinstance(v, bool):
+            raise RigConfigError(f"{where}: expected true/false, got {v!r}")
+        return v
+    if kind == INT:
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise RigConfigError(f"{where}: expected an integer, got {v!r}")
+        return v
+    if isinstance(v, list):
+        if not where.endswith(tuple(f".offset_{u}" for u in DIMENSIONS["length"])):
+            raise RigConfigError(f"{where}: expected one number, got a list")
+        if len(v) != 3:
+            raise RigConfigError(f"{where}: expected 3 numbers [x, y, z], got {len(v)}")
+        return [_value(x, kind, fac, where + "[]") for x in v]
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise RigConfigError(f"{where}: expected a number, got {v!r}")
+    x = float(v) * fac
+    if not math.isfinite(x):
+        raise RigConfigError(f"{where}: must be finite, got {v!r}")
+    return x
+
+
+def parse_table(table: Any, spec: dict, where: str) -> dict:
+    """``{key_with_unit: value}`` → ``{field: SI value}``; unknown keys and missing units are errors."""
+    if not isinstance(table, dict):
+        raise RigConfigError(f"{where}: expected a table, got {type(table).__name__}")
+    sp = _spellings(spec)
+    out: dict = {}
+    for key, v in table.items():
+        if key in sp:
+            f, kind, fac = sp[key]
+            if f in out:
+                raise RigConfigError(f"{where}: '{f}' given twice (e.g. in two units)")
+            out[f] = _value(v, kind, fac, f"{where}.{key}")
+        elif key in spec and spec[key] in DIMENSIONS:
+            opts = ", ".join(f"{key}_{u}" for u in DIMENSIONS[spec[key]])
+            raise RigConfigError(f"{where}: '{key}' needs an explicit unit; write one of: {opts}")
+        else:
+            close = difflib.get_close_matches(key, list(sp), n=3, cutoff=0.5)
+            raise RigConfigError(f"{where}: unknown key '{key}'" + (f"; did you mean {', '.join(close)}?" if close else ""))
+    return out
+
+
+def _require(d: dict, keys, where: str) -> None:
+    missing = [k for k in keys if k not in d]
+    if missing:
+        raise RigConfigError(f"{where}: missing {', '.join(missing)}")
+
+
+@dataclass(frozen=True)
+class RigConfig:
+    """A parsed rig description (SI values; see the module docstring for the file)."""
+    name: str = "rig"
+    backend: str = "sim"
+    actuator: str = "paper"
+    on_fault_pressure: str = "hold"
+    settle_time: float = 0.0
+    speed: Optional[float] = None
+    limits: dict = field(default_factory=dict)
+    simulation: dict = field(default_factory=dict)
+    drives: tuple = ()
+    force_sensors: tuple = ()
+    pressure: dict = field(default_factory=dict)
+    tracker: dict = field(default_factory=dict)
+    base_dir: str = "."
+
+    # --------------------------------------------------------------------------------------- loading
+    @classmethod
+    def from_toml(cls, path) -> "RigConfig":
+        p = pathlib.Path(path)
+        try:
+            text = p.read_text()
+        except OSError as exc:
+            raise RigConfigError(f"cannot read rig file {p}: {exc.strerror or exc}") from None
+        return cls.from_toml_string(text, where=str(p), base_dir=str(p.parent))
+
+    @classmethod
+    def from_toml_string(cls, text: str, where: str = "<rig>", base_dir: str = ".") -> "RigConfig":
+        if not isinstance(text, str):
+            raise RigConfigError(f"{where}: rig description must be text")
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise RigConfigError(f"{where}: not valid TOML ({exc})") from None
+        return cls.from_dict(data, where=where, base_dir=base_dir)
+
+    @classmethod
+    def from_dict(cls, data: dict, where: str = "<rig>", base_dir: str = ".") -> "RigConfig":
+        if not isinstance(data, dict):
+            raise RigConfigError(f"{where}: expected a table")
+        data = dict(data)
+        sections = {k: data.pop(k) for k in ("limits", "simulation", "drives", "force_sensors", "pressure", "tracker")
+                    if k in data}
+        top = parse_table(data, TOP, where)
+        backend = top.get("backend", "sim")
+        if backend not in ("sim", "hardware"):
+            raise RigConfigError(f"{where}.backend: 'sim' or 'hardware', got {backend!r}")
+        ofp = top.get("on_fault_pressure", "hold")
+        if ofp not in ("hold", "vent"):
+            raise RigConfigError(f"{where}.on_fault_pressure: 'hold' or 'vent', got {ofp!r}")
+        limits = parse_table(sections.get("limits", {}), LIMITS, f"{where}.limits")
+        sim = parse_table(sections.get("simulation", {}), SIMULATION, f"{where}.simulation")
+        devs = {}
+        for key, spec in (("drives", DRIVE), ("force_sensors", FORCE)):
+            raw = sections.get(key, [])
+            if not isinstance(raw, list):
+                raise RigConfigError(f"{where}.{key}: expected an array of tables ([[{key}]])")
+            devs[key] = tuple(parse_table(t, spec, f"{where}.{key}[{i}]") for i, t in enumerate(raw))
+        for key, spec in (("pressure", PRESSURE), ("tracker", TRACKER)):
+            devs[key] = parse_table(sections.get(key, {}), spec, f"{where}.{key}")
+        cfg = cls(name=top.get("name", "rig"), backend=backend, actuator=top.get("actuator", "paper"),
+                  on_fault_pressure=ofp, settle_time=top.get("settle_time", 0.0), speed=top.get("speed"),
+                  limits=limits, simulation=sim, base_dir=base_dir, **devs)
+        cfg._validate(where)
+        return cfg
+
+    def _validate(self, where: str) -> None:
+        if self.settle_time < 0:
+            raise RigConfigError(f"{where}.settle_time: must be >= 0 s")
+        try:
+            lim = self.safety_limits()
+            if self.speed is not None:
+                lim.check_speed(self.speed)
+        except LimitError as exc:
+            raise RigConfigError(f"{where}: {exc}") from None
+        if self.backend == "sim":
+            for k in ("drives", "force_sensors"):
+                if any(d.get("backend", "sim") != "sim" for d in getattr(self, k)):
+                    raise RigConfigError(f"{where}.{k}: backend = 'sim' rig with a non-simulated device; "
+                                         f"set backend = 'hardware'")
+            return
+        for key in ("drives", "force_sensors", "pressure", "tracker"):
+            items = getattr(self, key)
+            items = items if isinstance(items, tuple) else (items,)
+            if not items or any(not d for d in items):
+                raise RigConfigError(f"{where}: a hardware rig needs [{key}]" if key in ("pressure", "tracker")
+                                     else f"{where}: a hardware rig needs [[{key}]] tables")
+            for i, d in enumerate(items):
+                b = d.get("backend")
+                if b not in BACKENDS[key] or b == "sim":
+                    raise RigConfigError(f"{where}.{key}[{i}].backend: one of {[x for x in BACKENDS[key] if x != 'sim']}, "
+                                         f"got {b!r}")
+        for i, d in enumerate(self.drives):
+            _require(d, ("node_id", "channel", "counts", "zero_length"), f"{where}.drives[{i}]")
+            if not d["counts"] > 0:
+                raise RigConfigError(f"{where}.drives[{i}].counts_per_*: must be > 0")
+        if len(self.force_sensors) != len(self.drives):
+            raise RigConfigError(f"{where}: {len(self.force_sensors)} force sensors for {len(self.drives)} drives")
+        for i, d in enumerate(self.force_sensors):
+            _require(d, ("port", "channel"), f"{where}.force_sensors[{i}]")
+        _require(self.pressure, ("port",), f"{where}.pressure")
+        if not isinstance(self.tracker.get("offset", [0, 0, 0]), list):
+            raise RigConfigError(f"{where}.tracker.offset_*: needs 3 numbers [x, y, z]")
+
+    # --------------------------------------------------------------------------------------- derived
+    def actuator_params(self, which: str = "actuator"):
+        """The actuator parameters (``which="plant_actuator"``: the simulated plant's)."""
+        from ancf import ActuatorParams, presets
+        name = self.simulation.get("plant_actuator", self.actuator) if which == "plant_actuator" else self.actuator
+        path = pathlib.Path(self.base_dir) / name
+        if name.endswith(".toml"):
+            try:
+                return ActuatorParams.from_toml(path)
+            except ConfigError as exc:
+                raise RigConfigError(f"rig {self.name}: actuator file: {exc}") from None
+        try:
+            return presets.get(name)
+        except (ConfigError, KeyError, ValueError) as exc:
+            raise RigConfigError(f"rig {self.name}: unknown actuator preset {name!r} ({exc})") from None
+
+    def safety_limits(self) -> SafetyLimits:
+        if self.backend == "sim" and not ({"length_min", "length_max"} & set(self.limits)):
+            return SafetyLimits.around(self.actuator_params().length, **self.limits)
+        return SafetyLimits(**self.limits)
+
+    def to_dict(self) -> dict:
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+
+
+def build_rig(cfg: RigConfig, **sim_overrides):
+    """The rig a config describes.  ``sim_overrides`` (load=, options fields) apply to a simulated rig."""
+    if not isinstance(cfg, RigConfig):
+        raise RigConfigError(f"build_rig needs a RigConfig, got {type(cfg).__name__}")
+    limits = cfg.safety_limits()
+    if cfg.backend == "sim":
+        from .simulated import PlantOptions, SimulatedRig
+        s = cfg.simulation
+        opts = {"seed": s.get("seed", 0), "noise_std": s.get("tracker_noise", 0.0),
+                "tracker_latency": s.get("tracker_latency", 0.0), "force_noise_std": s.get("force_noise", 0.0),
+                "pressure_noise_std": s.get("pressure_noise", 0.0),
+                "length_resolution": s.get("length_resolution", 0.0),
+                "length_rate": s.get("length_rate", math.inf), "tendon_friction": s.get("tendon_friction", 0.0),
+                "tendon_stiffness": s.get("tendon_stiffness", math.inf)}
+        if "plant_actuator" in s:
+            opts["params"] = cfg.actuator_params("plant_actuator")
+        load = sim_overrides.pop("load", (0.0, 0.0, 0.0))
+        opts.update(sim_overrides)
+        return SimulatedRig(cfg.actuator_params(), 0.0, load=load, options=PlantOptions(**opts), limits=limits,
+                            on_fault_pressure=cfg.on_fault_pressure, name=cfg.name, config=cfg.to_dict())
+    from .rig import Rig
+    from .epos4 import Epos4Drive
+    from .serial_devices import SerialForceSensor, SerialPressureSupply
+    from .tracking import NatNetTracker
+    drives = [Epos4Drive(node_id=d["node_id"], channel=d["channel"], interface=d.get("interface", "socketcan"),
+                         bitrate=d.get("bitrate", 1_000_000), counts_per_metre=d["counts"],
+                         zero_length=d["zero_length"], limits=limits) for d in cfg.drives]
+    forces = [SerialForceSensor(d["port"], channel=d["channel"], baudrate=d.get("baudrate", 115200),
+                                scale=d.get("scale", 1.0), offset=d.get("offset", 0.0),
+                                timeout=limits.sensor_timeout) for d in cfg.force_sensors]
+    pressure = SerialPressureSupply(cfg.pressure["port"], baudrate=cfg.pressure.get("baudrate", 115200),
+                                    timeout=limits.sensor_timeout)
+    t = cfg.tracker
+    tracker = NatNetTracker(address=t.get("address", "0.0.0.0"), port=t.get("port", 1511),
+                            rigid_body_id=t.get("rigid_body_id", 1), offset=t.get("offset", (0.0, 0.0, 0.0)),
+                            rotation=t.get("rotation"), multicast_group=t.get("multicast_group"),
+                            timeout=t.get("timeout", limits.sensor_timeout), max_error=t.get("max_error", 2e-3))
+    return Rig(drives, forces, pressure, tracker, limits=limits, on_fault_pressure=cfg.on_fault_pressure,
+               settle_time=cfg.settle_time, speed=cfg.speed, name=cfg.name, config=cfg.to_dict(),
+               params=cfg.actuator_params())

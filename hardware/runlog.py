@@ -1,0 +1,314 @@
+r"""Crash-safe run logs: one HDF5 file per run, written incrementally in SWMR mode.
+
+Layout (format ``bellows-run-log``, version 1; documented in docs/data-formats.md):
+
+* root attributes — ``format``, ``format_version``, ``created`` (ISO 8601), ``versions`` (JSON: package
+  versions), ``rig`` (JSON: the resolved rig description and limits), ``controller`` (JSON),
+  ``actuator_toml`` (the controller model's parameters as an actuator file), ``run`` (JSON: target,
+  pressure, options), ``n_tendons``.
+* ``/samples`` — one row per control cycle, every dataset with a ``units`` attribute:
+  ``t`` [s] (rig clock), ``iteration``, ``tip`` (N, 3) [m] measured, ``error`` (N, 3) [m] measured
+  p_m − p_d, ``error_norm`` [m], ``command`` (N, m) [m] tendon lengths commanded after the sample (NaN
+  when none), ``position`` (N, m) [m] drive positions, ``tension`` (N, m) [N] measured, ``pressure`` [Pa]
+  measured, ``estimate`` (N, 3) [N] the controller's load estimate, ``compute_time`` [s], and — on a
+  simulated rig only, NaN otherwise — ``true_tip`` (N, 3) [m] and ``true_load`` (N, 3) [N].
+* ``/events`` — ``t`` [s], ``kind`` (open, pressure, limit, fault, stop, converged, end, ...), ``message``.
+* ``/static_states`` — converged equilibria in the :mod:`hardware.static_states` format, readable by
+  :func:`hardware.static_states.read_static_states` (tip force NaN = unknown to the rig).
+
+Why it survives a crash: every dataset is chunked and resizable and *created when the log is opened*;
+then ``swmr_mode`` is switched on (no group or attribute can be created after that) and each append is
+resize + write + ``flush``.  HDF5 guarantees that a file written in SWMR mode stays valid if the writer
+dies (even by SIGKILL); a reader opens it with ``swmr=True`` while the run goes on.  The end of a run
+is an ``end`` event (attributes cannot change any more).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import pathlib
+from typing import Optional
+
+import numpy as np
+
+from ancf.errors import ConfigError, InputError
+from ancf.export import to_jsonable
+from ancf.outputs import prepare_output_file
+
+from . import static_states as ss
+
+FORMAT = "bellows-run-log"
+FORMAT_VERSION = 1
+SUFFIXES = (".h5", ".hdf5")
+
+
+def _sample_fields(m: int) -> dict:
+    return {"t": ((), "s"), "iteration": ((), "1"), "tip": ((3,), "m"), "error": ((3,), "m"),
+            "error_norm": ((), "m"), "command": ((m,), "m"), "position": ((m,), "m"), "tension": ((m,), "N"),
+            "pressure": ((), "Pa"), "estimate": ((3,), "N"), "compute_time": ((), "s"), "true_tip": ((3,), "m"),
+            "true_load": ((3,), "N")}
+
+
+def versions() -> dict:
+    """Versions of the product and the libraries a run depends on."""
+    from importlib import metadata
+    out = {}
+    for pkg in ("bellows", "numpy", "scipy", "numba", "h5py", "canopen", "python-can", "pyserial"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            pass
+    import platform
+    out["python"] = platform.python_version()
+    return out
+
+
+class RunLog:
+    """Writer of one run log.  Use as a context manager; :meth:`close` writes the ``end`` event.
+
+    Parameters
+    ----------
+    path : output file (``.h5``/``.hdf5``), checked with :func:`ancf.outputs.prepare_output_file`
+    n_tendons : m
+    force : overwrite an existing file
+    rig, controller, run : JSON-friendly descriptions stored as root attributes
+    actuator_toml : the actuator parameters as TOML text
+    chunk : rows per chunk
+    """
+
+    def __init__(self, path, *, n_tendons: int, force: bool = False, rig: Optional[dict] = None,
+                 controller: Optional[dict] = None, run: Optional[dict] = None, actuator_toml: str = "",
+                 chunk: int = 256):
+        import h5py
+        if isinstance(n_tendons, bool) or not isinstance(n_tendons, (int, np.integer)) or n_tendons < 1:
+            raise InputError(f"n_tendons must be a positive integer, got {n_tendons!r}")
+        self.path = prepare_output_file(path, force=force, suffixes=SUFFIXES)
+        self.m = int(n_tendons)
+        self.fields = _sample_fields(self.m)
+        f = h5py.File(self.path, "w", libver="latest")
+        self.f = f
+        f.attrs["format"] = FORMAT
+        f.attrs["format_version"] = FORMAT_VERSION
+        f.attrs["created"] = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+        f.attrs["versions"] = json.dumps(versions())
+        f.attrs["rig"] = json.dumps(to_jsonable(rig or {}))
+        f.attrs["controller"] = json.dumps(to_jsonable(controller or {}))
+        f.attrs["run"] = json.dumps(to_jsonable(run or {}))
+        f.attrs["actuator_toml"] = actuator_toml
+        f.attrs["n_tendons"] = self.m
+        g = f.create_group("samples")
+        self.samples = {}
+        for name, (shape, units) in self.fields.items():
+            ds = g.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), chunks=(chunk, *shape),
+                                  dtype="f8")
+            ds.attrs["units"] = units
+            self.samples[name] = ds
+        e = f.create_group("events")
+        sdt = h5py.string_dtype()
+        self.ev_t = e.create_dataset("t", shape=(0,), maxshape=(None,), chunks=(64,), dtype="f8")
+        self.ev_t.attrs["units"] = "s"
+        self.ev_kind = e.create_dataset("kind", shape=(0,), maxshape=(None,), chunks=(64,), dtype=sdt)
+        self.ev_msg = e.create_dataset("message", shape=(0,), maxshape=(None,), chunks=(64,), dtype=sdt)
+        s = f.create_group("static_states")
+        s.attrs["format"] = ss.FORMAT
+        s.attrs["format_version"] = ss.FORMAT_VERSION
+        s.attrs["description"] = "static states recorded by a control run (converged equilibria)"
+        s.attrs["actuator_toml"] = actuator_toml
+        st_shapes = {"tensions": (self.m,), "pressure": (), "tip_position": (3,), "tip_force": (3,), "time": ()}
+        self.static = {}
+        for name, shape in st_shapes.items():
+            ds = s.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), chunks=(64, *shape), dtype="f8")
+            ds.attrs["units"] = ss._DATASETS[name]
+            self.static[name] = ds
+        self.static_label = s.create_dataset("label", shape=(0,), maxshape=(None,), chunks=(64,), dtype=sdt)
+        f.swmr_mode = True
+        f.flush()
+        self.rows = 0
+        self.closed = False
+
+    # ------------------------------------------------------------------------------------------ writing
+    @staticmethod
+    def _append(ds, value) -> None:
+        n = ds.shape[0]
+        ds.resize(n + 1, axis=0)
+        ds[n] = value
+
+    def sample(self, **values) -> None:
+        """Append one row; fields not given are NaN.  Unknown fields are an InputError."""
+        unknown = set(values) - set(self.fields)
+        if unknown:
+            raise InputError(f"run log: unknown sample fields {sorted(unknown)}")
+        rows = {}
+        for name, (shape, _) in self.fields.items():
+            v = values.get(name)
+            try:
+                rows[name] = np.full(shape, np.nan) if v is None else np.asarray(v, float).reshape(shape)
+            except (TypeError, ValueError):
+                raise InputError(f"run log: sample field {name} must be numeric with shape {shape}, got {v!r}") from None
+        for name, a in rows.items():
+            self._append(self.samples[name], a)
+        self.rows += 1
+        self.f.flush()
+
+    def event(self, t: float, kind: str, message: str) -> None:
+        self._append(self.ev_t, float(t))
+        self._append(self.ev_kind, str(kind))
+        self._append(self.ev_msg, str(message))
+        self.f.flush()
+
+    def static_state(self, *, time: float, tensions, pressure: float, tip, tip_force=None, label: str = "") -> None:
+        """Append one measured equilibrium to ``/static_states`` (tip force NaN = unknown)."""
+        try:
+            T = np.asarray(tensions, float).reshape(self.m)
+            vals = {"tensions": T, "pressure": float(pressure), "tip_position": np.asarray(tip, float).reshape(3),
+                    "tip_force": np.full(3, np.nan) if tip_force is None else np.asarray(tip_force, float).reshape(3),
+                    "time": float(time)}
+        except (TypeError, ValueError):
+            raise InputError("static state: tensions (m,), pressure, tip (3,), tip_force (3,) and time must be "
+                             "numeric with those shapes") from None
+        if np.any(~np.isfinite(T)) or np.any(T < 0):
+            raise InputError(f"static state: tensions must be finite and >= 0 N, got {T.tolist()}")
+        for name, v in vals.items():
+            self._append(self.static[name], v)
+        self._append(self.static_label, str(label))
+        self.f.flush()
+
+    def close(self, status: str = "completed", reason: str = "", t: float = float("nan")) -> None:
+        if self.closed:
+            return
+        try:
+            self.event(t, "end", f"{status}" + (f": {reason}" if reason else ""))
+        finally:
+            self.f.close()
+            self.closed = True
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is None:
+            self.close()
+        else:
+            self.close("aborted", f"{exc_type.__name__}: {exc}")
+        return False
+
+
+# ============================================================================================ reading
+class RunData:
+    """A run log read back: ``attrs`` (dict, JSON attributes decoded), ``samples`` {name: array},
+    ``units`` {name: unit}, ``events`` [(t, kind, message)], ``path``."""
+
+    def __init__(self, path, attrs, samples, units, events):
+        self.path, self.attrs, self.samples, self.units, self.events = path, attrs, samples, units, events
+
+    @property
+    def rows(self) -> int:
+        return len(self.samples.get("t", ()))
+
+    @property
+    def ended(self) -> Optional[str]:
+        """The ``end`` event's message, or None if the writer never closed the log (killed mid-run)."""
+        ends = [m for _, k, m in self.events if k == "end"]
+        return ends[-1] if ends else None
+
+    def static_states(self):
+        return ss.read_static_states(self.path)
+
+
+def read_run_log(path) -> RunData:
+    """Read a run log (also while it is being written, and after the writer was killed)."""
+    import h5py
+    p = pathlib.Path(path)
+    if not p.exists():
+        raise InputError(f"run log {p} does not exist")
+    try:
+        f = h5py.File(p, "r", libver="latest", swmr=True)
+    except OSError as exc:
+        raise ConfigError(f"{p}: not a readable HDF5 file ({exc})") from None
+    with f:
+        if f.attrs.get("format") != FORMAT:
+            raise ConfigError(f"{p}: not a bellows run log (format attribute {f.attrs.get('format')!r})")
+        if int(f.attrs.get("format_version", 0)) > FORMAT_VERSION:
+            raise ConfigError(f"{p}: run-log format version {f.attrs['format_version']} is newer than this reader")
+        attrs = {}
+        for k, v in f.attrs.items():
+            if isinstance(v, str) and k in ("versions", "rig", "controller", "run"):
+                attrs[k] = json.loads(v)
+            else:
+                attrs[k] = v.item() if hasattr(v, "item") else v
+        g = f["samples"]
+        for ds in g.values():
+            ds.refresh()
+        n = min(ds.shape[0] for ds in g.values())          # a row is complete when every field has it
+        samples = {k: ds[:n] for k, ds in g.items()}
+        units = {k: ds.attrs.get("units", "") for k, ds in g.items()}
+        e = f["events"]
+        for ds in e.values():
+            ds.refresh()
+        ne = min(ds.shape[0] for ds in e.values())
+        dec = lambda x: x.decode() if isinstance(x, bytes) else str(x)
+        events = [(float(t), dec(k), dec(m)) for t, k, m in zip(e["t"][:ne], e["kind"][:ne], e["message"][:ne])]
+    return RunData(p, attrs, samples, units, events)
+
+
+def summary(path) -> str:
+    """A short human-readable summary of a run log."""
+    d = read_run_log(path)
+    run, rig = d.attrs.get("run", {}), d.attrs.get("rig", {})
+    lines = [f"run log {d.path}", f"  created {d.attrs.get('created')}, bellows {d.attrs.get('versions', {}).get('bellows', '?')}",
+             f"  rig: {rig.get('name', '?')} ({'simulated' if rig.get('simulated') else 'hardware'}, "
+             f"{d.attrs.get('n_tendons')} tendons); controller: {d.attrs.get('controller', {}).get('name', '?')}"]
+    if "target_m" in run:
+        lines.append(f"  target [mm]: {np.round(np.asarray(run['target_m']) * 1e3, 3).tolist()}, pressure "
+                     f"{run.get('pressure_Pa', float('nan')) / 1e3:.1f} kPa")
+    n = d.rows
+    lines.append(f"  samples: {n}")
+    if n:
+        t, en = d.samples["t"], d.samples["error_norm"]
+        lines.append(f"  time {t[0]:.3f} … {t[-1]:.3f} s; tip error [mm]: first {en[0] * 1e3:.4f}, last "
+                     f"{en[-1] * 1e3:.4f}, max {np.nanmax(en) * 1e3:.4f}")
+        tt = d.samples["true_tip"]
+        if np.any(np.isfinite(tt)):
+            target = np.asarray(run.get("target_m", [np.nan] * 3))
+            te = np.linalg.norm(tt - target, axis=1)
+            lines.append(f"  true tip error (simulated rig) [mm]: last {te[-1] * 1e3:.4f}, max {np.nanmax(te) * 1e3:.4f}")
+    try:
+        st = d.static_states()
+        lines.append(f"  static states: {st.n_states}")
+    except (ConfigError, InputError):
+        lines.append("  static states: 0")
+    lines.append(f"  events: {len(d.events)}")
+    for t, k, m in d.events[-8:]:
+        lines.append(f"    {t:9.3f} s  {k:9s} {m}")
+    lines.append(f"  end: {d.ended or 'none recorded — the writer did not close the log (killed or still running)'}")
+    return "\n".join(lines)
+
+
+def export_csv(path, out, *, force: bool = False) -> pathlib.Path:
+    """Write the samples as CSV, one column per component with its unit in the header (``tip_x_m``,
+    ``tension1_N``, ...).  Returns the CSV path."""
+    import csv
+    out = prepare_output_file(out, force=force, suffixes=(".csv",))
+    d = read_run_log(path)
+    cols, header = [], []
+    for name, a in d.samples.items():
+        u = d.units.get(name, "")
+        suf = f"_{u}" if u and u != "1" else ""
+        if a.ndim == 1:
+            header.append(f"{name}{suf}")
+            cols.append(a)
+        else:
+            labels = "xyz" if a.shape[1] == 3 and name in ("tip", "error", "estimate", "true_tip", "true_load") \
+                else [str(i + 1) for i in range(a.shape[1])]
+            for i, lab in enumerate(labels):
+                header.append(f"{name}_{lab}{suf}" if lab in "xyz" else f"{name}{lab}{suf}")
+                cols.append(a[:, i])
+    order = ["t_s"] + [h for h in header if h != "t_s"]
+    idx = [header.index(h) for h in order]
+    with open(out, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(order)
+        for r in range(d.rows):
+            w.writerow(["" if np.isnan(cols[i][r]) else repr(float(cols[i][r])) for i in idx])
+    return out

@@ -1,0 +1,29 @@
+"""Static states recorded by control runs on the simulated rig feed validation.identify.from_measurements,
+which recovers the plant's stiffness law from them."""
+
+
+from ancf import Model, presets
+from controller import LACC, run_on_rig
+from hardware import PlantOptions, SimulatedRig
+from hardware.runlog import RunLog
+
+
+def test_identification_from_a_run_log(tmp_path):
+    from validation.identify import from_measurements
+    model = Model(presets.paper())
+    path = tmp_path / "identification.h5"
+    with RunLog(path, n_tendons=3) as log:
+        for T in ((2.2, 1.6, 1.6), (1.2, 3.0, 1.0), (1.0, 1.0, 3.0), (3.5, 1.0, 1.0), (2.0, 2.0, 2.0)):
+            for p in (40e3, 60e3, 80e3):
+                tip = model.fk(T, p, (0, 0, 0)).tip
+                rig = SimulatedRig(model, options=PlantOptions(force_noise_std=0.001, seed=int(p) + int(10 * T[0])))
+                res = run_on_rig(LACC(model, p, compliance="exact"), rig, tip, log=log, applied_load=(0, 0, 0))
+                assert res.status == "converged"
+    r = from_measurements(path, heldout_fraction=0, forms=("paper",))
+    law = presets.paper().stiffness.source
+    fit = r.fits["paper"]
+    assert abs(fit.values["a"] - law["a"]) < 0.02 * law["a"]
+    assert abs(fit.values["a"] + fit.values["b"] - (law["a"] + law["b"])) < 0.02 * (law["a"] + law["b"])
+    for name, true in (("a", law["a"]), ("k1", law["a"] + law["b"]), ("D_a", law["D_a"])):
+        lo, hi = fit.ci95[name]
+        assert lo <= true <= hi, (name, lo, true, hi)       # the truth lies in the stated 95 % interval

@@ -1,0 +1,135 @@
+"""Safety limits are checked before anything is sent; every fault stops motion and ends the run with its
+reason, on the simulated rig; Ctrl-C leaves the rig safe and the log closed."""
+
+import math
+
+import numpy as np
+import pytest
+
+from controller import LACC, run_on_rig
+from hardware import (DriveFault, HardwareError, LimitError, PressureFault, RunAborted, SensorTimeout,
+                      SimulatedRig, TrackingLost)
+from hardware.limits import SafetyLimits
+from hardware.runlog import read_run_log
+
+P = 60e3
+from fakes.fixtures import target  # noqa: E402,F401  (fixture)
+
+
+def fresh_rig(paper_model, target, **kw):
+    rig = SimulatedRig(paper_model, P, **kw)
+    rig.command(paper_model.ik(target, P).tendon_lengths)
+    rig.advance()
+    return rig
+
+
+def test_travel_step_and_tension_limits_send_nothing(paper_model, target):
+    rig = fresh_rig(paper_model, target, limits=SafetyLimits.around(0.16, max_step=2e-3, tension_max=4.0))
+    before = rig.target.copy()
+    for bad, kw in (([0.05, 0.16, 0.16], {}),                                  # beyond the travel
+                    (rig.commanded + [3e-3, 0, 0], {}),                         # a 3 mm step > 2 mm
+                    (rig.commanded, {"expected_tensions": [4.5, 1.0, 1.0]}),    # IK expects 4.5 N > 4 N
+                    ([np.nan, 0.16, 0.16], {}), ("abc", {}), ([0.16, 0.16], {})):
+        with pytest.raises(LimitError):
+            rig.command(bad, **kw)
+        np.testing.assert_array_equal(rig.target, before)                     # nothing reached the drives
+    kinds = [k for _, k, _ in rig.events]
+    assert kinds.count("limit") == 6
+    with pytest.raises(LimitError, match="kPa"):
+        rig.set_pressure(200e3)
+    assert rig.pressure == P
+    rig.command(rig.commanded + [1e-3, 0, 0])                                  # within limits: sent
+    assert rig.target[0] == pytest.approx(before[0] + 1e-3)
+
+
+def test_limits_reject_invalid_limits():
+    with pytest.raises(LimitError):
+        SafetyLimits(length_min=0.2, length_max=0.1)
+    with pytest.raises(LimitError):
+        SafetyLimits(tension_max=0.0)
+    with pytest.raises(LimitError):
+        SafetyLimits(pressure_max=float("nan"))
+    with pytest.raises(LimitError):
+        SafetyLimits(max_step="1")
+
+
+def test_measured_tension_beyond_limit_stops_the_run(paper_model, target, tmp_path):
+    rig = SimulatedRig(paper_model, load=(0, 0, -0.4), limits=SafetyLimits.around(0.16, tension_max=2.0))
+    with pytest.raises(LimitError, match="measured tension") as info:
+        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "run.h5")
+    assert info.value.log_path == tmp_path / "run.h5"
+    d = read_run_log(tmp_path / "run.h5")
+    assert d.ended.startswith("fault") and "measured tension" in d.ended
+    assert any(k == "stop" for _, k, _ in d.events)
+
+
+@pytest.mark.parametrize("fault,exc,at", [("tracking_lost", TrackingLost, 0.0), ("invalid_pose", TrackingLost, 0.0),
+                                           ("tracker_stale", SensorTimeout, 0.3),
+                                           ("sensor_timeout", SensorTimeout, 0.0),
+                                           ("drive_fault", DriveFault, 0.0),
+                                           ("pressure_overshoot", PressureFault, 0.0)])
+def test_each_fault_stops_motion_with_its_reason(paper_model, target, tmp_path, fault, exc, at):
+    rig = SimulatedRig(paper_model, load=(0, 0.05, -0.4), on_fault_pressure="vent",
+                       options=__import__("hardware").PlantOptions(length_rate=5e-3))
+    rig.inject(fault, at=at)
+    log = tmp_path / f"{fault}.h5"
+    with pytest.raises(exc) as info:
+        # tracker_stale: the frame freezes at 0.3 s; the next reads are older than the 0.5 s timeout
+        run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=5.0, idle_period=0.3)
+    assert isinstance(info.value, HardwareError)
+    res = info.value.result
+    assert res.status == "fault" and type(info.value).__name__ in res.reason
+    # motion stopped: every drive holds where it is; the pressure was vented as configured
+    np.testing.assert_array_equal(rig.target, rig.lengths)
+    assert rig.pressure == 0.0 and rig.pressure_supply.vented
+    d = read_run_log(log)
+    assert d.ended.startswith("fault") and type(info.value).__name__ in d.ended
+    stops = [m for _, k, m in d.events if k == "stop"]
+    assert stops and "vented" in stops[0]
+    if fault == "drive_fault":
+        assert "quick-stopped" in stops[0] and info.value.code == 0x8611
+        assert not rig.drives[0].enabled
+
+
+def test_pressure_held_by_default(paper_model, target):
+    rig = SimulatedRig(paper_model)
+    rig.inject("tracking_lost")
+    with pytest.raises(TrackingLost):
+        run_on_rig(LACC(paper_model, P), rig, target)
+    assert rig.pressure == P and not rig.pressure_supply.vented
+
+
+def test_ctrl_c_leaves_the_rig_safe_and_the_log_closed(paper_model, target, tmp_path):
+    rig = SimulatedRig(paper_model, load=(0, 0, -0.3), options=__import__("hardware").PlantOptions(length_rate=5e-3))
+    calls = []
+
+    def status(s):
+        calls.append(s)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+    with pytest.raises(RunAborted, match="Ctrl-C") as info:
+        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "r.h5", duration=math.inf, status=status)
+    assert str(tmp_path / "r.h5") in str(info.value)
+    np.testing.assert_array_equal(rig.target, rig.lengths)
+    d = read_run_log(tmp_path / "r.h5")
+    assert d.ended.startswith("interrupted") and d.rows == 3
+
+
+def test_context_manager_makes_safe_on_exception(paper_model, target):
+    rig = fresh_rig(paper_model, target, options=__import__("hardware").PlantOptions(length_rate=1e-3))
+    with pytest.raises(RuntimeError):
+        with rig:
+            rig.command(rig.commanded + [2e-3, 0, 0])
+            rig.advance(0.5)                                   # halfway through a 2 s move
+            raise RuntimeError("operator script failed")
+    np.testing.assert_array_equal(rig.target, rig.lengths)    # the move was stopped, not completed
+    assert any(k == "stop" and "RuntimeError" in m for _, k, m in rig.events)
+
+
+def test_fault_reset_clears_a_drive_fault(paper_model, target):
+    rig = fresh_rig(paper_model, target)
+    rig.inject("drive_fault", drive=1)
+    with pytest.raises(DriveFault):
+        rig.check_health()
+    rig.drives[1].fault_reset()
+    rig.check_health()

@@ -1,0 +1,189 @@
+"""Run logs: SWMR layout, readable while written and after SIGKILL; 'bellows control' and 'bellows log'."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from ancf.errors import ConfigError, InputError, OutputExistsError
+from hardware.runlog import RunLog, export_csv, read_run_log
+from hardware.static_states import read_static_states
+from validation.cli import app, main
+
+runner = CliRunner()
+TARGET_MM = "169.9,0,-2.235"          # the paper preset's tip with tensions (2.2, 1.6, 1.6) N at 60 kPa
+
+
+def test_log_layout_units_and_refusals(tmp_path):
+    path = tmp_path / "a.h5"
+    with RunLog(path, n_tendons=3, rig={"name": "x"}) as log:
+        log.sample(t=0.0, tip=[0.1, 0, 0], tension=[1, 2, 3])
+        log.event(0.0, "note", "hello")
+        log.static_state(time=0.0, tensions=[1, 2, 3], pressure=6e4, tip=[0.17, 0, 0])
+        with pytest.raises(InputError):
+            log.sample(bogus=1.0)
+        with pytest.raises(InputError):
+            log.static_state(time=0.0, tensions=[-1, 2, 3], pressure=6e4, tip=[0.17, 0, 0])
+        with pytest.raises(InputError):
+            log.sample(tip=[1.0, 2.0])                                  # wrong shape: typed error, nothing written
+        with pytest.raises(InputError):
+            log.static_state(time=0.0, tensions=[1, 2], pressure="x", tip=[0.17, 0, 0])
+    d = read_run_log(path)
+    assert d.rows == 1 and d.units["tip"] == "m" and d.units["tension"] == "N" and d.units["pressure"] == "Pa"
+    np.testing.assert_array_equal(d.samples["tension"][0], [1, 2, 3])
+    assert np.all(np.isnan(d.samples["estimate"][0]))                  # not given: NaN, not 0
+    assert d.ended == "completed" and ("note" in [k for _, k, _ in d.events])
+    st = read_static_states(path)
+    assert st.n_states == 1 and st.pressure[0] == 6e4
+    with pytest.raises(OutputExistsError):
+        RunLog(path, n_tendons=3)
+    with pytest.raises(InputError):
+        RunLog(tmp_path / "a.txt", n_tendons=3)
+    (tmp_path / "x.h5").write_text("not hdf5")
+    with pytest.raises(ConfigError):
+        read_run_log(tmp_path / "x.h5")
+    out = export_csv(path, tmp_path / "a.csv")
+    header = out.read_text().splitlines()[0].split(",")
+    assert header[0] == "t_s" and "tension3_N" in header and "tip_x_m" in header
+    with pytest.raises(OutputExistsError):
+        export_csv(path, tmp_path / "a.csv")
+
+
+def _wait_rows(path, n, proc, timeout=60.0):
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        assert proc.poll() is None, proc.stderr.read()
+        if path.exists():
+            try:
+                d = read_run_log(path)                     # a reader while the writer runs (SWMR)
+                if d.rows >= n:
+                    return d
+            except (ConfigError, OSError):
+                pass
+        time.sleep(0.2)
+    raise AssertionError("the run log did not grow")
+
+
+def _start(tmp_path, log):
+    env = {**os.environ, "PYTHONPATH": os.getcwd()}
+    code = "from validation.cli import main; main()"
+    return subprocess.Popen([sys.executable, "-c", code, "control", "--target-mm", TARGET_MM, "--pressure-kpa", "60",
+                             "--load-profile", "stochastic", "--seed", "1", "--log", str(log)],
+                            cwd=os.getcwd(), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def test_log_survives_sigkill_mid_run(tmp_path):
+    log = tmp_path / "killed.h5"
+    proc = _start(tmp_path, log)
+    try:
+        live = _wait_rows(log, 4, proc)
+        assert live.ended is None
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    d = read_run_log(log)
+    assert d.rows >= live.rows and d.ended is None                 # no end event: the writer was killed
+    assert np.all(np.diff(d.samples["t"]) > 0)
+    assert np.all(np.isfinite(d.samples["tip"]))
+    assert d.attrs["rig"]["simulated"] and d.attrs["controller"]["name"] == "LACC"
+    st = read_static_states(log)                                   # converged states recorded so far
+    assert st.n_states >= 1 and np.all(st.pressure == 60e3)
+    assert "killed" in runner.invoke(app, ["log", "show", str(log)]).output
+
+
+def test_ctrl_c_stops_cleanly_and_says_where_the_log_is(tmp_path):
+    log = tmp_path / "int.h5"
+    proc = _start(tmp_path, log)
+    try:
+        _wait_rows(log, 3, proc)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=20)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 2
+    last = [ln for ln in err.splitlines() if ln.strip()][-1]
+    assert last.startswith("error: run interrupted by Ctrl-C") and str(log) in last
+    d = read_run_log(log)
+    assert d.ended.startswith("interrupted")
+    assert any(k == "stop" and "Ctrl-C" in m for _, k, m in d.events)
+
+
+def test_control_cli_runs_and_logs(tmp_path):
+    log = tmp_path / "r.h5"
+    res = runner.invoke(app, ["control", "--target-mm", TARGET_MM, "--pressure-kpa", "60", "--load-profile", "step",
+                              "--load-mass-g", "40", "--duration-s", "2", "--fast", "--log", str(log), "--json"])
+    assert res.exit_code == 0, res.output
+    out = json.loads(res.stdout.strip().splitlines()[-1])
+    assert out["status"] == "held" and out["final_error_m"] < 2e-4 and out["iterations"] >= 1
+    d = read_run_log(log)
+    assert d.rows == out["samples"] and d.attrs["run"]["load_profile"] == "step"
+    assert max(d.samples["error_norm"]) > 1e-3                     # the 40 g step displaced the tip
+    shown = runner.invoke(app, ["log", "show", str(log)])
+    assert shown.exit_code == 0 and "static states: 2" in shown.output
+    exp = runner.invoke(app, ["log", "export", str(log), "--csv", str(tmp_path / "r.csv")])
+    assert exp.exit_code == 0 and (tmp_path / "r.csv").read_text().count("\n") == d.rows + 1
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--target-mm", "169.9,0"], "expected 3 values"),
+    (["--pressure-kpa", "-5"], "--pressure-kpa"),
+    (["--controller", "pid"], "--controller"),
+    (["--controller", "vfcc", "--compliance", "ik"], "LACC only"),
+    (["--controller", "vfcc", "--compliance", "exact"], "LACC only"),
+    (["--compliance", "magic"], "compliance must be one of"),
+    (["--duration-s", "0"], "--duration-s"),
+    (["--duration-s", "1", "--max-iterations", "3"], "not both"),
+    (["--load-profile", "sine"], "unknown load profile"),
+    (["--load-profile", "stochastic", "--load-mass-g", "30"], "does not apply"),
+    (["--pressure-kpa", "200"], "outside [0, 160"),
+    (["--rig", "nonexistent.toml"], "cannot read rig file"),
+    (["--target-mm", "100,0,80"], "not reachable"),
+])
+def test_control_errors_are_one_line_status_2(monkeypatch, capsys, tmp_path, args, message):
+    base = {"--target-mm": TARGET_MM, "--pressure-kpa": "60"}
+    argv = ["bellows", "control", "--fast", "--max-iterations", "2"] if "--duration-s" not in args else \
+        ["bellows", "control", "--fast"]
+    for k, v in base.items():
+        if k not in args:
+            argv += [k, v]
+    monkeypatch.setattr("sys.argv", argv + args)
+    with pytest.raises(SystemExit) as info:
+        main()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert info.value.code == 2
+    assert err[-1].startswith("error:") and message in err[-1]
+
+
+def test_control_refuses_existing_log_before_any_work(monkeypatch, capsys, tmp_path):
+    log = tmp_path / "x.h5"
+    log.write_bytes(b"keep me")
+    monkeypatch.setattr("sys.argv", ["bellows", "control", "--target-mm", TARGET_MM, "--pressure-kpa", "60",
+                                     "--max-iterations", "2", "--log", str(log)])
+    with pytest.raises(SystemExit) as info:
+        main()
+    assert info.value.code == 2 and "--force" in capsys.readouterr().err
+    assert log.read_bytes() == b"keep me"
+
+
+def test_control_rejects_sim_options_on_a_hardware_rig(monkeypatch, capsys, tmp_path):
+    rig = tmp_path / "rig.toml"
+    rig.write_text('backend = "hardware"\n[[drives]]\nbackend="epos4"\nnode_id=1\nchannel="can0"\ncounts_per_mm=100\n'
+                   'zero_length_mm=160\n[[force_sensors]]\nbackend="serial"\nport="/dev/null"\nchannel=1\n'
+                   '[pressure]\nbackend="serial"\nport="/dev/null"\n[tracker]\nbackend="natnet"\n')
+    bad = tmp_path / "bad.toml"
+    bad.write_text(rig.read_text().replace("counts_per_mm", "counts"))
+    for f, extra, msg in ((rig, ["--seed", "0"], "only for a simulated rig"), (bad, [], "needs an explicit unit")):
+        monkeypatch.setattr("sys.argv", ["bellows", "control", "--rig", str(f), "--target-mm", TARGET_MM,
+                                         "--pressure-kpa", "60", "--max-iterations", "1", *extra])
+        with pytest.raises(SystemExit):
+            main()
+        assert msg in capsys.readouterr().err
