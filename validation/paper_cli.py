@@ -23,6 +23,7 @@ from ancf.errors import BellowsError
 from ancf.export import to_jsonable
 
 from . import paper
+from .runner import RunInterrupted
 
 app = typer.Typer(help="Reproductions of the paper's studies (workspace, stiffness, Table I, ...).",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
@@ -56,9 +57,15 @@ def _fail(msg: str) -> None:
 
 @contextlib.contextmanager
 def _scheduler_errors(scheduler, always_on_import: bool = False):
-    """Turn a missing dask or an unreachable scheduler into one clear error line (exit 2)."""
+    """Turn a missing dask or an unreachable scheduler into one clear error line (exit 2), Ctrl-C into a
+    note saying where the finished work is (exit 130), and any other error of the product into one
+    ``error:`` line (exit 2)."""
     try:
         yield
+    except RunInterrupted as exc:
+        _interrupted(exc)
+    except BellowsError as exc:
+        _fail(str(exc))
     except ImportError as exc:
         if scheduler is None and not always_on_import:
             raise
@@ -67,6 +74,16 @@ def _scheduler_errors(scheduler, always_on_import: bool = False):
         if scheduler is None:
             raise
         _fail(f"cannot use the dask scheduler {scheduler!r}: {exc}")
+
+FORCE_HELP = "Overwrite existing result files in --out."
+
+
+def _interrupted(exc: RunInterrupted) -> None:
+    where = f"; the finished samples are in {exc.saved_to}" if exc.saved_to else ""
+    typer.secho(f"interrupted: {len(exc.completed)} of {exc.total} tasks finished{where}", fg=typer.colors.YELLOW,
+                err=True)
+    raise typer.Exit(130)
+
 
 @app.command()
 def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per mode (paper: 10 000)."),
@@ -80,20 +97,25 @@ def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per 
               preset: str = typer.Option("paper", help=PRESET_HELP),
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
               progress: bool = typer.Option(True, help="Show a progress bar."),
+              force: bool = typer.Option(False, "--force", help=FORCE_HELP),
               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Workspace of the TD and TPHD modes (paper Sec IV-A, Fig 4): convex-hull volumes and their ratio."""
+    """Workspace of the TD and TPHD modes (paper Sec IV-A, Fig 4): convex-hull volumes and their ratio.
+
+    Finished samples are appended to workspace_samples.csv as the run goes; Ctrl-C keeps them."""
     con = _console(as_json)
     with _scheduler_errors(scheduler, always_on_import=True):
         res = paper.workspace(samples=samples, seed=seed, workers=workers, scheduler=scheduler, out=out,
-                              progress=progress and not as_json, chunk_size=chunk_size, warm_start=warm_start,
-                              params=preset)
+                              progress=progress and not as_json, chunk_size=chunk_size,
+                              warm_start=warm_start, params=preset, force=force)
     if as_json:
         _echo_json({k: v for k, v in res.items() if k != "clouds"})
     else:
         paper.print_workspace(res, con)
-    if res["failures"]:
-        con.print(f"[yellow]{res['failures']} FK solves failed; their inputs are in workspace.json[/yellow]")
-    con.print(f"wrote {out}/workspace.json, workspace_clouds.npz, workspace.png, workspace.svg")
+    if res["failures"] or res["collapsed"]:
+        con.print(f"[yellow]{res['collapsed']} samples collapsed and {res['failures']} FK solves failed; "
+                  "their inputs are in workspace.json[/yellow]")
+    con.print(f"wrote {out}/workspace.json, workspace_samples.csv, workspace_clouds.npz, workspace.png, "
+              "workspace.svg")
 
 
 @app.command()
@@ -102,12 +124,14 @@ def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressur
               mass_kg: float = typer.Option(0.05, help="Tip payload in kg (paper: 0.05)."),
               preset: str = typer.Option("paper", help=PRESET_HELP),
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+              force: bool = typer.Option(False, "--force", help=FORCE_HELP),
               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Stiffness vs T1, constant tension vs locked tendons (paper Sec V-C, Fig 9)."""
     con = _console(as_json)
-    res = paper.stiffness_vs_tension(pressures=_floats(pressures_kpa, "--pressures-kpa", 1e3),
-                                     tensions=_floats(tensions_n, "--tensions-n"), mass=mass_kg, out=out,
-                                     params=preset)
+    with _scheduler_errors(None):
+        res = paper.stiffness_vs_tension(pressures=_floats(pressures_kpa, "--pressures-kpa", 1e3),
+                                         tensions=_floats(tensions_n, "--tensions-n"), mass=mass_kg, out=out,
+                                         params=preset, force=force)
     if as_json:
         _echo_json(res)
     else:
@@ -115,12 +139,11 @@ def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressur
     con.print(f"wrote {out}/stiffness.json, stiffness.png, stiffness.svg")
 
 
-def _control(name: str, out: pathlib.Path, as_json: bool) -> None:
+def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper") -> None:
     con = _console(as_json)
-    try:
-        res = paper.CONTROL_STUDIES[name](out=out)
-    except paper.StudyUnavailableError as exc:
-        _fail(str(exc))
+    with _scheduler_errors(None):
+        params = paper.resolve_params(preset)
+        res = paper.CONTROL_STUDIES[name](out=out, params=params)
     path = paper.write_json(out / paper.CONTROL_FILES[name], res)
     if as_json:
         _echo_json(res)
@@ -131,23 +154,26 @@ def _control(name: str, out: pathlib.Path, as_json: bool) -> None:
 
 @app.command()
 def table1(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+           preset: str = typer.Option("paper", help=PRESET_HELP),
            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Table I: VF-CC vs LACC residual error after five iterations (up / horizontal / down)."""
-    _control("table1", out, as_json)
+    _control("table1", out, as_json, preset)
 
 
 @app.command()
 def ablation(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+             preset: str = typer.Option("paper", help=PRESET_HELP),
              as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """FK- vs IK-derived compliance in the LACC loop (paper: IK-derived ≈ 50 % faster)."""
-    _control("ablation", out, as_json)
+    _control("ablation", out, as_json, preset)
 
 
 @app.command()
 def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+            preset: str = typer.Option("paper", help=PRESET_HELP),
             as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Continuous (0 → 110 g → 0 over 50 s) and cyclic (0.125 Hz) loading (paper Sec V-E)."""
-    _control("loading", out, as_json)
+    _control("loading", out, as_json, preset)
 
 
 @app.command("all")
@@ -157,12 +183,14 @@ def all_(samples: int = typer.Option(10_000, help="Workspace Monte Carlo samples
          scheduler: Optional[str] = typer.Option(None, help="dask scheduler address, or 'local'."),
          out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
          progress: bool = typer.Option(True, help="Show a progress bar."),
+         preset: str = typer.Option("paper", help=PRESET_HELP),
+         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
          as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON.")):
     """Every study into one folder (controller studies are skipped with a note if unavailable)."""
     con = _console(as_json)
     with _scheduler_errors(scheduler):
         res = paper.run_all(out, samples=samples, seed=seed, workers=workers, scheduler=scheduler,
-                            progress=progress and not as_json, console=con)
+                            progress=progress and not as_json, console=con, params=preset, force=force)
     if as_json:
         _echo_json(res["summary"])
     con.print(f"wrote {out}/summary.json and the studies' files")

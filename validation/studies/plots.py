@@ -1,0 +1,84 @@
+"""Figures of the paper's studies (no computation): Fig. 4 and Fig. 9 look-alikes and the comparison."""
+
+from __future__ import annotations
+
+import pathlib
+from typing import Union
+
+import numpy as np
+
+from ..paper_numbers import WORKSPACE as PAPER_WORKSPACE
+from .common import pyplot as _pyplot, save_figure as _save_figure
+
+
+def plot_workspace(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Path]:
+    """Fig. 4 look-alike: TD (blue) and TPHD (red) tip clouds in 3-D with their hulls, plus side (x–z)
+    and front (y–z) views.  Writes workspace.png and workspace.svg (scatter rasterised)."""
+    from scipy.spatial import ConvexHull
+
+    plt = _pyplot()
+    fig = plt.figure(figsize=(14, 4.8))
+    ax3 = fig.add_subplot(1, 3, 1, projection="3d")
+    axs = fig.add_subplot(1, 3, 2)
+    axf = fig.add_subplot(1, 3, 3)
+    style = {"TPHD": ("tab:red", 0.25), "TD": ("tab:blue", 0.5)}
+    for mode in ("TPHD", "TD"):
+        c = res["clouds"][mode]
+        P = c["tips"][c["ok"]] * 1e3
+        col, alpha = style[mode]
+        v = res["modes"][mode]["volume_cm3"]
+        lab = f"{mode}: {v:.1f} cm³ ({len(P)} tips)"
+        ax3.scatter(*P.T, s=1, color=col, alpha=alpha, label=lab, rasterized=True, depthshade=False)
+        if len(P) >= 4 and res["modes"][mode]["volume_m3"] > 0:
+            H = ConvexHull(P)
+            ax3.plot_trisurf(P[:, 0], P[:, 1], P[:, 2], triangles=H.simplices, color=col, alpha=0.08,
+                             linewidth=0)
+            for ax, (i, j) in ((axs, (0, 2)), (axf, (1, 2))):
+                H2 = ConvexHull(P[:, [i, j]])
+                loop = np.append(H2.vertices, H2.vertices[0])
+                ax.plot(P[loop, i], P[loop, j], color=col, lw=1.2)
+        axs.scatter(P[:, 0], P[:, 2], s=1, color=col, alpha=alpha, label=lab, rasterized=True)
+        axf.scatter(P[:, 1], P[:, 2], s=1, color=col, alpha=alpha, rasterized=True)
+    ax3.set_xlabel("x [mm]"), ax3.set_ylabel("y [mm]"), ax3.set_zlabel("z [mm]")
+    axs.set_xlabel("x [mm]"), axs.set_ylabel("z [mm]"), axs.set_title("side view (x–z)")
+    axf.set_xlabel("y [mm]"), axf.set_ylabel("z [mm]"), axf.set_title("front view (y–z)")
+    for a in (axs, axf):
+        a.set_aspect("equal", adjustable="datalim")
+        a.grid(alpha=0.3)
+    axs.legend(loc="best", fontsize=8, markerscale=6)
+    fig.suptitle(f"Workspace, {res['samples']} samples per mode: TPHD {res['increase_percent']:+.1f} % vs TD "
+                 f"(paper {PAPER_WORKSPACE['increase_percent']:+.1f} %)")
+    fig.tight_layout()
+    return _save_figure(fig, pathlib.Path(out), "workspace")
+
+
+
+def plot_stiffness(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Path]:
+    """Fig. 9 look-alike: one panel per pressure, k vs T1, constant tension vs locked."""
+    plt = _pyplot()
+    P = res["pressures_Pa"]
+    T = np.asarray(res["tensions_N"])
+    cv = res["curves_N_per_m"]
+    fig, axes = plt.subplots(1, len(P), figsize=(4.6 * len(P), 4.0), sharey=True, squeeze=False)
+    style = {"locked_linear_exact": ("tab:red", "-", "locked, linear (exact KKT)"),
+             "locked_linear_paper": ("tab:orange", "--", "locked, linear (paper eq. 13)"),
+             "locked_linear_ik": ("tab:purple", ":", "locked, linear (IK eq. 15)"),
+             "constant_linear": ("tab:blue", "-", "constant tension, linear")}
+    for i, p in enumerate(P):
+        ax = axes[0, i]
+        for name, (col, ls, lab) in style.items():
+            if name in cv:
+                ax.plot(T, cv[name][i], color=col, ls=ls, lw=1.6, label=lab)
+        ax.plot(T, cv["locked_nonlinear"][i], "o", color="tab:red", mfc="none", label="locked, nonlinear FK")
+        ax.plot(T, cv["constant_nonlinear"][i], "s", color="tab:blue", mfc="none",
+                label="constant tension, nonlinear FK")
+        ax.set_title(f"p = {p / 1e3:g} kPa")
+        ax.set_xlabel(f"T{res['tendon'] + 1} [N]")
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("k_equivalent = m g / (z_unload − z_load) [N/m]")
+    axes[0, 0].set_ylim(bottom=0)
+    axes[0, -1].legend(fontsize=7, loc="best")
+    fig.suptitle(f"Tip stiffness along z, {res['mass_kg'] * 1e3:g} g payload: locked / constant = "
+                 f"{res['summary']['mean_ratio_nonlinear']:.2f} (paper: about 2)")
+    fig.tight_layout()
+    return _save_figure(fig, pathlib.Path(out), "stiffness")
