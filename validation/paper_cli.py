@@ -30,6 +30,7 @@ app = typer.Typer(help="Reproductions of the paper's studies (workspace, stiffne
 
 OUT_HELP = "Output folder for the JSON, figures (PNG, SVG) and data files."
 DEFAULT_OUT = pathlib.Path("bellows_out/paper")
+_DEFAULT_COMPARE = ("paper_unscaled", "paper_scaled", "paper_scaled_020", "paper_diameter")
 PRESET_HELP = "Actuator preset name (paper, ...) or a path to an actuator .toml file."
 
 
@@ -194,6 +195,38 @@ def all_(samples: int = typer.Option(10_000, help="Workspace Monte Carlo samples
     if as_json:
         _echo_json(res["summary"])
     con.print(f"wrote {out}/summary.json and the studies' files")
+
+
+@app.command()
+def compare(presets: str = typer.Option(",".join(_DEFAULT_COMPARE),
+                                        help="Presets to compare, comma separated (names or .toml paths)."),
+            samples: int = typer.Option(5000, help="Workspace samples per mode and seed."),
+            seeds: str = typer.Option("0,1", help="Workspace seeds, comma separated (two give the spread)."),
+            workers: Optional[int] = typer.Option(None, help="Worker processes for the workspace."),
+            control: bool = typer.Option(True, help="Run the controller studies (Table I, ablation, loading)."),
+            out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/paper_compare"), help=OUT_HELP),
+            progress: bool = typer.Option(True, help="Show progress."),
+            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+            as_json: bool = typer.Option(False, "--json", help="Print the result as JSON.")):
+    """Every headline number of the paper for several presets side by side with the paper's values.
+
+    Default: 4 presets x 2 seeds x 5000 samples per mode (workspace), stiffness at 0/25/50 kPa x 6
+    tensions, convergence n = 1, 6 vs 16, drift, holding, IK time and the controller studies: a few
+    minutes on 2 cores.  Writes compare.json (after every preset) and compare.png/.svg."""
+    from .studies import comparison, tables
+    con = _console(as_json)
+    names = [x for x in presets.replace(" ", "").split(",") if x]
+    seed_list = [int(x) for x in _floats(seeds, "--seeds")]
+    with _scheduler_errors(None):
+        res = comparison.compare(names, samples=samples, seeds=seed_list, workers=workers,
+                                 control=comparison.CONTROL if control else (), out=out, force=force,
+                                 progress=progress and not as_json,
+                                 log=(lambda s: con.print(f"[dim]{s}[/dim]")) if progress else (lambda s: None))
+    if as_json:
+        _echo_json(res)
+    else:
+        tables.print_comparison(res, con)
+    con.print(f"wrote {out}/compare.json, compare.png, compare.svg")
 
 
 def main() -> None:  # pragma: no cover - standalone entry (the product mounts ``app`` as ``bellows paper``)

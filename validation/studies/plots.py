@@ -82,3 +82,39 @@ def plot_stiffness(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Pat
                  f"{res['summary']['mean_ratio_nonlinear']:.2f} (paper: about 2)")
     fig.tight_layout()
     return _save_figure(fig, pathlib.Path(out), "stiffness")
+
+
+def plot_comparison(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Path]:
+    """Ours / paper for every numeric headline with a paper value, one marker per preset (log scale);
+    the shaded band is where the verdict counts a number as reproduced."""
+    plt = _pyplot()
+    paper = res["paper"]
+    keys = [k for k, v in paper.items() if isinstance(v, (int, float)) and v
+            and any(isinstance(p["numbers"].get(k), (int, float)) for p in res["presets"])]
+    fig, ax = plt.subplots(figsize=(9, 0.38 * len(keys) + 1.6))
+    y = np.arange(len(keys))[::-1]
+    markers = "osD^v<>ph"
+    for j, p in enumerate(res["presets"]):
+        vals = [p["numbers"].get(k) for k in keys]
+        r = np.array([v / paper[k] if isinstance(v, (int, float)) and np.isfinite(v) else np.nan
+                      for k, v in zip(keys, vals)], float)
+        ax.scatter(np.clip(r, 1e-3, 1e3), y + 0.12 * (j - (len(res["presets"]) - 1) / 2), marker=markers[j % 9],
+                   label=f"{p['preset']} ({p['reproduced']}/{p['judged']} reproduced)", zorder=3)
+    for i, k in enumerate(keys):
+        lo, hi = res.get("criteria", {}).get(k, [None, None])
+        if lo is not None or hi is not None:
+            a = (lo if lo is not None else 1e-3) / paper[k]
+            b = (hi if hi is not None else 1e3 * paper[k]) / paper[k]
+            ax.fill_betweenx([y[i] - 0.4, y[i] + 0.4], a, b, color="tab:green", alpha=0.12, lw=0)
+    ax.axvline(1.0, color="k", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_xlim(1e-3, 1e3)
+    ax.set_yticks(y, [res["labels"][k] for k in keys], fontsize=8)
+    ax.set_xlabel("ours / paper  (green: counted as reproduced)")
+    ax.grid(alpha=0.3, axis="x")
+    ax.legend(fontsize=7, loc="lower right")
+    s = res["settings"]
+    ax.set_title(f"Headline numbers vs the paper (workspace: {s['samples_per_mode_per_seed']} samples per mode, "
+                 f"seeds {s['seeds']})", fontsize=9)
+    fig.tight_layout()
+    return _save_figure(fig, pathlib.Path(out), "compare")

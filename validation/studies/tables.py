@@ -99,3 +99,44 @@ def print_control_study(name: str, res: dict, console=None) -> None:
     console.print(t)
     if paper:
         console.print(escape(f"paper: {json.dumps(to_jsonable(paper))}"))
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "–"
+    if isinstance(v, str):
+        return v
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    v = float(v)
+    if not np.isfinite(v):
+        return "nan"
+    return f"{v:.3g}" if abs(v) < 1e4 else f"{v:.0f}"
+
+
+def print_comparison(res: dict, console=None) -> None:
+    """One row per headline, the paper's value, then one column per preset (✓ reproduced, ✗ missed)."""
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    console = console or Console(width=160)
+    t = Table(title="Headline numbers of the paper, by preset")
+    t.add_column("headline", justify="left")
+    t.add_column("paper", justify="right")
+    for p in res["presets"]:
+        t.add_column(p["preset"], justify="right")
+    for k, label in res["labels"].items():
+        cells = []
+        for p in res["presets"]:
+            v = p["numbers"].get(k)
+            mark = {True: " ✓", False: " ✗"}.get(p["verdicts"].get(k), "")
+            cells.append(escape(_fmt(v)) + mark)
+        if all(c == "–" for c in cells):
+            continue
+        t.add_row(escape(label), escape(_fmt(res["paper"].get(k))), *cells)
+    t.add_row("[bold]reproduced[/bold]", "", *[f"{p['reproduced']} of {p['judged']}" for p in res["presets"]])
+    console.print(t)
+    for p in res["presets"]:
+        for study, msg in p["notes"].items():
+            console.print(f"[yellow]{escape(p['preset'])} {escape(study)}: {escape(msg)}[/yellow]")
