@@ -47,7 +47,7 @@ def locked_drift(params: ParamsLike = None, mass: float = 0.110,
     T, p = configuration
     eq0 = model.fk(T, p)
     F = np.array([0.0, 0.0, -mass * G])
-    lk = model.fk_locked(eq0.tendon_lengths, p, F, q0=eq0.q, tensions0=eq0.tensions)
+    lk = model.fk_locked(model.rest_lengths(eq0), p, F, q0=eq0.q, tensions0=eq0.tensions)
     d = lk.tip - eq0.tip
     return {"preset": prm.name, "mass_kg": mass, "tensions_N": list(T), "pressure_Pa": p,
             "tip_angle_deg": tip_angle_deg(eq0), "drift_m": float(np.linalg.norm(d)), "displacement_m": d,

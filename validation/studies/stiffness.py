@@ -4,7 +4,8 @@ Protocol: p ∈ {0, 25, 50} kPa; T1 ∈ {0, …, 5} N on the top tendon (θ1 = 0
 locked; a 50 g payload hangs at the tip; k = m g / (z_unload − z_load).
 
 * Nonlinear ("measured" in simulation): ``eq0 = fk((T1, 0, 0), p)``; constant tension:
-  ``fk((T1, 0, 0), p, F)``; locked: ``fk_locked(eq0.tendon_lengths, p, F)`` with F = (0, 0, −m g).
+  ``fk((T1, 0, 0), p, F)``; locked: ``fk_locked(model.rest_lengths(eq0), p, F)`` with F = (0, 0, −m g)
+  (the path lengths, less the stretch T/k_s of elastic tendons).
   This is a *secant* stiffness over the payload.
 * Linear: k = 1 / (e_zᵀ C_p e_z) = ``directional_stiffness(C_p, e_z)`` at eq0, the *tangent* stiffness,
   for ``cp.tension`` and ``cp.locked`` with methods ``"exact"`` (KKT), ``"paper"`` (eq. 13) and ``"ik"``
@@ -86,7 +87,7 @@ def stiffness_vs_tension(pressures: Sequence[float] = (0.0, 25e3, 50e3),
             except BellowsError as exc:
                 failures.append({"pressure_Pa": p, "tension_N": T1, "solve": "fk loaded", "error": str(exc)})
             try:
-                lk = model.fk_locked(eq0.tendon_lengths, p, F, q0=eq0.q, tensions0=eq0.tensions)
+                lk = model.fk_locked(model.rest_lengths(eq0), p, F, q0=eq0.q, tensions0=eq0.tensions)
                 row["tip_loaded_locked_m"] = lk.tip
                 row["locked_tensions_N"] = lk.tensions
                 row["locked_active"] = list(lk.active)
