@@ -8,7 +8,7 @@ from ancf import ActuatorParams, Model, StiffnessLaw, presets
 from ancf import compliance as cp
 from ancf.errors import ConfigError
 from validation import compliance_check
-from validation.studies.stiffness import stiffness_vs_tension
+from validation.studies.stiffness import ratio_closed_form, series_stiffness_for_ratio, stiffness_vs_tension
 
 EA, EI, L, D = 767.2, 0.0839, 0.16, 0.0275
 
@@ -91,3 +91,32 @@ def test_toml_key_and_validation():
     for bad in (0.0, -5.0, float("inf")):
         with pytest.raises(ConfigError):
             presets.paper_scaled().replace(tendon_stiffness=bad)
+
+
+def _weightless(name, **kw):
+    return presets.get(name).replace(line_mass=0.0, tip_mass=0.0, tool_offset=0.0, **kw)
+
+
+def test_ratio_is_fixed_by_geometry_for_every_length_scaling():
+    """With EI = D_a² λ k/8 and EA ∝ k, the straight-beam ratio is 1/(1 − ¾ · 8d²/(8d² + D_a²)) whatever
+    the length factor: 2.90 for the paper's d and D_a — the model cannot give "about twice" by rescaling k."""
+    d, Da = 0.0275, 0.02959
+    closed = 1 / (1 - 0.75 * 8 * d ** 2 / (8 * d ** 2 + Da ** 2))
+    assert closed == pytest.approx(2.90, abs=0.01)
+    for name in ("paper_unscaled", "paper_scaled", "paper_scaled_020"):
+        assert ratio_closed_form(name) == pytest.approx(closed, rel=1e-12)
+        r = stiffness_vs_tension(pressures=(0.0,), tensions=(0.0,), mass=0.005, params=_weightless(name),
+                                 methods=("exact",))
+        assert r["ratio_locked_over_constant"]["linear_exact"][0, 0] == pytest.approx(closed, rel=0.03)
+    assert ratio_closed_form("paper_diameter") == pytest.approx(1.9, abs=0.05)      # d = 13.75 mm
+
+
+def test_series_stiffness_for_twice():
+    for name in ("paper_unscaled", "paper_scaled"):
+        ks = series_stiffness_for_ratio(name, 2.0)
+        assert ratio_closed_form(name, tendon_stiffness=ks) == pytest.approx(2.0, rel=1e-12)
+        r = stiffness_vs_tension(pressures=(0.0,), tensions=(0.0,), mass=0.005,
+                                 params=_weightless(name, tendon_stiffness=ks), methods=("exact",))
+        assert r["ratio_locked_over_constant"]["nonlinear"][0, 0] == pytest.approx(2.0, rel=0.03)
+    assert series_stiffness_for_ratio("paper_scaled") == pytest.approx(312, rel=0.05)
+    assert series_stiffness_for_ratio("paper_diameter") == float("inf")

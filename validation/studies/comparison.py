@@ -41,7 +41,7 @@ from . import states
 from .common import resolve_params
 from .convergence import PAPER_CONVERGENCE, element_convergence
 from .loads import hold_payload, ik_time, locked_drift
-from .stiffness import stiffness_vs_tension
+from .stiffness import ratio_closed_form, series_stiffness_for_ratio, stiffness_vs_tension
 from .workspace import workspace
 
 DEFAULT_PRESETS = ("paper_unscaled", "paper_scaled", "paper_scaled_020", "paper_diameter")
@@ -55,6 +55,8 @@ HEADLINES: dict[str, tuple] = {
     "stiffness_ratio_0kPa": ("  at 0 kPa", 2.0, "", None, None),
     "stiffness_ratio_25kPa": ("  at 25 kPa", 2.0, "", None, None),
     "stiffness_ratio_50kPa": ("  at 50 kPa", 2.0, "", None, None),
+    "stiffness_ratio_closed_form": ("  straight-beam closed form [-]", 2.0, "", None, None),
+    "series_stiffness_for_ratio_2_N_per_m": ("  series tendon stiffness giving 2 [N/m]", None, "N/m", None, None),
     "convergence_n1_mm": ("tip error n = 1 [mm]", PAPER_CONVERGENCE["tip_error_mm"][0], "mm", 3.05, 12.2),
     "convergence_n6_mm": ("tip error n = 6 [mm]", PAPER_CONVERGENCE["tip_error_mm"][1], "mm", 0.15, 0.6),
     "locked_drift_110g_mm": ("110 g locked drift [mm]", 10.0, "mm", 10.0, None),
@@ -157,6 +159,8 @@ def run_preset(preset, *, samples: int = 5000, seeds: Sequence[int] = (0, 1), wo
         row["workspace_seed_spread_percent"] = float(np.ptp(incs) / 2) if len(incs) > 1 else float("nan")
         row["workspace_halves_error_percent"] = float(np.mean(halves))
         row["workspace_td_collapsed_percent"] = float(np.mean(collapsed))
+    row["stiffness_ratio_closed_form"] = ratio_closed_form(prm)
+    row["series_stiffness_for_ratio_2_N_per_m"] = series_stiffness_for_ratio(prm, 2.0)
     log(f"{prm.name}: stiffness vs T1")
     st, err = _guard(stiffness_vs_tension, params=prm, methods=("exact",))
     if err:
