@@ -100,3 +100,16 @@ def test_sampling_error_of_a_known_ratio():
     assert 0 <= se["half_difference_percent"] < 3.0
     b[1::2] *= 1.5                                                       # the odd half is 1.5³ larger
     assert sampling_error(a, b)["half_difference_percent"] > 100
+
+
+def test_certain_collapse_needs_no_solve_and_bounds_are_consistent():
+    p = presets.paper_scaled()
+    nc, w = states.law_limits(p)["max_compression_N"], states.weight_bound(p)
+    assert w == pytest.approx((0.3 * 0.16 + 0.01) * 9.81)
+    assert states.certainly_collapsed(p, (5.0, 5.0, 5.0), 0.0)                    # 15 N > 11.6 + 0.6
+    assert not states.certainly_collapsed(p, (5.0, 5.0, 5.0), 120e3)              # pressure carries it
+    assert not states.certainly_collapsed(p, (nc / 3,) * 3, 0.0)
+    assert states.near_limit(p, (nc / 3,) * 3, 0.0) and not states.near_limit(p, (1.0, 1.0, 1.0), 0.0)
+    assert not states.certainly_collapsed(presets.paper_unscaled(), (5.0, 5.0, 5.0), 0.0)
+    with pytest.raises(Exception):                                                # really no equilibrium
+        Model(p).fk((4.5, 4.5, 4.5), 0.0)

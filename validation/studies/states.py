@@ -78,6 +78,26 @@ def axial_compression(params: ActuatorParams, tensions, pressure: float) -> floa
     return float(np.sum(tensions) - pressure * params.A_eff)
 
 
+def weight_bound(params: ActuatorParams) -> float:
+    """Largest axial force the self-weight and tip mass can add to a section [N]: (m' L + m_tip)|g|."""
+    return float((params.line_mass * params.length + params.tip_mass) * np.linalg.norm(params.gravity))
+
+
+def certainly_collapsed(params: ActuatorParams, tensions, pressure: float) -> bool:
+    """True when no equilibrium can exist: Σ T − p A_eff exceeds N_c by more than the weight can carry
+    (constant pressure area, or p = 0).  Such samples need no solve."""
+    if params.pressure_area_slope != 0.0 and pressure != 0.0:
+        return False
+    return axial_compression(params, tensions, pressure) > law_limits(params)["max_compression_N"] + weight_bound(params)
+
+
+def near_limit(params: ActuatorParams, tensions, pressure: float, fraction: float = 0.85) -> bool:
+    """Σ T − p A_eff above ``fraction`` of N_c: a bent section reaches the limit point earlier (EI(λ) adds
+    to the axial force), so failed solves here are most likely collapses the straight-rod bound cannot
+    certify."""
+    return axial_compression(params, tensions, pressure) > fraction * law_limits(params)["max_compression_N"]
+
+
 def state_collapsed(model: Model, q) -> bool:
     """True if some section of the state is at or past the law's limit point (λ ≤ λ_c)."""
     return bool(stretches(model, q).min() <= law_limits(model.params)["critical_stretch"])

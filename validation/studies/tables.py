@@ -26,7 +26,8 @@ def print_workspace(res: dict, console=None) -> None:
     for mode in MODES:
         t.add_row(f"{mode} volume (cm³)", f"{md[mode]['volume_cm3']:.2f}", "–")
         t.add_row(f"{mode} collapsed samples (law past its limit)", f"{md[mode]['collapsed']}", "–")
-        t.add_row(f"{mode} failed FK solves", f"{md[mode]['failures']}", "–")
+        t.add_row(f"{mode} failed FK solves (near the law's limit)",
+                  f"{md[mode]['failures']} ({md[mode].get('failures_near_limit', 0)})", "–")
     t.add_row("TPHD vs TD", f"{res['increase_percent']:+.1f} %", f"{PAPER['workspace']['increase_percent']:+.1f} %")
     se = res.get("sampling_error")
     if se:

@@ -18,8 +18,10 @@ Choices made here (the paper does not state them):
   error of a run with N/2 samples, an upper bound for the full run's.  A second seed
   (``bellows paper compare`` runs two) gives the full-size spread directly.
 * Every sample is one of ``ok``, ``collapsed`` (the stiffness law is past its limit point, or the
-  tendons' compression exceeds the largest the law can carry: :mod:`validation.studies.states`) or
-  ``failed`` (any other failed solve).  Collapsed and failed samples are counted, their inputs reported,
+  tendons' compression exceeds the largest the law can carry: :mod:`validation.studies.states`; when it
+  does so by more than the weight, the sample is not even solved) or ``failed`` (any other failed solve;
+  ``failures_near_limit`` counts those whose compression is above 85 % of that largest value — bent
+  sections reach the limit point earlier than the straight-rod bound can certify).  Collapsed and failed samples are counted, their inputs reported,
   and they are left out of the hull — never dropped silently.  A sample whose warm start fails is retried
   cold before it counts.
 * Parallelism: :func:`validation.runner.run_tasks` over chunks of ``chunk_size`` samples in a fixed
@@ -117,6 +119,12 @@ def solve_chunk(task: dict) -> dict:
     q_prev = None
     for i in order:
         T, p = X[i, :m], X[i, m]
+        if states.certainly_collapsed(model.params, T, p):
+            status[i] = 1
+            errors.append((int(i), f"collapsed: Σ T − p A_eff = {states.axial_compression(model.params, T, p):.2f} N "
+                                   f"> N_c = {states.law_limits(model.params)['max_compression_N']:.2f} N "
+                                   "plus the weight: no equilibrium (not solved)"))
+            continue
         eq, err, exc_last = None, "", None
         for q0 in ((q_prev, None) if q_prev is not None else (None,)):
             try:
@@ -283,9 +291,10 @@ def assemble(results: list[dict], X: dict, prm: ActuatorParams, samples: int, se
         if vol > 0:
             from scipy.spatial import ConvexHull
             nverts = len(ConvexHull(P).vertices)
+        near = [bool(states.near_limit(prm, x[:-1], x[-1])) for x in X[mode][st == 2]]
         res["modes"][mode] = {
             "samples": samples, "solved": int(ok.sum()), "collapsed": int((st == 1).sum()),
-            "failures": int((st == 2).sum()),
+            "failures": int((st == 2).sum()), "failures_near_limit": int(sum(near)),
             "collapsed_indices": np.flatnonzero(st == 1).tolist(), "collapsed_inputs": X[mode][st == 1],
             "failed_indices": np.flatnonzero(st == 2).tolist(), "failed_inputs": X[mode][st == 2],
             "first_errors": [msg for i, msg in errs if st[i] == 2][:5],
