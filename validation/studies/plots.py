@@ -39,10 +39,10 @@ def plot_workspace(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Pat
                 ax.plot(P[loop, i], P[loop, j], color=col, lw=1.2)
         axs.scatter(P[:, 0], P[:, 2], s=1, color=col, alpha=alpha, label=lab, rasterized=True)
         axf.scatter(P[:, 1], P[:, 2], s=1, color=col, alpha=alpha, rasterized=True)
-    ax3.set_xlabel("x [mm]"), ax3.set_ylabel("y [mm]"), ax3.set_zlabel("z [mm]")
-    axs.set_xlabel("x [mm]"), axs.set_ylabel("z [mm]"), axs.set_title("side view (x–z)")
-    axf.set_xlabel("y [mm]"), axf.set_ylabel("z [mm]"), axf.set_title("front view (y–z)")
-    for a in (axs, axf):
+    for axis, name in zip("xyz", ("set_xlabel", "set_ylabel", "set_zlabel")):
+        getattr(ax3, name)(f"{axis} [mm]")
+    for a, (h, v, view) in ((axs, ("x", "z", "side")), (axf, ("y", "z", "front"))):
+        a.set(xlabel=f"{h} [mm]", ylabel=f"{v} [mm]", title=f"{view} view ({h}–{v})")
         a.set_aspect("equal", adjustable="datalim")
         a.grid(alpha=0.3)
     axs.legend(loc="best", fontsize=8, markerscale=6)
