@@ -1,8 +1,10 @@
-"""``bellows paper workspace | stiffness | table1 | ablation | loading | all``: the paper's studies.
+"""``bellows paper workspace | stiffness | table1 | ablation | loading | all | compare``: the paper's studies.
 
-Each subcommand writes ``<study>.json`` and figures (PNG, SVG) to ``--out`` (default
-``bellows_out/paper``) and prints a table that sets our numbers beside the paper's; ``--json`` prints the
-result as JSON (SI units, unit in each key) instead.  The controller studies (``table1``, ``ablation``,
+Each subcommand runs on ``--preset`` (default ``paper``), writes ``<study>.json`` and figures (PNG, SVG)
+to ``--out`` (default ``bellows_out/paper``; existing results are kept unless ``--force``) and prints a
+table that sets our numbers beside the paper's; ``--json`` prints the result as JSON (SI units, unit in
+each key) instead.  ``compare`` prints every headline number for several presets side by side.  Product
+errors give one ``error:`` line and exit status 2; Ctrl-C exits 130 and says where the finished work is.  The controller studies (``table1``, ``ablation``,
 ``loading``) come from :mod:`validation.control_studies`; when it is missing they say so and exit with
 status 2 (``all`` skips them with a note).
 """
