@@ -23,7 +23,7 @@ Choices made here (the paper does not state them):
   ``failures_near_limit`` counts those whose compression is above 85 % of that largest value — bent
   sections reach the limit point earlier than the straight-rod bound can certify).  Collapsed and failed samples are counted, their inputs reported,
   and they are left out of the hull — never dropped silently.  A sample whose warm start fails is retried
-  cold before it counts.
+  cold before it counts (not near the law's limit, where a failure is almost always a collapse).
 * Parallelism: :func:`validation.runner.run_tasks` over chunks of ``chunk_size`` samples in a fixed
   layout; each chunk is solved independently along a Morton (Z-order) curve of its inputs with warm
   starts, so serial, process-parallel and dask runs give the same clouds (to round-off).
@@ -126,7 +126,10 @@ def solve_chunk(task: dict) -> dict:
                                    "plus the weight: no equilibrium (not solved)"))
             continue
         eq, err, exc_last = None, "", None
-        for q0 in ((q_prev, None) if q_prev is not None else (None,)):
+        # a cold retry after a failed warm start, except near the law's limit (there a failure is almost
+        # always a collapse, and each failed solve costs a full load-stepping run)
+        retry = q_prev is not None and not states.near_limit(model.params, T, p)
+        for q0 in ((q_prev, None) if retry else (q_prev,)):
             try:
                 eq = model.fk(T, p, (0.0, 0.0, 0.0), q0=q0, **fk_kwargs)
                 break
