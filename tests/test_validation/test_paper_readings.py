@@ -113,3 +113,15 @@ def test_certain_collapse_needs_no_solve_and_bounds_are_consistent():
     assert not states.certainly_collapsed(presets.paper_unscaled(), (5.0, 5.0, 5.0), 0.0)
     with pytest.raises(Exception):                                                # really no equilibrium
         Model(p).fk((4.5, 4.5, 4.5), 0.0)
+
+
+def test_rejected_inputs_are_failures_not_collapses():
+    """Tensions above the limit are rejected by the model (InputError) — counted as failed, even where
+    their compression would also collapse the law."""
+    res = workspace(samples=20, seed=4, workers=1, progress=False, params=presets.paper_scaled(),
+                    tension_range=(4.0, 6.0))
+    X, status = res["clouds"]["TD"]["inputs"], res["clouds"]["TD"]["status"]
+    over = np.any(X[:, :3] > 5.0, axis=1)
+    assert over.any() and np.all(status[over] == "failed")
+    assert np.all(status[~over] == "collapsed")                       # Σ T ≥ 12 N > N_c
+    assert "InputError" in res["modes"]["TD"]["first_errors"][0]

@@ -88,6 +88,10 @@ def certainly_collapsed(params: ActuatorParams, tensions, pressure: float) -> bo
     (constant pressure area, or p = 0).  Such samples need no solve."""
     if params.pressure_area_slope != 0.0 and pressure != 0.0:
         return False
+    T = np.asarray(tensions, float)
+    if np.any(T < params.tension_min) or np.any(T > params.tension_max) \
+            or not (params.pressure_min <= pressure <= params.pressure_max):
+        return False                          # out-of-limit inputs are the model's to reject
     return axial_compression(params, tensions, pressure) > law_limits(params)["max_compression_N"] + weight_bound(params)
 
 
@@ -106,9 +110,11 @@ def state_collapsed(model: Model, q) -> bool:
 def failure_is_collapse(params: ActuatorParams, tensions, pressure: float, exc: BaseException) -> bool:
     """A failed solve counts as collapsed if the model said so, or if its inputs compress the rod by more
     than the law can carry (no equilibrium exists)."""
-    from ancf.errors import CollapsedStateError
+    from ancf.errors import CollapsedStateError, InputError
     if isinstance(exc, CollapsedStateError):
         return True
+    if isinstance(exc, InputError):           # rejected inputs are failures, whatever their load
+        return False
     return axial_compression(params, tensions, pressure) > law_limits(params)["max_compression_N"]
 
 
