@@ -200,6 +200,49 @@ def all_(samples: int = typer.Option(10_000, help="Workspace Monte Carlo samples
 
 
 @app.command()
+def convergence(n_values: str = typer.Option("1,2,3,4,5,6,8", help="Numbers of elements, comma separated."),
+                n_ref: int = typer.Option(16, help="Elements of the reference solution."),
+                preset: str = typer.Option("paper", help=PRESET_HELP),
+                as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Tip error vs the number of elements n (paper: 6.1 -> 0.3 mm from n = 1 to 6)."""
+    from .studies.convergence import element_convergence
+    con = _console(as_json)
+    with _scheduler_errors(None):
+        res = element_convergence(preset, n_values=[int(x) for x in _floats(n_values, "--n-values")], n_ref=n_ref)
+    if as_json:
+        _echo_json(res)
+        return
+    for n, e in zip(res["n"], res["tip_error_m"]):
+        con.print(f"n = {n:2d}: tip error {e * 1e3:8.3f} mm")
+    con.print(f"rate {res['rate']:.2f} (log-log slope from n = 2); paper: 6.1 mm at n = 1, 0.3 mm at n = 6; "
+              f"{len(res['failures'])} failed solves")
+
+
+@app.command()
+def loads(mass_kg: float = typer.Option(0.110, help="Payload of the locked drift [kg] (paper: 0.110)."),
+          hold_mass_kg: float = typer.Option(0.100, help="Payload to hold in each configuration [kg]."),
+          preset: str = typer.Option("paper", help=PRESET_HELP),
+          as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Locked drift under a payload, holding a payload in the Table I configurations, and the IK time."""
+    from .studies.loads import hold_payload, ik_time, locked_drift
+    con = _console(as_json)
+    with _scheduler_errors(None):
+        res = {"drift": locked_drift(preset, mass=mass_kg), "hold": hold_payload(preset, mass=hold_mass_kg),
+               "ik_time": ik_time(preset)}
+    if as_json:
+        _echo_json(res)
+        return
+    d = res["drift"]
+    con.print(f"locked drift under {mass_kg * 1e3:g} g: {d['drift_m'] * 1e3:.2f} mm (tip {d['tip_angle_deg']:.1f}°; "
+              "paper: over 10 mm at 110 g)")
+    for name, row in res["hold"]["configurations"].items():
+        con.print(f"holds {hold_mass_kg * 1e3:g} g {name} (tip {row['tip_angle_deg']:.1f}°): "
+                  f"{'yes' if row['held'] else 'no'}, max tension needed {row['max_tension_needed_N']:.2f} N")
+    t = res["ik_time"]
+    con.print(f"IK time: cold {t['cold_s'] * 1e3:.2f} ms, warm {t['warm_s'] * 1e3:.2f} ms (paper: 2.95 s)")
+
+
+@app.command()
 def compare(presets: str = typer.Option(",".join(_DEFAULT_COMPARE),
                                         help="Presets to compare, comma separated (names or .toml paths)."),
             samples: int = typer.Option(5000, help="Workspace samples per mode and seed."),

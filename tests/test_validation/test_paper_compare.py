@@ -87,3 +87,14 @@ def test_locked_drift_is_linear_in_a_small_payload():
     d1 = locked_drift("paper_unscaled", mass=0.02)["drift_m"]
     d2 = locked_drift("paper_unscaled", mass=0.01)["drift_m"]
     assert d1 / d2 == pytest.approx(2.0, rel=0.05)
+
+
+def test_convergence_and_loads_commands():
+    res = runner.invoke(app, ["convergence", "--n-values", "1,6", "--n-ref", "8", "--preset", "paper_unscaled",
+                              "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert data["n"] == [1, 6] and data["tip_error_m"][0] > 3 * data["tip_error_m"][1] > 0
+    res = runner.invoke(app, ["loads", "--preset", "paper_unscaled"])
+    assert res.exit_code == 0, res.output
+    assert "locked drift under 110 g: 4.5" in res.output and "IK time" in res.output
