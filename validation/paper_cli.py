@@ -1,12 +1,13 @@
-"""``bellows paper workspace | stiffness | table1 | ablation | loading | all | compare``: the paper's studies.
+"""``bellows paper workspace | stiffness | convergence | loads | table1 | ablation | loading | all | compare``.
 
 Each subcommand runs on ``--preset`` (default ``paper``), writes ``<study>.json`` and figures (PNG, SVG)
 to ``--out`` (default ``bellows_out/paper``; existing results are kept unless ``--force``) and prints a
 table that sets our numbers beside the paper's; ``--json`` prints the result as JSON (SI units, unit in
 each key) instead.  ``compare`` prints every headline number for several presets side by side.  Product
-errors give one ``error:`` line and exit status 2; Ctrl-C exits 130 and says where the finished work is.  The controller studies (``table1``, ``ablation``,
-``loading``) come from :mod:`validation.control_studies`; when it is missing they say so and exit with
-status 2 (``all`` skips them with a note).
+errors give one ``error:`` line and exit status 2; Ctrl-C exits 130 and says where the finished work is.
+The controller studies (``table1``, ``ablation``, ``loading``) come from
+:mod:`validation.control_studies`; when it is missing they say so and exit with status 2 (``all`` skips
+them with a note).  ``convergence`` and ``loads`` print the element convergence and the loading checks.
 """
 
 from __future__ import annotations
@@ -123,7 +124,8 @@ def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per 
 
 @app.command()
 def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressures in kPa, comma separated."),
-              tensions_n: str = typer.Option("0,1,2,3,4,5", help="Tensions of the top tendon T1 in N, comma separated."),
+              tensions_n: str = typer.Option("0,1,2,3,4,5",
+                                             help="Tensions of the top tendon T1 in N, comma separated."),
               mass_kg: float = typer.Option(0.05, help="Tip payload in kg (paper: 0.05)."),
               preset: str = typer.Option("paper", help=PRESET_HELP),
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),

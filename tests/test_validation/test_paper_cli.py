@@ -101,7 +101,8 @@ def test_wrappers_forward_to_control_studies(tmp_path, monkeypatch):
     assert json.loads((tmp_path / "table1.json").read_text())["upward"]["lacc_error_m"] == 2e-5
     assert "upward.lacc_error_m" in res.output
     # a study that brings its own printable comparison ("table") is printed as is
-    fake.table1 = lambda out=None, params=None: {"upward": {"lacc_mm": 0.02}, "table": "config  LACC [mm]  paper\nupward  0.020  0.020"}
+    fake.table1 = lambda out=None, params=None: {"upward": {"lacc_mm": 0.02},
+                                                 "table": "config  LACC [mm]  paper\nupward  0.020  0.020"}
     res = runner.invoke(app, ["table1", "--out", str(tmp_path)])
     assert res.exit_code == 0 and "LACC [mm]" in res.output
     # a study that cannot take a preset is not run on the default one silently

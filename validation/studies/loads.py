@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import statistics
 import time
-from typing import Optional, Sequence
+from typing import Optional
 
 import numpy as np
 
@@ -51,7 +51,8 @@ def locked_drift(params: ParamsLike = None, mass: float = 0.110,
     d = lk.tip - eq0.tip
     return {"preset": prm.name, "mass_kg": mass, "tensions_N": list(T), "pressure_Pa": p,
             "tip_angle_deg": tip_angle_deg(eq0), "drift_m": float(np.linalg.norm(d)), "displacement_m": d,
-            "locked_tensions_N": lk.tensions, "paper_drift_mm_more_than": PAPER_LOADING["continuous_uncontrolled_drift_mm"]}
+            "locked_tensions_N": lk.tensions,
+            "paper_drift_mm_more_than": PAPER_LOADING["continuous_uncontrolled_drift_mm"]}
 
 
 def hold_payload(params: ParamsLike = None, mass: float = 0.100,

@@ -92,7 +92,8 @@ def certainly_collapsed(params: ActuatorParams, tensions, pressure: float) -> bo
     if np.any(T < params.tension_min) or np.any(T > params.tension_max) \
             or not (params.pressure_min <= pressure <= params.pressure_max):
         return False                          # out-of-limit inputs are the model's to reject
-    return axial_compression(params, tensions, pressure) > law_limits(params)["max_compression_N"] + weight_bound(params)
+    limit = law_limits(params)["max_compression_N"] + weight_bound(params)
+    return axial_compression(params, tensions, pressure) > limit
 
 
 def near_limit(params: ActuatorParams, tensions, pressure: float, fraction: float = 0.85) -> bool:

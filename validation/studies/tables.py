@@ -32,7 +32,8 @@ def print_workspace(res: dict, console=None) -> None:
     se = res.get("sampling_error")
     if se:
         a, b = se["halves_increase_percent"]
-        t.add_row("  on two disjoint halves (sampling error)", f"{a:+.1f} / {b:+.1f} % (± {se['half_difference_percent']:.1f})",
+        t.add_row("  on two disjoint halves (sampling error)",
+                  f"{a:+.1f} / {b:+.1f} % (± {se['half_difference_percent']:.1f})",
                   "–")
     t.add_row("TD tips inside TPHD hull", f"{res['inside_fraction'] * 100:.1f} %", "–")
     tm = res["timing"]

@@ -21,9 +21,10 @@ Choices made here (the paper does not state them):
   tendons' compression exceeds the largest the law can carry: :mod:`validation.studies.states`; when it
   does so by more than the weight, the sample is not even solved) or ``failed`` (any other failed solve;
   ``failures_near_limit`` counts those whose compression is above 85 % of that largest value — bent
-  sections reach the limit point earlier than the straight-rod bound can certify).  Collapsed and failed samples are counted, their inputs reported,
-  and they are left out of the hull — never dropped silently.  A sample whose warm start fails is retried
-  cold before it counts (not near the law's limit, where a failure is almost always a collapse).
+  sections reach the limit point earlier than the straight-rod bound can certify).  Collapsed and
+  failed samples are counted, their inputs reported, and they are left out of the hull — never dropped
+  silently.  A sample whose warm start fails is retried cold before it counts (not near the law's limit,
+  where a failure is almost always a collapse).
 * Parallelism: :func:`validation.runner.run_tasks` over chunks of ``chunk_size`` samples in a fixed
   layout; each chunk is solved independently along a Morton (Z-order) curve of its inputs with warm
   starts, so serial, process-parallel and dask runs give the same clouds (to round-off).
