@@ -73,7 +73,7 @@ def paper_diameter() -> ActuatorParams:
 
 
 #: The reading the default ``paper`` preset follows (docs/paper-readings.md gives the evidence).
-PAPER_READING = paper_unscaled
+PAPER_READING = paper_scaled
 
 
 def paper() -> ActuatorParams:
