@@ -15,7 +15,10 @@ Three forms of C'_p:
       H δq + J_Aᵀ δT_A = J_pᵀ δF,   J_A δq = 0
       ⇒ C'_q = [H⁻¹ − H⁻¹ J_Aᵀ (J_A H⁻¹ J_Aᵀ)⁻¹ J_A H⁻¹] J_pᵀ,   δT_A = (J_A H⁻¹ J_Aᵀ)⁻¹ J_A H⁻¹ J_pᵀ δF.
   Exact for small loads when A is the true set of taut tendons (checked against finite differences of
-  the nonlinear locked FK in the tests).
+  the nonlinear locked FK in the tests).  Elastic tendons (series stiffness k_s, locked constraint
+  l(q) − T/k_s = l⁰, so J_A δq = δT_A/k_s) add their compliance to the Schur complement:
+  (J_A H⁻¹ J_Aᵀ + diag(1/k_s)) replaces J_A H⁻¹ J_Aᵀ; k_s → ∞ is the inextensible case, k_s → 0 constant
+  tension.
 * ``"paper"`` — eq. (13): δT_A ≈ 0 and the stacked, over-determined system [H; J_A] δq = [J_pᵀ; 0] δF
   solved with the SVD pseudo-inverse (least squares).  The rows are used as the paper writes them
   (force rows in N, length rows dimensionless, no weighting): an approximation.
@@ -92,13 +95,14 @@ def tension(model: Model, eq: Equilibrium) -> Compliance:
     return Compliance(C_p=Jp @ Cq, C_q=_full(model, Cq), active=(), mode="tension", method="exact")
 
 
-def _kkt(H, Jp, JA):
-    """Exact locked sensitivities for the taut set with rows JA: (δq per δF (nz, 3), δT_A per δF)."""
+def _kkt(H, Jp, JA, cs: float = 0.0):
+    """Exact locked sensitivities for the taut set with rows JA and series tendon compliance ``cs`` =
+    1/k_s [m/N]: (δq per δF (nz, 3), δT_A per δF)."""
     HiJp = np.linalg.solve(H, Jp.T)
     if JA.shape[0] == 0:
         return HiJp, np.zeros((0, 3))
     HiJA = np.linalg.solve(H, JA.T)
-    dTA = np.linalg.solve(JA @ HiJA, JA @ HiJp)
+    dTA = np.linalg.solve(JA @ HiJA + cs * np.eye(JA.shape[0]), JA @ HiJp)
     return HiJp - HiJA @ dTA, dTA
 
 
@@ -128,7 +132,7 @@ def active_set(model: Model, eq: Equilibrium, load_direction=None, rule: str = "
     seen = set()
     while tuple(A) not in seen:
         seen.add(tuple(A))
-        dq, dTA = _kkt(H, Jp, Jl[A])
+        dq, dTA = _kkt(H, Jp, Jl[A], model._cs)
         dT = dict(zip(A, dTA @ u))
         dl = Jl @ (dq @ u)
         drop = [i for i in A if i not in taut and dT[i] < -1e-12 * max(1.0, abs(dT[i]))]
@@ -164,7 +168,7 @@ def locked(model: Model, eq: Equilibrium, method: str = "exact", active: Optiona
     JA = Jl[A]
     dT = None
     if method == "exact":
-        Cq, dTA = _kkt(H, Jp, JA)
+        Cq, dTA = _kkt(H, Jp, JA, model._cs)
         dT = np.zeros((model.m, 3))
         dT[A] = dTA
     elif method == "paper":

@@ -126,6 +126,8 @@ class Model:
         # default residual tolerance [N]: round-off of the generalized forces scales with EA
         self.default_tol = 1e-9 + 1e-13 * float(p.stiffness.EA(1.0))
         self._droop: dict[float, Equilibrium] = {}
+        # series compliance of each tendon path 1/k_s [m/N] (0: inextensible)
+        self._cs = 0.0 if p.tendon_stiffness is None else 1.0 / p.tendon_stiffness
 
     # ----------------------------------------------------------------------------- coordinate maps
     def to_free(self, q: np.ndarray) -> np.ndarray:
@@ -477,11 +479,17 @@ class Model:
             f"{np.round(T, 4).tolist()} N", target=pd, nearest=near, tensions=T, violated=violated)
 
     # ----------------------------------------------------------------------------- locked FK
+    def rest_lengths(self, eq: Equilibrium) -> np.ndarray:
+        """Tendon lengths to lock at ``eq`` [m]: l(q) − T/k_s (the path lengths for inextensible tendons)."""
+        return eq.tendon_lengths - self._cs * eq.tensions
+
     def fk_locked(self, tendon_lengths, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None,
                   tensions0=None, *, method: str = "active_set", tol: Optional[float] = None, tol_length: float = 1e-10,
                   max_iter: int = 60) -> Equilibrium:
         """FK with locked tendon lengths l⁰ [m] (paper eqs. 3–6): returns q, tensions T ≥ 0 and slack
-        β = l⁰ − l(q) ≥ 0 with T_i β_i = 0.  ``method``: ``"active_set"`` (exact) or ``"gamma"`` (paper)."""
+        β = l⁰ − l(q) ≥ 0 with T_i β_i = 0.  ``method``: ``"active_set"`` (exact) or ``"gamma"`` (paper).
+        With elastic tendons (``tendon_stiffness`` k_s) a taut tendon obeys l(q) − T/k_s = l⁰, the rest
+        length (lock at :meth:`rest_lengths` of an equilibrium)."""
         tol = self.default_tol if tol is None else tol
         l0 = check_finite("tendon_lengths", tendon_lengths, (self.m,))
         _, pr, F = self._check_inputs(None, pressure, tip_force, True)
@@ -511,11 +519,12 @@ class Model:
             if not self._admissible(ev):
                 return np.full(nz + len(A), np.nan), None
             JlA = self.reduce_vec(ev.J_l[A])
-            R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths[A] - l0[A]])
+            R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths[A] - self._cs * TA - l0[A]])
             J = np.zeros((nz + len(A), nz + len(A)))
             J[:nz, :nz] = self.reduce_mat(ev.K)
             J[:nz, nz:] = JlA.T
             J[nz:, :nz] = JlA
+            J[nz:, nz:] = -self._cs * np.eye(len(A))
             return R, J
         return fun
 
@@ -580,12 +589,12 @@ class Model:
             if not self._admissible(ev):
                 return np.full(nz + m, np.nan), None
             Jl = self.reduce_vec(ev.J_l)
-            R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths + beta - l0])
+            R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths - self._cs * T + beta - l0])
             J = np.zeros((nz + m, nz + m))
             J[:nz, :nz] = self.reduce_mat(ev.K)
             J[:nz, nz:] = Jl.T * np.where(gam > 0, 2 * gam, 0.0)
             J[nz:, :nz] = Jl
-            J[nz:, nz:] = np.diag(np.where(gam > 0, 0.0, 2 * gam))
+            J[nz:, nz:] = np.diag(np.where(gam > 0, -2 * self._cs * gam, 2 * gam))
             return R, J
 
         w = np.concatenate([np.ones(nz), np.full(m, self._kscale * self.params.length)])

@@ -11,7 +11,7 @@ from __future__ import annotations
 import difflib
 import math
 import pathlib
-from typing import Any
+from typing import Any, Optional
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
@@ -37,6 +37,7 @@ UNITS: dict[str, dict[str, float]] = {
     "modulus": {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6},
     "density": {"kg_per_m3": 1.0, "g_per_cm3": 1e3},
     "dimensionless": {"": 1.0},
+    "stiffness": {"N_per_m": 1.0, "N_per_mm": 1e3},
 }
 
 # field name -> dimension, for the top level of an actuator TOML file
@@ -47,6 +48,7 @@ TOP_FIELDS = {
     "base_axis": "dimensionless", "reference_direction": "dimensionless", "gravity": "acceleration",
     "tension_min": "force", "tension_max": "force", "pressure_min": "pressure", "pressure_max": "pressure",
     "free_base_stretch": None, "pressure_area_slope": "dimensionless",
+    "tendon_stiffness": "stiffness",
 }
 STIFFNESS_FIELDS = {"law": None, "a": "force", "b": "force", "D_a": "length", "EA": "force",
                     "EI": "bending_stiffness", "EA_coeffs": "force", "EI_coeffs": "bending_stiffness"}
@@ -131,6 +133,8 @@ class ActuatorParams(BaseModel):
     tension_min, tension_max       tendon tension limits [N]
     pressure_min, pressure_max     pressure limits [Pa]
     free_base_stretch : bool       leave |r_x| at the base free (default: clamped to 1)
+    tendon_stiffness : float|None  series stiffness k_s of each tendon path (rope, sensor, screw) [N/m];
+                                   None: inextensible.  Locked tendons obey l(q) − T/k_s = l⁰ (rest length)
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=False)
@@ -155,6 +159,14 @@ class ActuatorParams(BaseModel):
     pressure_min: float = 0.0
     pressure_max: float = 120e3
     free_base_stretch: bool = False
+    tendon_stiffness: Optional[float] = None
+
+    @field_validator("tendon_stiffness")
+    @classmethod
+    def _ks(cls, v):
+        if v is not None and not (math.isfinite(v) and v > 0):
+            raise ValueError(f"tendon_stiffness {v} N/m must be finite and > 0 (omit it for inextensible tendons)")
+        return v
 
     @field_validator("length")
     @classmethod
@@ -345,7 +357,9 @@ class ActuatorParams(BaseModel):
             f"gravity_m_per_s2 = {list(self.gravity)}", f"tension_min_N = {self.tension_min!r}",
             f"tension_max_N = {self.tension_max!r}", f"pressure_min_Pa = {self.pressure_min!r}",
             f"pressure_max_Pa = {self.pressure_max!r}",
-            f"free_base_stretch = {'true' if self.free_base_stretch else 'false'}", "", "[stiffness]",
+            f"free_base_stretch = {'true' if self.free_base_stretch else 'false'}",
+            *([f"tendon_stiffness_N_per_m = {self.tendon_stiffness!r}"] if self.tendon_stiffness else []),
+            "", "[stiffness]",
             f'law = "{self.stiffness.kind}"']
         s = self.stiffness
         if s.kind == "linear":

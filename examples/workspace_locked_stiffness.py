@@ -15,7 +15,8 @@ from validation import paper
 
 
 def main(pressures=(0.0, 25e3, 50e3), tensions=(0, 1, 2, 3, 4, 5), out="bellows_out/examples/stiffness") -> dict:
-    res = paper.stiffness_vs_tension(pressures=pressures, tensions=tensions, out=pathlib.Path(out))
+    res = paper.stiffness_vs_tension(pressures=pressures, tensions=tensions, out=pathlib.Path(out),
+                                     force=True)
     paper.print_stiffness(res)
     return res
 

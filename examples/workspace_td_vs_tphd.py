@@ -18,7 +18,8 @@ from validation import paper
 
 
 def main(samples: int = 2000, out="bellows_out/examples/workspace", workers=None, progress: bool = True) -> dict:
-    res = paper.workspace(samples=samples, seed=0, workers=workers, out=pathlib.Path(out), progress=progress)
+    res = paper.workspace(samples=samples, seed=0, workers=workers, out=pathlib.Path(out), progress=progress,
+                          force=True)
     paper.print_workspace(res)
     td, tphd = res["modes"]["TD"], res["modes"]["TPHD"]
     print(f"TD   : {td['volume_cm3']:8.2f} cm³ from {td['solved']} tips ({td['failures']} failed)")

@@ -46,7 +46,7 @@ def fd_tension(model: Model, eq, u, h: float = 2e-3) -> np.ndarray:
 def fd_locked(model: Model, eq, u, h: float = 1e-3) -> np.ndarray:
     """One-sided second-order (Richardson) difference of the locked FK along +u [m/N]."""
     def f(s):
-        return model.fk_locked(eq.tendon_lengths, eq.pressure, eq.tip_force + s * u, q0=eq.q,
+        return model.fk_locked(model.rest_lengths(eq), eq.pressure, eq.tip_force + s * u, q0=eq.q,
                                tensions0=eq.tensions).tip
     return (4 * (f(h) - eq.tip) / h - (f(2 * h) - eq.tip) / (2 * h)) / 3
 

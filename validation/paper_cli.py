@@ -1,10 +1,13 @@
-"""``bellows paper workspace | stiffness | table1 | ablation | loading | all``: the paper's studies.
+"""``bellows paper workspace | stiffness | convergence | loads | table1 | ablation | loading | all | compare``.
 
-Each subcommand writes ``<study>.json`` and figures (PNG, SVG) to ``--out`` (default
-``bellows_out/paper``) and prints a table that sets our numbers beside the paper's; ``--json`` prints the
-result as JSON (SI units, unit in each key) instead.  The controller studies (``table1``, ``ablation``,
-``loading``) come from :mod:`validation.control_studies`; when it is missing they say so and exit with
-status 2 (``all`` skips them with a note).
+Each subcommand runs on ``--preset`` (default ``paper``), writes ``<study>.json`` and figures (PNG, SVG)
+to ``--out`` (default ``bellows_out/paper``; existing results are kept unless ``--force``) and prints a
+table that sets our numbers beside the paper's; ``--json`` prints the result as JSON (SI units, unit in
+each key) instead.  ``compare`` prints every headline number for several presets side by side.  Product
+errors give one ``error:`` line and exit status 2; Ctrl-C exits 130 and says where the finished work is.
+The controller studies (``table1``, ``ablation``, ``loading``) come from
+:mod:`validation.control_studies`; when it is missing they say so and exit with status 2 (``all`` skips
+them with a note).  ``convergence`` and ``loads`` print the element convergence and the loading checks.
 """
 
 from __future__ import annotations
@@ -23,12 +26,14 @@ from ancf.errors import BellowsError
 from ancf.export import to_jsonable
 
 from . import paper
+from .runner import RunInterrupted
 
 app = typer.Typer(help="Reproductions of the paper's studies (workspace, stiffness, Table I, ...).",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
 
 OUT_HELP = "Output folder for the JSON, figures (PNG, SVG) and data files."
 DEFAULT_OUT = pathlib.Path("bellows_out/paper")
+_DEFAULT_COMPARE = ("paper_unscaled", "paper_scaled", "paper_scaled_020", "paper_diameter")
 PRESET_HELP = "Actuator preset name (paper, ...) or a path to an actuator .toml file."
 
 
@@ -56,9 +61,15 @@ def _fail(msg: str) -> None:
 
 @contextlib.contextmanager
 def _scheduler_errors(scheduler, always_on_import: bool = False):
-    """Turn a missing dask or an unreachable scheduler into one clear error line (exit 2)."""
+    """Turn a missing dask or an unreachable scheduler into one clear error line (exit 2), Ctrl-C into a
+    note saying where the finished work is (exit 130), and any other error of the product into one
+    ``error:`` line (exit 2)."""
     try:
         yield
+    except RunInterrupted as exc:
+        _interrupted(exc)
+    except BellowsError as exc:
+        _fail(str(exc))
     except ImportError as exc:
         if scheduler is None and not always_on_import:
             raise
@@ -67,6 +78,16 @@ def _scheduler_errors(scheduler, always_on_import: bool = False):
         if scheduler is None:
             raise
         _fail(f"cannot use the dask scheduler {scheduler!r}: {exc}")
+
+FORCE_HELP = "Overwrite existing result files in --out."
+
+
+def _interrupted(exc: RunInterrupted) -> None:
+    where = f"; the finished samples are in {exc.saved_to}" if exc.saved_to else ""
+    typer.secho(f"interrupted: {len(exc.completed)} of {exc.total} tasks finished{where}", fg=typer.colors.YELLOW,
+                err=True)
+    raise typer.Exit(130)
+
 
 @app.command()
 def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per mode (paper: 10 000)."),
@@ -80,34 +101,42 @@ def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per 
               preset: str = typer.Option("paper", help=PRESET_HELP),
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
               progress: bool = typer.Option(True, help="Show a progress bar."),
+              force: bool = typer.Option(False, "--force", help=FORCE_HELP),
               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Workspace of the TD and TPHD modes (paper Sec IV-A, Fig 4): convex-hull volumes and their ratio."""
+    """Workspace of the TD and TPHD modes (paper Sec IV-A, Fig 4): convex-hull volumes and their ratio.
+
+    Finished samples are appended to workspace_samples.csv as the run goes; Ctrl-C keeps them."""
     con = _console(as_json)
     with _scheduler_errors(scheduler, always_on_import=True):
         res = paper.workspace(samples=samples, seed=seed, workers=workers, scheduler=scheduler, out=out,
-                              progress=progress and not as_json, chunk_size=chunk_size, warm_start=warm_start,
-                              params=preset)
+                              progress=progress and not as_json, chunk_size=chunk_size,
+                              warm_start=warm_start, params=preset, force=force)
     if as_json:
         _echo_json({k: v for k, v in res.items() if k != "clouds"})
     else:
         paper.print_workspace(res, con)
-    if res["failures"]:
-        con.print(f"[yellow]{res['failures']} FK solves failed; their inputs are in workspace.json[/yellow]")
-    con.print(f"wrote {out}/workspace.json, workspace_clouds.npz, workspace.png, workspace.svg")
+    if res["failures"] or res["collapsed"]:
+        con.print(f"[yellow]{res['collapsed']} samples collapsed and {res['failures']} FK solves failed; "
+                  "their inputs are in workspace.json[/yellow]")
+    con.print(f"wrote {out}/workspace.json, workspace_samples.csv, workspace_clouds.npz, workspace.png, "
+              "workspace.svg")
 
 
 @app.command()
 def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressures in kPa, comma separated."),
-              tensions_n: str = typer.Option("0,1,2,3,4,5", help="Tensions of the top tendon T1 in N, comma separated."),
+              tensions_n: str = typer.Option("0,1,2,3,4,5",
+                                             help="Tensions of the top tendon T1 in N, comma separated."),
               mass_kg: float = typer.Option(0.05, help="Tip payload in kg (paper: 0.05)."),
               preset: str = typer.Option("paper", help=PRESET_HELP),
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+              force: bool = typer.Option(False, "--force", help=FORCE_HELP),
               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Stiffness vs T1, constant tension vs locked tendons (paper Sec V-C, Fig 9)."""
     con = _console(as_json)
-    res = paper.stiffness_vs_tension(pressures=_floats(pressures_kpa, "--pressures-kpa", 1e3),
-                                     tensions=_floats(tensions_n, "--tensions-n"), mass=mass_kg, out=out,
-                                     params=preset)
+    with _scheduler_errors(None):
+        res = paper.stiffness_vs_tension(pressures=_floats(pressures_kpa, "--pressures-kpa", 1e3),
+                                         tensions=_floats(tensions_n, "--tensions-n"), mass=mass_kg, out=out,
+                                         params=preset, force=force)
     if as_json:
         _echo_json(res)
     else:
@@ -115,12 +144,11 @@ def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressur
     con.print(f"wrote {out}/stiffness.json, stiffness.png, stiffness.svg")
 
 
-def _control(name: str, out: pathlib.Path, as_json: bool) -> None:
+def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper") -> None:
     con = _console(as_json)
-    try:
-        res = paper.CONTROL_STUDIES[name](out=out)
-    except paper.StudyUnavailableError as exc:
-        _fail(str(exc))
+    with _scheduler_errors(None):
+        params = paper.resolve_params(preset)
+        res = paper.CONTROL_STUDIES[name](out=out, params=params)
     path = paper.write_json(out / paper.CONTROL_FILES[name], res)
     if as_json:
         _echo_json(res)
@@ -131,23 +159,26 @@ def _control(name: str, out: pathlib.Path, as_json: bool) -> None:
 
 @app.command()
 def table1(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+           preset: str = typer.Option("paper", help=PRESET_HELP),
            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Table I: VF-CC vs LACC residual error after five iterations (up / horizontal / down)."""
-    _control("table1", out, as_json)
+    _control("table1", out, as_json, preset)
 
 
 @app.command()
 def ablation(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+             preset: str = typer.Option("paper", help=PRESET_HELP),
              as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """FK- vs IK-derived compliance in the LACC loop (paper: IK-derived ≈ 50 % faster)."""
-    _control("ablation", out, as_json)
+    _control("ablation", out, as_json, preset)
 
 
 @app.command()
 def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+            preset: str = typer.Option("paper", help=PRESET_HELP),
             as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Continuous (0 → 110 g → 0 over 50 s) and cyclic (0.125 Hz) loading (paper Sec V-E)."""
-    _control("loading", out, as_json)
+    _control("loading", out, as_json, preset)
 
 
 @app.command("all")
@@ -157,15 +188,92 @@ def all_(samples: int = typer.Option(10_000, help="Workspace Monte Carlo samples
          scheduler: Optional[str] = typer.Option(None, help="dask scheduler address, or 'local'."),
          out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
          progress: bool = typer.Option(True, help="Show a progress bar."),
+         preset: str = typer.Option("paper", help=PRESET_HELP),
+         force: bool = typer.Option(False, "--force", help=FORCE_HELP),
          as_json: bool = typer.Option(False, "--json", help="Print the summary as JSON.")):
     """Every study into one folder (controller studies are skipped with a note if unavailable)."""
     con = _console(as_json)
     with _scheduler_errors(scheduler):
         res = paper.run_all(out, samples=samples, seed=seed, workers=workers, scheduler=scheduler,
-                            progress=progress and not as_json, console=con)
+                            progress=progress and not as_json, console=con, params=preset, force=force)
     if as_json:
         _echo_json(res["summary"])
     con.print(f"wrote {out}/summary.json and the studies' files")
+
+
+@app.command()
+def convergence(n_values: str = typer.Option("1,2,3,4,5,6,8", help="Numbers of elements, comma separated."),
+                n_ref: int = typer.Option(16, help="Elements of the reference solution."),
+                preset: str = typer.Option("paper", help=PRESET_HELP),
+                as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Tip error vs the number of elements n (paper: 6.1 -> 0.3 mm from n = 1 to 6)."""
+    from .studies.convergence import element_convergence
+    con = _console(as_json)
+    with _scheduler_errors(None):
+        res = element_convergence(preset, n_values=[int(x) for x in _floats(n_values, "--n-values")], n_ref=n_ref)
+    if as_json:
+        _echo_json(res)
+        return
+    for n, e in zip(res["n"], res["tip_error_m"]):
+        con.print(f"n = {n:2d}: tip error {e * 1e3:8.3f} mm")
+    con.print(f"rate {res['rate']:.2f} (log-log slope from n = 2); paper: 6.1 mm at n = 1, 0.3 mm at n = 6; "
+              f"{len(res['failures'])} failed solves")
+
+
+@app.command()
+def loads(mass_kg: float = typer.Option(0.110, help="Payload of the locked drift [kg] (paper: 0.110)."),
+          hold_mass_kg: float = typer.Option(0.100, help="Payload to hold in each configuration [kg]."),
+          preset: str = typer.Option("paper", help=PRESET_HELP),
+          as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Locked drift under a payload, holding a payload in the Table I configurations, and the IK time."""
+    from .studies.loads import hold_payload, ik_time, locked_drift
+    con = _console(as_json)
+    with _scheduler_errors(None):
+        res = {"drift": locked_drift(preset, mass=mass_kg), "hold": hold_payload(preset, mass=hold_mass_kg),
+               "ik_time": ik_time(preset)}
+    if as_json:
+        _echo_json(res)
+        return
+    d = res["drift"]
+    con.print(f"locked drift under {mass_kg * 1e3:g} g: {d['drift_m'] * 1e3:.2f} mm (tip {d['tip_angle_deg']:.1f}°; "
+              "paper: over 10 mm at 110 g)")
+    for name, row in res["hold"]["configurations"].items():
+        con.print(f"holds {hold_mass_kg * 1e3:g} g {name} (tip {row['tip_angle_deg']:.1f}°): "
+                  f"{'yes' if row['held'] else 'no'}, max tension needed {row['max_tension_needed_N']:.2f} N")
+    t = res["ik_time"]
+    con.print(f"IK time: cold {t['cold_s'] * 1e3:.2f} ms, warm {t['warm_s'] * 1e3:.2f} ms (paper: 2.95 s)")
+
+
+@app.command()
+def compare(presets: str = typer.Option(",".join(_DEFAULT_COMPARE),
+                                        help="Presets to compare, comma separated (names or .toml paths)."),
+            samples: int = typer.Option(5000, help="Workspace samples per mode and seed."),
+            seeds: str = typer.Option("0,1", help="Workspace seeds, comma separated (two give the spread)."),
+            workers: Optional[int] = typer.Option(None, help="Worker processes for the workspace."),
+            control: bool = typer.Option(True, help="Run the controller studies (Table I, ablation, loading)."),
+            out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/paper_compare"), help=OUT_HELP),
+            progress: bool = typer.Option(True, help="Show progress."),
+            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+            as_json: bool = typer.Option(False, "--json", help="Print the result as JSON.")):
+    """Every headline number of the paper for several presets side by side with the paper's values.
+
+    Default: 4 presets x 2 seeds x 5000 samples per mode (workspace), stiffness at 0/25/50 kPa x 6
+    tensions, convergence n = 1, 6 vs 16, drift, holding, IK time and the controller studies: a few
+    minutes on 2 cores.  Writes compare.json (after every preset) and compare.png/.svg."""
+    from .studies import comparison, tables
+    con = _console(as_json)
+    names = [x for x in presets.replace(" ", "").split(",") if x]
+    seed_list = [int(x) for x in _floats(seeds, "--seeds")]
+    with _scheduler_errors(None):
+        res = comparison.compare(names, samples=samples, seeds=seed_list, workers=workers,
+                                 control=comparison.CONTROL if control else (), out=out, force=force,
+                                 progress=progress and not as_json,
+                                 log=(lambda s: con.print(f"[dim]{s}[/dim]")) if progress else (lambda s: None))
+    if as_json:
+        _echo_json(res)
+    else:
+        tables.print_comparison(res, con)
+    con.print(f"wrote {out}/compare.json, compare.png, compare.svg")
 
 
 def main() -> None:  # pragma: no cover - standalone entry (the product mounts ``app`` as ``bellows paper``)

@@ -71,7 +71,7 @@ def test_missing_control_studies_give_a_clear_message(cmd, tmp_path, monkeypatch
 def test_wrappers_forward_to_control_studies(tmp_path, monkeypatch):
     calls = {}
 
-    def table1(out=None, iterations=5):
+    def table1(out=None, iterations=5, params=None):
         calls["table1"] = (out, iterations)
         return {"upward": {"lacc_error_m": 2e-5, "vfcc_error_m": 9e-3}}
 
@@ -101,9 +101,14 @@ def test_wrappers_forward_to_control_studies(tmp_path, monkeypatch):
     assert json.loads((tmp_path / "table1.json").read_text())["upward"]["lacc_error_m"] == 2e-5
     assert "upward.lacc_error_m" in res.output
     # a study that brings its own printable comparison ("table") is printed as is
-    fake.table1 = lambda out=None: {"upward": {"lacc_mm": 0.02}, "table": "config  LACC [mm]  paper\nupward  0.020  0.020"}
+    fake.table1 = lambda out=None, params=None: {"upward": {"lacc_mm": 0.02},
+                                                 "table": "config  LACC [mm]  paper\nupward  0.020  0.020"}
     res = runner.invoke(app, ["table1", "--out", str(tmp_path)])
     assert res.exit_code == 0 and "LACC [mm]" in res.output
+    # a study that cannot take a preset is not run on the default one silently
+    fake.table1 = lambda out=None: {}
+    res = runner.invoke(app, ["table1", "--preset", "paper_scaled", "--out", str(tmp_path)])
+    assert res.exit_code == 2 and "does not take a preset" in res.output
 
 
 def test_all_runs_and_skips_missing(tmp_path, monkeypatch):

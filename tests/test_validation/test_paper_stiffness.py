@@ -23,7 +23,7 @@ def uniform():
 
 @pytest.fixture(scope="module")
 def grid():
-    return paper.stiffness_vs_tension(pressures=(0.0, 50e3), tensions=(0.0, 2.5, 5.0))
+    return paper.stiffness_vs_tension(pressures=(0.0, 50e3), tensions=(0.0, 2.5, 5.0), params="paper_unscaled")
 
 
 def test_closed_forms_straight_beam():
@@ -61,7 +61,8 @@ def test_downward_payload_tightens_only_the_top_tendon(grid):
 
 def test_secant_matches_tangent_to_first_order_in_the_payload():
     """k_secant − k_tangent = O(m g): the gap is small at the paper's 50 g and halves with the payload."""
-    r = paper.stiffness_vs_tension(pressures=(25e3,), tensions=(0.0, 5.0), mass=0.05, methods=("exact",))
+    r = paper.stiffness_vs_tension(pressures=(25e3,), tensions=(0.0, 5.0), mass=0.05, methods=("exact",),
+                                 params="paper_unscaled")
     cv = r["curves_N_per_m"]
     assert np.allclose(cv["constant_nonlinear"], cv["constant_linear"], rtol=0.02)
     assert np.allclose(cv["locked_nonlinear"], cv["locked_linear_exact"], rtol=0.02)
@@ -71,7 +72,8 @@ def test_secant_matches_tangent_to_first_order_in_the_payload():
 
 
 def _gaps(T1, mass):
-    r = paper.stiffness_vs_tension(pressures=(25e3,), tensions=(T1,), mass=mass, methods=("exact",))
+    r = paper.stiffness_vs_tension(pressures=(25e3,), tensions=(T1,), mass=mass, methods=("exact",),
+                                 params="paper_unscaled")
     cv = r["curves_N_per_m"]
     return [cv["constant_nonlinear"][0, 0] - cv["constant_linear"][0, 0],
             cv["locked_nonlinear"][0, 0] - cv["locked_linear_exact"][0, 0]]
