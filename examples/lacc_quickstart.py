@@ -23,9 +23,10 @@ def main(argv=None, verbose: bool = True) -> dict:
     ap.add_argument("--mass-g", type=float, default=40.0)
     ap.add_argument("--iterations", type=int, default=12)
     ap.add_argument("--mismatch", action="store_true", help="imperfect plant (PlantOptions.mismatched)")
+    ap.add_argument("--preset", default="paper", help="actuator preset name or .toml file")
     a = ap.parse_args(argv)
 
-    model = Model(presets.paper())
+    model = Model(presets.get(a.preset))
     p = 60e3                                                    # Pa
     target = model.fk((2.2, 1.6, 1.6), p, (0, 0, 0)).tip        # near-horizontal tip [m]
     load = np.array([0.0, 0.0, -9.81 * a.mass_g * 1e-3])        # N, hidden from the controllers

@@ -11,12 +11,12 @@ from ancf import Model, StiffnessLaw, presets  # noqa: E402
 
 @pytest.fixture(scope="session")
 def paper_model():
-    return Model(presets.paper())
+    return Model(presets.paper_unscaled())
 
 
 def uniform_params(**changes):
     """Weightless paper actuator with a constant law and no tool offset (closed-form comparisons)."""
-    base = presets.paper().replace(stiffness=StiffnessLaw.constant(EA=767.2, EI=0.0839), line_mass=0.0,
+    base = presets.paper_unscaled().replace(stiffness=StiffnessLaw.constant(EA=767.2, EI=0.0839), line_mass=0.0,
                                    tip_mass=0.0, tool_offset=0.0)
     return base.replace(**changes) if changes else base
 

@@ -10,7 +10,7 @@ from ancf import ActuatorParams, ConfigError, StiffnessLaw, presets
 
 
 def test_paper_preset_values():
-    p = presets.paper()
+    p = presets.paper_unscaled()
     assert p.length == pytest.approx(0.16)
     assert p.n_elements == 6
     assert p.D_eff == pytest.approx(26.05e-3)

@@ -167,7 +167,7 @@ def test_four_tendons_ik_is_feasible_and_consistent():
 
 
 def test_free_base_stretch_option():
-    p = presets.paper().replace(free_base_stretch=True)
+    p = presets.paper_unscaled().replace(free_base_stretch=True)
     m = Model(p)
     eq = m.fk((0, 0, 0), 120e3)
     assert np.linalg.norm(eq.q[3:6]) > 1.0          # the base section stretches too
@@ -199,7 +199,7 @@ def test_random_states_over_operating_range(paper_model):
 def test_free_coordinate_map_round_trips(free):
     """to_full(to_free(q)) == q for admissible q (the base stays clamped), with and without a free base
     stretch; with the free stretch the reference state is still an equilibrium with no load."""
-    model = Model(presets.paper().replace(free_base_stretch=free, line_mass=0.0, tip_mass=0.0))
+    model = Model(presets.paper_unscaled().replace(free_base_stretch=free, line_mass=0.0, tip_mass=0.0))
     rng = np.random.default_rng(3)
     q = model.q_ref.copy()
     q[6:] += rng.normal(0, 1e-3, model.ndof - 6)

@@ -15,7 +15,7 @@ def load(name):
 
 
 def test_lacc_quickstart():
-    out = load("lacc_quickstart").main([], verbose=False)
+    out = load("lacc_quickstart").main(["--preset", "paper_unscaled"], verbose=False)
     lacc, vf = out["lacc"], out["vfcc"]
     assert lacc["errors_mm"][0] > 1.0                          # 40 g visibly displaces the tip
     assert lacc["converged"] and lacc["errors_mm"][-1] < 0.2

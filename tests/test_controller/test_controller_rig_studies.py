@@ -28,7 +28,7 @@ def test_trajectory_geometry():
 
 @pytest.mark.parametrize("preset", ["paper", "soft"])
 def test_trajectory_tracking(tmp_path, preset):
-    params = presets.paper() if preset == "paper" else soft_paper()
+    params = presets.paper_unscaled() if preset == "paper" else soft_paper()
     exact = cs.trajectory_tracking(params=params, shapes=("circle",), points=12, mismatch=False)
     e = exact["shapes"]["circle"]
     assert e["rmse"] < 1e-6                                    # a perfect plant reproduces the IK

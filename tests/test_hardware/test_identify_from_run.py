@@ -10,7 +10,7 @@ from hardware.runlog import RunLog
 
 def test_identification_from_a_run_log(tmp_path):
     from validation.identify import from_measurements
-    model = Model(presets.paper())
+    model = Model(presets.paper_unscaled())
     path = tmp_path / "identification.h5"
     with RunLog(path, n_tendons=3) as log:
         for T in ((2.2, 1.6, 1.6), (1.2, 3.0, 1.0), (1.0, 1.0, 3.0), (3.5, 1.0, 1.0), (2.0, 2.0, 2.0)):
@@ -20,7 +20,7 @@ def test_identification_from_a_run_log(tmp_path):
                 res = run_on_rig(LACC(model, p, compliance="exact"), rig, tip, log=log, applied_load=(0, 0, 0))
                 assert res.status == "converged"
     r = from_measurements(path, heldout_fraction=0, forms=("paper",))
-    law = presets.paper().stiffness.source
+    law = presets.paper_unscaled().stiffness.source
     fit = r.fits["paper"]
     assert abs(fit.values["a"] - law["a"]) < 0.02 * law["a"]
     assert abs(fit.values["a"] + fit.values["b"] - (law["a"] + law["b"])) < 0.02 * (law["a"] + law["b"])

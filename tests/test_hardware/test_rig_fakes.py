@@ -68,7 +68,7 @@ def fake_bench(tmp_path, quiet_canopen):
         toml = '''
 name = "fake bench"
 backend = "hardware"
-actuator = "paper"
+actuator = "paper_unscaled"
 on_fault_pressure = "vent"
 speed_mm_per_s = 10
 [limits]
@@ -193,7 +193,7 @@ def test_bellows_control_on_the_fake_hardware(fake_bench, tmp_path):
     from hardware.static_states import read_static_states
     from validation.cli import app
     path, drives, loadcells, valves, nat = fake_bench
-    target = Model(presets.paper()).fk((2.2, 1.6, 1.6), 60e3).tip
+    target = Model(presets.paper_unscaled()).fk((2.2, 1.6, 1.6), 60e3).tip
     nat.position = tuple(target)
     log = tmp_path / "hw.h5"
     res = CliRunner().invoke(app, ["control", "--rig", str(path), "--target-mm", ",".join(f"{x * 1e3:.6f}" for x in target),

@@ -17,7 +17,14 @@ from hardware.static_states import read_static_states
 from validation.cli import app, main
 
 runner = CliRunner()
-TARGET_MM = "169.9,0,-2.235"          # the paper preset's tip with tensions (2.2, 1.6, 1.6) N at 60 kPa
+def _target_mm() -> str:
+    """The default preset's tip with tensions (2.2, 1.6, 1.6) N at 60 kPa (a reachable target) [mm]."""
+    from ancf import Model, presets
+    tip = Model(presets.paper()).fk((2.2, 1.6, 1.6), 60e3).tip
+    return ",".join(f"{1e3 * x:.3f}" for x in tip)
+
+
+TARGET_MM = _target_mm()
 
 
 def test_log_layout_units_and_refusals(tmp_path):
