@@ -9,26 +9,21 @@ pytest.importorskip("skfem")
 from ancf.errors import ConfigError  # noqa: E402
 from validation.designs import PRESETS, design_to_toml, load_design  # noqa: E402
 
-DOC_EXAMPLE = """
-name = "my bellows"
-length_mm = 160
-n_convolutions = 8
-root_radius_mm = 10.0
-crest_radius_mm = 19.5
-wall_thickness_mm = 1.6
-collar_length_mm = 5
-tendon_radius_mm = 27.5
-tendon_angles_deg = [0, 120, 240]
-cap_mass_g = 18
-cap_com_offset_mm = 2.5
-tip_offset_mm = 0
+def _doc_example() -> str:
+    """The example design file of the module docstring (the documentation is what is tested)."""
+    import textwrap
+    import validation.designs as d
+    block = d.__doc__.split("::", 1)[1]
+    lines = []
+    for line in block.splitlines()[1:]:
+        if line and not line.startswith("    "):
+            break
+        lines.append(line)
+    text = textwrap.dedent("\n".join(lines))
+    return text.split("\n[limits]")[0]
 
-[material]
-model = "neo_hookean"
-mu_MPa = 0.8
-kappa_MPa = 40
-density_kg_per_m3 = 1100
-"""
+
+DOC_EXAMPLE = _doc_example()
 
 
 def test_units_are_converted(tmp_path):
