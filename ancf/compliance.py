@@ -66,6 +66,11 @@ class Compliance:
 def _parts(model: Model, eq: Equilibrium):
     """(H, J_p, J_l) in free coordinates at ``eq``, cached on the equilibrium object for this model so
     that several compliance evaluations at one state assemble once."""
+    if not isinstance(model, Model) or not isinstance(eq, Equilibrium):
+        raise InputError(f"compliance needs (Model, Equilibrium), got ({type(model).__name__}, {type(eq).__name__})")
+    if np.shape(eq.q) != (model.ndof,):
+        raise InputError(f"the equilibrium has {np.size(eq.q)} coordinates but the model has {model.ndof}: it "
+                         "comes from a model with another element count")
     key = (id(model), eq.q.tobytes(), eq.tensions.tobytes(), float(eq.pressure), eq.tip_force.tobytes())
     cached = getattr(eq, "_compliance_parts", None)
     if cached is not None and cached[0] == key:

@@ -20,6 +20,7 @@ so that W(1) = W'(1) = 0 at the undeformed state (for the constant law W = EA ε
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
@@ -98,6 +99,26 @@ class StiffnessLaw(BaseModel):
     @property
     def ei(self) -> np.ndarray:
         return np.asarray(self.EI_coeffs, float)
+
+    @property
+    def valid_stretch_range(self) -> tuple[float, float]:
+        """Open interval (λ_lo, λ_hi) of stretches around λ = 1 where the law is valid: EA(λ) > 0 and
+        EI(λ) > 0.  Outside it the section has collapsed (the paper's linear law EA = a λ + b reaches zero
+        at λ = −b/a ≈ 0.43); a state with a stretch outside this interval is never returned as an
+        equilibrium (:class:`~ancf.errors.CollapsedStateError`).  ``λ_hi`` may be ``inf``."""
+        lo, hi = 0.0, math.inf
+        for coeffs in (self.EA_coeffs, self.EI_coeffs):
+            c = np.trim_zeros(np.asarray(coeffs, float), "b")
+            if c.size < 2:
+                continue
+            roots = np.polynomial.polynomial.polyroots(c)
+            real = roots[np.abs(roots.imag) <= 1e-12 * np.maximum(1.0, np.abs(roots.real))].real
+            below, above = real[real < 1.0], real[real > 1.0]
+            if below.size:
+                lo = max(lo, float(below.max()))
+            if above.size:
+                hi = min(hi, float(above.min()))
+        return lo, hi
 
     def EA(self, lam):
         """Axial stiffness EA(λ) [N]."""
