@@ -24,9 +24,18 @@ import math
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, field_validator
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
 from .errors import ConfigError
+
+
+def _real(name: str, v) -> float:
+    """A finite real number (not text, not a boolean) as float, else ConfigError."""
+    if isinstance(v, (bool, np.bool_, str, bytes)) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise ConfigError(f"stiffness law: {name} must be a number, got {v!r}")
+    if not math.isfinite(float(v)):
+        raise ConfigError(f"stiffness law: {name} must be finite, got {v!r}")
+    return float(v)
 
 
 class StiffnessLaw(BaseModel):
@@ -51,6 +60,21 @@ class StiffnessLaw(BaseModel):
     EI_coeffs: tuple[float, ...]
     source: dict[str, float] = {}
 
+    def __init__(self, **data):
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:
+            msgs = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'value'}: "
+                             f"{e['msg'].removeprefix('Value error, ')}" for e in exc.errors())
+            raise ConfigError(f"invalid stiffness law: {msgs}") from None
+
+    @field_validator("EA_coeffs", "EI_coeffs", mode="before")
+    @classmethod
+    def _numbers(cls, v):
+        if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+            raise ValueError(f"expected a list of numbers, got {v!r}")
+        return tuple(_real("coefficient", c) for c in v)
+
     @field_validator("EA_coeffs", "EI_coeffs")
     @classmethod
     def _finite(cls, v):
@@ -64,8 +88,7 @@ class StiffnessLaw(BaseModel):
     @classmethod
     def linear(cls, a: float, b: float, D_a: float) -> "StiffnessLaw":
         """The paper's law ``k(λ) = a λ + b`` [N] with equivalent diameter ``D_a`` [m]."""
-        if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(D_a)):
-            raise ConfigError("linear stiffness law: a, b, D_a must be finite")
+        a, b, D_a = _real("a", a), _real("b", b), _real("D_a", D_a)
         if D_a <= 0 or D_a > 1.0:
             raise ConfigError(f"linear stiffness law: D_a = {D_a} m is not a plausible diameter "
                               "(expected metres, e.g. 0.02959)")
@@ -78,7 +101,8 @@ class StiffnessLaw(BaseModel):
     @classmethod
     def constant(cls, EA: float, EI: float) -> "StiffnessLaw":
         """Constant axial stiffness ``EA`` [N] and bending stiffness ``EI`` [N m²]."""
-        if not (np.isfinite(EA) and np.isfinite(EI)) or EA <= 0 or EI <= 0:
+        EA, EI = _real("EA", EA), _real("EI", EI)
+        if EA <= 0 or EI <= 0:
             raise ConfigError(f"constant stiffness law needs EA > 0 and EI > 0, got EA={EA}, EI={EI}")
         return cls(kind="constant", EA_coeffs=(float(EA),), EI_coeffs=(float(EI),),
                    source={"EA": float(EA), "EI": float(EI)})
