@@ -511,7 +511,7 @@ class Model:
     # ----------------------------------------------------------------------------- IK
     def ik(self, target, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None, tensions0=None, *,
            tol: Optional[float] = None, tol_position: float = 1e-9, max_iter: int = 60,
-           check_stability: bool = True) -> Equilibrium:
+           check_limits: bool = True, check_stability: bool = True) -> Equilibrium:
         """Inverse kinetostatics (p_d [m], p [Pa], F_e [N]) → (q, T) with T_min ≤ T ≤ T_max
         (paper Sec. III-A, eq. 2).
 
@@ -519,16 +519,17 @@ class Model:
         when no tensions inside the bounds reach the target, ConvergenceError if a solve fails.
         With more than 3 tendons the solution is not unique: the one with the least Σ T² is returned.
         The state returned is a stable equilibrium at the tensions found (UnstableEquilibriumError
-        otherwise, unless ``check_stability=False``).
+        otherwise, unless ``check_stability=False``).  The pressure is checked against the actuator's
+        limits (``check_limits=False`` skips that; the tensions always stay inside their bounds).
         """
         tol, max_iter = self._check_solver_options(tol, max_iter)
         tol_position = check_scalar("tol_position", tol_position, low=1e-15, high=1e-2, unit="m")
         pd = check_finite("target", target, (3,))
-        _, pr, F = self._check_inputs(None, pressure, tip_force, True)
+        _, pr, F = self._check_inputs(None, pressure, tip_force, check_limits)
         p = self.params
         T0 = np.zeros(self.m) if tensions0 is None else check_finite("tensions0", tensions0, (self.m,))
         if q0 is None:
-            q0 = self.fk(np.clip(T0, p.tension_min, p.tension_max), pr, F).q
+            q0 = self.fk(np.clip(T0, p.tension_min, p.tension_max), pr, F, check_limits=check_limits).q
         z0 = self._initial_z(q0)
         sol = None
         if self.m == 3:
