@@ -104,6 +104,14 @@ class BellowsGeometry:
     tip_offset: float = 0.0
 
     def __post_init__(self):
+        try:
+            self._validate()
+        except ConfigError:
+            raise
+        except (TypeError, ValueError) as exc:   # a value that is not a number (text, None, ...)
+            raise ConfigError(f"BellowsGeometry: every dimension must be a number in SI units: {exc}") from None
+
+    def _validate(self):
         object.__setattr__(self, "tendon_angles", tuple(float(a) for a in self.tendon_angles))
         pos = dict(length=self.length, root_radius=self.root_radius, crest_radius=self.crest_radius,
                    wall_thickness=self.wall_thickness, tendon_radius=self.tendon_radius)
