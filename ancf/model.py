@@ -150,8 +150,14 @@ class Model:
         self.nz = self.ndof - 6 + (1 if p.free_base_stretch else 0)
         # scale for mixing force and position residuals (N/m): axial stiffness of the whole actuator
         self._kscale = float(p.stiffness.EA(1.0)) / p.length
-        # default residual tolerance [N]: round-off of the generalized forces scales with EA
-        self.default_tol = 1e-9 + 1e-13 * float(p.stiffness.EA(1.0))
+        # default residual tolerance [N]: the round-off floor of the generalized forces grows with the
+        # stiffness and the element count — axial terms like EA/h, bending terms like EI/h³ (h = L/n), summed
+        # over ndof entries.  Measured floors (paper preset): 2e-12 N at n = 6, 1.5e-10 N at n = 50, 1.4e-9 N
+        # at n = 120; the size term below stays 10–100× above them, and negligible (5e-11 N) at n = 6.
+        inv_h = self.n / p.length
+        self.default_tol = (1e-9 + 1e-13 * float(p.stiffness.EA(1.0))
+                            + np.finfo(float).eps * np.sqrt(self.ndof)
+                            * (abs(float(p.stiffness.EA(1.0))) * inv_h + abs(float(p.stiffness.EI(1.0))) * inv_h ** 3))
         self._droop: dict[float, Equilibrium] = {}
         self._lam_range = p.stiffness.valid_stretch_range
 
@@ -423,8 +429,8 @@ class Model:
         """Forward kinetostatics (T [N], p [Pa], F_e [N]) → equilibrium (paper Sec. III-A).
 
         ``q0`` (ndof,) warm-starts; default: the straight reference.  Converged when the free
-        generalized-force residual ‖Q‖₂ < ``tol`` [N, N m] (default ``model.default_tol``, scaled with EA
-        and the element count).  Raises ConvergenceError otherwise, UnstableEquilibriumError if the state
+        generalized-force residual ‖Q‖₂ < ``tol`` [N, N m] (default ``model.default_tol``: 1e-9 N + 1e-13 EA
+        plus a round-off term that grows with the element count, see ``Model.__init__``).  Raises ConvergenceError otherwise, UnstableEquilibriumError if the state
         found is a saddle (``check_stability=False`` returns it with ``stable=False`` instead),
         CollapsedStateError if it leaves the stiffness law's validity range, InputError for bad arguments
         or loads outside the actuator's limits (``check_limits=False`` to analyse them anyway).
@@ -662,6 +668,7 @@ class Model:
         if method not in ("active_set", "gamma"):
             raise InputError(f"fk_locked method must be 'active_set' or 'gamma', got {method!r}")
         _, pr, F = self._check_inputs(None, pressure, tip_force, check_limits)
+        q0_given = q0 is not None
         if q0 is None:
             q0 = self.fk(np.zeros(self.m), pr, F, check_limits=check_limits).q
         z0 = self._initial_z(q0)
@@ -669,10 +676,26 @@ class Model:
             T0 = np.zeros(self.m)
         else:
             T0 = check_finite("tensions0", tensions0, (self.m,))
-        if method == "active_set":
-            eq = self._locked_active_set(z0, T0, l0, pr, F, tol, tol_length, max_iter, check_stability)
+        solve = self._locked_active_set if method == "active_set" else self._locked_gamma
+        # Start from the given state and tensions; if that fails (e.g. four tendons all taut at lock time
+        # make the KKT system nearly singular while the answer has one slack), restart from the same state
+        # with the active set taken from the lengths, then from a cold start.
+        starts = [lambda: (z0, T0)]
+        if np.any(T0 != 0):
+            starts.append(lambda: (z0, np.zeros(self.m)))
+        if q0_given:
+            starts.append(lambda: (self._to_free(self.fk(np.zeros(self.m), pr, F, check_limits=check_limits).q),
+                                   np.zeros(self.m)))
+        first = None
+        for start in starts:
+            try:
+                z_s, T_s = start()
+                eq = solve(z_s, T_s, l0, pr, F, tol, tol_length, max_iter, check_stability)
+                break
+            except (ConvergenceError, UnstableEquilibriumError, CollapsedStateError) as exc:
+                first = first or exc
         else:
-            eq = self._locked_gamma(z0, T0, l0, pr, F, tol, tol_length, max_iter, check_stability)
+            raise first
         p = self.params
         eq.limit_violations = tuple(
             f"T{i + 1} = {eq.tensions[i]:.3g} N > tension_max = {p.tension_max:g} N" for i in range(self.m)
