@@ -500,6 +500,9 @@ class BellowsModel:
             float(check_finite("gravity (scale)", gravity, ()))
         ll = np.full(m, np.nan)
         if locked_lengths is not None:
+            if isinstance(locked_lengths, (str, bytes)) or not hasattr(locked_lengths, "__len__"):
+                raise InputError(f"locked_lengths must be a sequence of {m} lengths [m] or None, got "
+                                 f"{locked_lengths!r}")
             vals = list(locked_lengths)
             if len(vals) != m:
                 raise InputError(f"locked_lengths must have {m} entries (None = tension mode)")
