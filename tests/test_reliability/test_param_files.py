@@ -192,3 +192,16 @@ def test_any_single_value_change_gives_params_or_one_config_error(line_index, va
         assert "\n" not in str(exc) and "Traceback" not in str(exc) and "pydantic" not in str(exc)
         return
     assert isinstance(p, ActuatorParams) and p.length > 0
+
+
+def test_readme_parameter_example_is_what_bellows_params_writes():
+    import pathlib
+    import re
+
+    readme = (pathlib.Path(__file__).parents[2] / "README.md").read_text()
+    block = re.search(r"```toml\n(.*?)```", readme, re.S).group(1)
+    written = presets.paper().to_toml().splitlines()
+    lines = [ln.strip() for ln in block.splitlines() if ln.strip()]
+    assert len(lines) > 10
+    for ln in lines:
+        assert ln in written, ln
