@@ -47,6 +47,8 @@ import numpy as np
 
 from ancf.errors import ConfigError
 
+from ._checks import validated
+
 __all__ = ["BellowsGeometry", "e_radial"]
 
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz  # numpy < 2 fallback
@@ -104,12 +106,7 @@ class BellowsGeometry:
     tip_offset: float = 0.0
 
     def __post_init__(self):
-        try:
-            self._validate()
-        except ConfigError:
-            raise
-        except (TypeError, ValueError) as exc:   # a value that is not a number (text, None, ...)
-            raise ConfigError(f"BellowsGeometry: every dimension must be a number in SI units: {exc}") from None
+        validated(self, "BellowsGeometry")
 
     def _validate(self):
         object.__setattr__(self, "tendon_angles", tuple(float(a) for a in self.tendon_angles))

@@ -59,6 +59,8 @@ import numpy as np
 
 from ancf.errors import ConfigError
 
+from ._checks import validated
+
 __all__ = ["Material"]
 
 
@@ -94,12 +96,7 @@ class Material:
     c01: float = 0.0
 
     def __post_init__(self):
-        try:
-            self._validate()
-        except ConfigError:
-            raise
-        except (TypeError, ValueError) as exc:   # a value that is not a number (text, None, ...)
-            raise ConfigError(f"Material: every dimension must be a number in SI units: {exc}") from None
+        validated(self, "Material")
 
     def _validate(self):
         for k in ("mu", "kappa", "density"):
