@@ -34,7 +34,7 @@ def _exception_modules():
 
 
 _MODS = _exception_modules()
-_NO_ARGS = tuple(getattr(m, "NoArgsIsHelpError") for m in _MODS if hasattr(m, "NoArgsIsHelpError"))
+_NO_ARGS = tuple(m.NoArgsIsHelpError for m in _MODS if hasattr(m, "NoArgsIsHelpError"))
 _USAGE = tuple(m.UsageError for m in _MODS)
 _CLICK = tuple(m.ClickException for m in _MODS)
 _ABORT = (click.exceptions.Abort, typer.Abort)

@@ -26,7 +26,7 @@ Solvers:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, asdict
+from dataclasses import asdict, dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -34,8 +34,16 @@ import scipy.optimize as so
 
 from . import kinematics as kin
 from .assembly import assemble
-from .errors import (CollapsedStateError, ConvergenceError, InfeasibleTargetError, InputError,
-                     LimitError, UnstableEquilibriumError, check_finite, check_scalar)
+from .errors import (
+    CollapsedStateError,
+    ConvergenceError,
+    InfeasibleTargetError,
+    InputError,
+    LimitError,
+    UnstableEquilibriumError,
+    check_finite,
+    check_scalar,
+)
 from .params import ActuatorParams
 from .solvers import SolveInfo, minimize_newton, solve_root
 

@@ -35,7 +35,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
-from ancf.errors import ConfigError, ConvergenceError, InputError, LimitError, check_finite
+from ancf.errors import (
+    ConfigError,
+    ConvergenceError,
+    InputError,
+    LimitError,
+    check_finite,
+)
 
 from .assembly import HexAssembler, PressureAssembler, gravity_load
 from .geometry import BellowsGeometry, e_radial

@@ -10,7 +10,13 @@ import numpy as np
 import pytest
 
 from ancf.errors import ConfigError, ConvergenceError, InputError, LimitError
-from fem_reference import BellowsGeometry, BellowsModel, Material, MeshLevel, OperatingLimits
+from fem_reference import (
+    BellowsGeometry,
+    BellowsModel,
+    Material,
+    MeshLevel,
+    OperatingLimits,
+)
 
 
 @pytest.fixture(scope="module")

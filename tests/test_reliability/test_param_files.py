@@ -3,10 +3,10 @@ implausible magnitudes for the stated unit are rejected, every failure is one Co
 Python traceback), and a file the product writes always reads back to an equal object."""
 
 import math
-import tomllib
 
 import numpy as np
 import pytest
+import tomllib
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
