@@ -39,6 +39,10 @@ _USAGE = tuple(m.UsageError for m in _MODS)
 _CLICK = tuple(m.ClickException for m in _MODS)
 _ABORT = (click.exceptions.Abort, typer.Abort)
 
+# --help is laid out for 120 columns (inherited by every subcommand), so that command summaries are not
+# cut with "..." at the 80-column default
+HELP_SETTINGS = {"terminal_width": 120, "max_content_width": 120}
+
 # Python-API phrases in error messages and their command-line equivalents
 _CLI_TERMS = [
     (re.compile(r"check_limits=False"), "--no-limits"),

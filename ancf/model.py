@@ -517,7 +517,7 @@ class Model:
     def droop(self, pressure: float = 0.0) -> Equilibrium:
         """Gravity-only equilibrium (T = 0, no tip force) at ``pressure`` [Pa] — the stored warm start of
         the paper's LACC (computed once per pressure and kept)."""
-        key = float(pressure)
+        key = check_scalar("pressure", pressure, unit="Pa")
         if key not in self._droop:
             self._droop[key] = self.fk(np.zeros(self.m), key, (0, 0, 0))
         return self._droop[key]

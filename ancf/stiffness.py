@@ -166,6 +166,7 @@ class StiffnessLaw(BaseModel):
     def stretch_under_force(self, force: float, lam0: float = 1.0) -> float:
         """Uniform stretch λ with W'(λ) = ``force`` [N] (closed-form root of a polynomial)."""
         # W'(λ) = ½ Σ c_k (λ^{k+3} − λ^{k+1}) − force = 0
+        force, lam0 = _real("force", force), _real("lam0", lam0)
         n = len(self.EA_coeffs) + 3
         poly = np.zeros(n + 1)
         for k, c in enumerate(self.EA_coeffs):

@@ -29,7 +29,7 @@ from ancf.outputs import atomic_write_text, prepare_output_dir
 
 app = typer.Typer(help="scikit-fem 3-D hyperelastic reference model of the bellows actuator.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
-                  rich_markup_mode=None)
+                  rich_markup_mode=None, context_settings=clitools.HELP_SETTINGS)
 
 
 class MeshChoice(str, Enum):
@@ -88,7 +88,7 @@ def _geometry(preset: PresetChoice):
     return presets.straight_tube_test()
 
 
-@app.command()
+@app.command(short_help="Solve one static load case: tip pose, tensions, cable lengths, timings.")
 def solve(
     pressure_kpa: float = typer.Option(0.0, help="cavity gauge pressure [kPa]"),
     tensions_n: str = typer.Option("0,0,0", help="tendon tensions [N], comma-separated (θ = 0, 120°, 240°)"),

@@ -15,7 +15,8 @@ from ancf import clitools
 
 app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM reference, compliance control.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
-                  rich_markup_mode=None)   # help texts state units as "[kPa]": no markup parsing
+                  rich_markup_mode=None,   # help texts state units as "[kPa]": no markup parsing
+                  context_settings=clitools.HELP_SETTINGS)   # whole command summaries in --help
 ancf_cli.register(app)
 
 try:  # the paper's studies (workspace, stiffness, Table I, loading)

@@ -98,9 +98,11 @@ def test_help_is_plain_text_with_whole_summaries(capsys):
     assert code == 0
     commands = out.split("Commands:")[1].splitlines()
     assert "``" not in out and not any(ln.rstrip().endswith("...") for ln in commands), out
-    for cmd in ("demo", "fk", "ik", "locked", "compliance", "params"):
-        code, out, _ = run(capsys, cmd, "--help")
+    for cmd in ("demo", "fk", "ik", "locked", "compliance", "params", "fem", "fem solve"):
+        code, out, _ = run(capsys, *cmd.split(), "--help")
         assert code == 0 and "``" not in out
+        if "Commands:" in out:            # command groups: whole summaries of their commands too
+            assert not any(ln.rstrip().endswith("...") for ln in out.split("Commands:")[1].splitlines()), out
 
 
 def test_table_columns_state_units(capsys):
