@@ -710,6 +710,15 @@ class Model:
             if eq.tensions[i] > p.tension_max * (1 + 1e-9) + 1e-12)
         return eq
 
+    def _locked_accept(self, tol, tol_length):
+        """Convergence of a locked solve in the rows' own units: ‖Q‖ < tol [N] and every length residual
+        below tol_length [m] (the weighted norm alone would ask lengths EA/L × L times more than stated)."""
+        nz = self.nz
+
+        def accept(R):
+            return bool(np.linalg.norm(R[:nz]) < tol and np.max(np.abs(R[nz:]), initial=0.0) < tol_length)
+        return accept
+
     def _locked_system(self, A, l0, pr, F):
         nz = self.nz
         A = list(A)
@@ -745,7 +754,8 @@ class Model:
             seen.add(key)
             fun = self._locked_system(A, l0, pr, F)
             w = np.concatenate([np.ones(self.nz), np.full(len(A), self._kscale * self.params.length)])
-            x, info = solve_root(fun, np.concatenate([z, T[A]]), tol=min(tol, self._kscale * self.params.length
+            x, info = solve_root(fun, np.concatenate([z, T[A]]), accept=self._locked_accept(tol, tol_length),
+                                 tol=min(tol, self._kscale * self.params.length
                                                                        * tol_length), max_iter=max_iter,
                                  name="fk_locked", weights=w)
             total += info.iterations
@@ -812,6 +822,7 @@ class Model:
                     g0[i] = -1e-2
             try:
                 x, info = solve_root(fun, np.concatenate([z0, g0]), tol=tol_w, max_iter=max_iter * 3,
+                                     accept=self._locked_accept(tol, tol_length),
                                      name="fk_locked(gamma)", weights=w)
                 break
             except ConvergenceError as exc:

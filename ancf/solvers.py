@@ -114,11 +114,13 @@ def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int 
 
 
 def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60, name: str = "ik",
-               weights: np.ndarray | None = None) -> tuple[np.ndarray, SolveInfo]:
+               weights: np.ndarray | None = None,
+               accept: Callable[[np.ndarray], bool] | None = None) -> tuple[np.ndarray, SolveInfo]:
     """Solve a square system F(x) = 0 (``fun(x) -> (F, J)``) by Newton with backtracking on the
     weighted residual norm ‖W F‖₂, switching to Levenberg–Marquardt steps when Newton stalls.
 
-    Converged when ‖W F‖₂ < tol.
+    Converged when ‖W F‖₂ < tol, or when ``accept(F)`` is true (per-block criteria in the rows' own units,
+    e.g. forces below their tolerance and lengths below theirs).
     """
     x = np.array(x0, float)
     w = np.ones(len(x)) if weights is None else np.asarray(weights, float)
@@ -127,7 +129,7 @@ def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
     hist = [r]
     lm = 1e-2                                     # paper: LM damping factor 0.01 (relative here)
     for it in range(max_iter):
-        if r < tol:
+        if r < tol or (accept is not None and np.isfinite(r) and accept(F)):
             return x, SolveInfo(it, r, hist, J)
         Jw = w[:, None] * J
         Fw = w * F
