@@ -586,8 +586,7 @@ class BellowsModel:
         t_start = time.perf_counter()
         stats = NewtonStats()
         if initial is not None:
-            if initial.model is not self:
-                raise InputError("initial must be a result of this same BellowsModel")
+            self._own(initial)
             st = initial.state.copy()
             start = initial.loadcase
             start = LoadCase(st.T.copy(), start.pressure, start.tip_force.copy(), start.gravity,
@@ -665,8 +664,15 @@ class BellowsModel:
                              tendon_lengths=self.tendon_lengths(st))
 
     # ------------------------------------------------------------------ compliance
+    def _own(self, res) -> None:
+        """InputError unless ``res`` is a result of this model (another mesh has other unknowns)."""
+        if getattr(res, "model", None) is not self:
+            raise InputError("the result must come from this same BellowsModel (a result of another model or "
+                             f"mesh has other unknowns), got {type(res).__name__}")
+
     def cap_compliance(self, res: BellowsResult) -> np.ndarray:
         """6×6 compliance of the cap centre: ``[δu_c; δθ] = C [δF; δM]`` (tension mode) [m/N, 1/N ...]."""
+        self._own(res)
         ev = self.evaluate(res.state, res.loadcase, tangent=True)
         fac = factorize(ev["K"], self.linear_solver)
         E = np.zeros((self.n_dofs, 6))
@@ -681,6 +687,7 @@ class BellowsModel:
         """
         if mode not in ("tension", "locked"):
             raise InputError("mode must be 'tension' or 'locked'")
+        self._own(res)
         st = res.state
         ev = self.evaluate(st, res.loadcase, tangent=True)
         fac = factorize(ev["K"], self.linear_solver)
@@ -709,6 +716,7 @@ class BellowsModel:
         """
         if res is None:
             res = self.solve()
+        self._own(res)
         L = self.geometry.length
         st, lc = res.state, res.loadcase
         ev = self.evaluate(st, lc, tangent=True)

@@ -72,6 +72,9 @@ def test_bad_solver_options_and_inputs_are_typed_errors(tiny):
         BellowsGeometry.straight_tube("0.08", 0.015, 0.004)
     with pytest.raises(InputError):
         BellowsModel("tube", Material.neo_hookean(0.8e6, 40e6))
+    for fn in (tiny.tip_compliance, tiny.cap_compliance, tiny.equivalent_rod):
+        with pytest.raises(InputError, match="same BellowsModel"):
+            fn("not a result")
 
 
 def test_importing_the_fem_reference_loads_no_numba_and_no_ancf_model():
