@@ -167,10 +167,10 @@ def solve(
         typer.echo(json.dumps(summary))
     else:
         tip = 1e3 * res.tip_position
-        console.print(f"tip position [mm]: {np.array2string(tip, precision=3)}")
-        console.print(f"cap rotation vector [deg]: {np.array2string(np.degrees(res.cap_rotation_vector), precision=3)}")
-        console.print(f"tensions [N]: {np.array2string(res.tensions, precision=4)}  "
-                      f"cable lengths [mm]: {np.array2string(1e3 * res.tendon_lengths, precision=4)}")
+        console.print(f"tip position \\[mm]: {np.array2string(tip, precision=3)}")
+        console.print(f"cap rotation vector \\[deg]: {np.array2string(np.degrees(res.cap_rotation_vector), precision=3)}")
+        console.print(f"tensions \\[N]: {np.array2string(res.tensions, precision=4)}  "
+                      f"cable lengths \\[mm]: {np.array2string(1e3 * res.tendon_lengths, precision=4)}")
         st = res.stats
         console.print(f"{res.iterations} Newton iterations in {len(st.steps)} load steps, {st.t_total:.2f} s "
                       f"(linear solver {st.t_linear:.2f} s, assembly {st.t_assembly:.2f} s)")
