@@ -83,4 +83,6 @@ def run(app, args: Sequence[str] | None = None, prog_name: str = "bellows") -> N
         error_exit(cli_message(exc.format_message()))
     except (*_ABORT, KeyboardInterrupt):
         error_exit("interrupted", 130)
+    if rv == 130:                                     # typer turns Ctrl-C into a silent Exit(130)
+        error_exit("interrupted", 130)
     sys.exit(rv if isinstance(rv, int) else 0)

@@ -110,3 +110,23 @@ def test_table_columns_state_units(capsys):
     assert code == 0, err
     for col in ("T [N]", "p [kPa]", "F [N]", "tip x,y,z [mm]", "slack [mm]", "time [ms]"):
         assert col in out, col
+
+
+def test_ctrl_c_is_one_line_with_status_130(capsys, monkeypatch):
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(ancf_cli, "warm_up", interrupted)
+    code, _, err = run(capsys, "fk", "--tensions-n", "1,0,0")
+    assert code == 130 and one_error_line(err) == "error: interrupted"
+
+
+def test_an_interrupted_run_error_is_reported_like_every_product_error(capsys, monkeypatch, tmp_path):
+    from validation.runner import RunInterrupted
+
+    def stopped(*a, **k):
+        raise RunInterrupted("interrupted", completed={0: 1, 1: 2, 2: 3}, total=10, saved_to="x.h5")
+
+    monkeypatch.setattr(ancf_cli, "run_demo", stopped)
+    code, _, err = run(capsys, "demo", "--out", str(tmp_path / "d"))
+    assert code == 2 and "3 of 10 tasks finished; finished results saved to x.h5" in one_error_line(err)
