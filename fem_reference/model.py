@@ -63,7 +63,7 @@ from .loads.tendons import (
 )
 from .material import Material
 from .mesh import BellowsMesh, build_mesh
-from .solver import NewtonStats, StepFailed, factorize
+from .solver import NewtonStats, StepFailed, available_solvers, factorize
 
 if TYPE_CHECKING:  # pragma: no cover
     from .results import BellowsResult
@@ -178,6 +178,11 @@ class BellowsModel:
         if not isinstance(geometry, BellowsGeometry) or not isinstance(material, Material):
             raise InputError(f"BellowsModel needs (BellowsGeometry, Material), got "
                              f"({type(geometry).__name__}, {type(material).__name__})")
+        known = ("auto", "pardiso", "pardiso_no_reuse", "splu", "splu_partial_pivoting", "umfpack")
+        base = str(linear_solver).split("_")[0] if linear_solver != "splu_partial_pivoting" else "splu"
+        if linear_solver not in known or (linear_solver != "auto" and base not in available_solvers()):
+            raise ConfigError(f"linear solver {linear_solver!r} is not available here; choose one of "
+                              f"{['auto'] + available_solvers()}")       # before minutes of meshing
         self.geometry = geometry
         self.material = material
         self.linear_solver = linear_solver

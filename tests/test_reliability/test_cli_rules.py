@@ -45,6 +45,7 @@ def one_error_line(err: str) -> str:
     (["fem", "solve", "--pressure-kpa", "30000"], "--no-limits"),         # before meshing
     (["fem", "solve", "--tensions-n", "50,0,0"], "operating limit"),
     (["fem", "solve", "--png"], "--out"),
+    (["fem", "solve", "--solver", "bogus"], "not available"),              # before meshing
     (["fem", "solve", "--locked-lengths-mm", "a,,"], "--locked-lengths-mm"),
 ])
 def test_every_handled_error_is_one_line_with_status_2(capsys, args, message):
