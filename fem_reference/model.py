@@ -40,6 +40,7 @@ from ancf.errors import (
     ConvergenceError,
     InputError,
     LimitError,
+    UnstableEquilibriumError,
     check_finite,
 )
 
@@ -530,7 +531,8 @@ class BellowsModel:
               n_steps: int | None = None, rtol: float = 1e-9, atol: float = 1e-9, ltol: float = 1e-11,
               max_iter: int = 25, max_cuts: int = 8, growth: float = 1e4,
               progress: Callable[[dict], None] | None = None, *, check_limits: bool = True,
-              max_steps: int = 60, time_limit_s: float | None = None) -> BellowsResult:
+              max_steps: int = 60, time_limit_s: float | None = None,
+              check_stability: bool = True) -> BellowsResult:
         """Static equilibrium under the given loads (SI units).
 
         Parameters
@@ -562,6 +564,10 @@ class BellowsModel:
             Bound on the load increments tried (converged and cut back): a failing solve reports within it.
         time_limit_s : float, optional
             Wall-clock bound [s]; the solve raises ConvergenceError when it is exceeded.
+        check_stability : bool
+            Check that the equilibrium is a minimum (inertia of the reduced tangent, see
+            :meth:`stability`; one extra factorisation) and raise UnstableEquilibriumError if it is not;
+            ``False`` skips the check (``res.stable`` is then None).
 
         Returns
         -------
@@ -665,10 +671,56 @@ class BellowsModel:
                 dlam = min(1.0, dlam * 1.5)
         stats.t_total = time.perf_counter() - t_start
         target.tensions = st.T.copy()
-        return BellowsResult(model=self, state=st, loadcase=target, stats=stats,
-                             tendon_lengths=self.tendon_lengths(st))
+        res = BellowsResult(model=self, state=st, loadcase=target, stats=stats,
+                            tendon_lengths=self.tendon_lengths(st))
+        if check_stability:
+            n_neg = self.stability(res)
+            if n_neg:
+                raise UnstableEquilibriumError(
+                    f"the solve converged to an unstable equilibrium ({n_neg} negative direction(s) of the "
+                    "reduced tangent: a saddle, e.g. beyond a buckling load), not a usable state; perturb the "
+                    "start (initial=...), apply the load in steps from a stable state, or lower the load",
+                    solver="fem_newton", min_eigenvalue=float("nan"))
+        return res
 
     # ------------------------------------------------------------------ compliance
+    def stability(self, res: BellowsResult) -> int | None:
+        """Number of negative eigenvalues of the reduced tangent at ``res`` (0: a stable minimum), from its
+        inertia; sets ``res.stable`` and ``res.negative_directions``.
+
+        The symmetric part of K is factorised by SuperLU with diagonal pivots only (symmetric mode), so
+        by Sylvester's law the signs of U's diagonal are the signs of its eigenvalues.  With taut locked
+        tendons (constraint gradients g, n × k) the count is taken on the constraint tangent space by
+        Haynsworth's inertia additivity for the bordered matrix [[K, g], [gᵀ, 0]]:
+        n₋(reduced) = n₋(K) + n₊(gᵀ K⁻¹ g) − k.  Returns None (inconclusive) if the factorisation had to
+        pivot off the diagonal or K is singular.
+        """
+        import scipy.sparse.linalg as spla
+
+        self._own(res)
+        st = res.state
+        ev = self.evaluate(st, res.loadcase, tangent=True)
+        K = ev["K"]
+        Ks = (0.5 * (K + K.T)).tocsc()
+        try:
+            lu = spla.splu(Ks, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options=dict(SymmetricMode=True))
+        except RuntimeError:        # exactly singular
+            res.stable, res.negative_directions = None, None
+            return None
+        d = lu.U.diagonal()
+        if not np.array_equal(lu.perm_r, lu.perm_c) or np.any(d == 0):
+            res.stable, res.negative_directions = None, None
+            return None
+        n_neg = int(np.sum(d < 0))
+        active = ~np.isnan(res.loadcase.locked_lengths) & ~st.slack
+        if active.any():
+            g = np.asarray(ev["g"][:, active], float)
+            S = g.T @ lu.solve(g)
+            n_neg += int(np.sum(np.linalg.eigvalsh(0.5 * (S + S.T)) > 0)) - int(active.sum())
+        res.stable, res.negative_directions = n_neg == 0, n_neg
+        return n_neg
+
     def _own(self, res) -> None:
         """InputError unless ``res`` is a result of this model (another mesh has other unknowns)."""
         if getattr(res, "model", None) is not self:
