@@ -26,7 +26,7 @@ from typing import Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
-from .errors import ConfigError
+from .errors import ConfigError, check_finite
 
 
 def _real(name: str, v) -> float:
@@ -36,6 +36,12 @@ def _real(name: str, v) -> float:
     if not math.isfinite(float(v)):
         raise ConfigError(f"stiffness law: {name} must be finite, got {v!r}")
     return float(v)
+
+
+def _stretch(lam):
+    """Stretch argument(s) as float (scalar stays scalar); InputError for text, booleans, NaN."""
+    arr = check_finite("stretch λ", lam)
+    return float(arr) if arr.ndim == 0 else arr
 
 
 class StiffnessLaw(BaseModel):
@@ -146,21 +152,21 @@ class StiffnessLaw(BaseModel):
 
     def EA(self, lam):
         """Axial stiffness EA(λ) [N]."""
-        return np.polynomial.polynomial.polyval(lam, self.ea)
+        return np.polynomial.polynomial.polyval(_stretch(lam), self.ea)
 
     def EI(self, lam):
         """Bending stiffness EI(λ) [N m²]."""
-        return np.polynomial.polynomial.polyval(lam, self.ei)
+        return np.polynomial.polynomial.polyval(_stretch(lam), self.ei)
 
     def axial_energy(self, lam):
         """W(λ) [J/m = N], with W(1) = 0 (see module docstring)."""
-        lam = np.asarray(lam, float)
+        lam = _stretch(lam)
         return sum(c / 2 * ((lam ** (k + 4) - 1) / (k + 4) - (lam ** (k + 2) - 1) / (k + 2))
                    for k, c in enumerate(self.EA_coeffs))
 
     def axial_force(self, lam):
         """W'(λ) = EA(λ) ε λ [N]: the axial force at stretch λ."""
-        lam = np.asarray(lam, float)
+        lam = _stretch(lam)
         return 0.5 * self.EA(lam) * (lam ** 3 - lam)
 
     def stretch_under_force(self, force: float, lam0: float = 1.0) -> float:
