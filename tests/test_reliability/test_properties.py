@@ -190,11 +190,12 @@ def test_adversarial_arguments_give_input_errors_or_valid_results(which, value):
         verify_equilibrium(m, out)
 
 
-@settings(max_examples=60, **SETTINGS)
+@settings(max_examples=40, **SETTINGS)
 @given(st.sampled_from(["tensions", "pressure", "tip_force", "locked_lengths", "gravity"]), adversarial_arrays)
 def test_fem_load_cases_reject_bad_values_before_solving(fem_tiny, which, value):
     """FEM load cases: a bad value in any slot is an InputError before any load step."""
-    kwargs = {which: value, "check_limits": True, "max_steps": 1, "time_limit_s": 30.0}
+    # the values are the point here: a valid one runs at most one short load step, unchecked for stability
+    kwargs = {which: value, "check_limits": True, "max_steps": 1, "time_limit_s": 5.0, "check_stability": False}
     try:
         with bounded():
             fem_tiny.solve(**kwargs)
