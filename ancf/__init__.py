@@ -26,7 +26,7 @@ from __future__ import annotations
 import importlib
 
 from .errors import (BellowsError, CollapsedStateError, ConfigError, ConvergenceError, InfeasibleTargetError,
-                     InputError, UnstableEquilibriumError)
+                     InputError, LimitError, OutputExistsError, UnstableEquilibriumError)
 
 _LAZY = {
     "StiffnessLaw": ("ancf.stiffness", "StiffnessLaw"),
@@ -39,7 +39,8 @@ _LAZY = {
 }
 
 __all__ = ["ActuatorParams", "Tendon", "StiffnessLaw", "Model", "Equilibrium", "presets", "BellowsError",
-           "ConfigError", "ConvergenceError", "InfeasibleTargetError", "InputError", "UnstableEquilibriumError",
+           "ConfigError", "ConvergenceError", "InfeasibleTargetError", "InputError", "LimitError", "OutputExistsError",
+           "UnstableEquilibriumError",
            "CollapsedStateError"]
 
 

@@ -2,6 +2,11 @@
 
 Units are in the option names (``--pressure-kpa``, ``--tip-force-n``, ``--target-mm``); ``--json`` prints
 machine-readable output (SI units, unit in every key).
+
+Rules every command keeps (docs/errors.md): a given option is used or rejected, never replaced; output
+paths are checked before any computing and existing files are only replaced with ``--force``; the
+actuator's operating limits apply to every mode (``--no-limits`` analyses outside them, and says so);
+timings exclude loading the compiled kernels.
 """
 
 from __future__ import annotations
@@ -14,16 +19,20 @@ from typing import Optional
 import numpy as np
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from . import presets
 from .errors import InputError
 from .export import equilibrium_summary, save_png, save_vtu, write_json
 from .model import Model
+from .outputs import atomic_write_text, prepare_output_dir, prepare_output_file
 
 console = Console(width=120)
 
 PRESET_HELP = "Preset name (paper, paper_constant, four_tendon) or a path to an actuator .toml file."
+FORCE_HELP = "Overwrite existing output files."
+NO_LIMITS_HELP = "Analyse loads outside the actuator's operating limits (tensions, pressure) instead of rejecting them."
 
 
 def parse_vector(text: str, n: Optional[int], what: str) -> np.ndarray:
@@ -42,8 +51,8 @@ def parse_vector(text: str, n: Optional[int], what: str) -> np.ndarray:
 def _table(rows: list[dict], title: str) -> Table:
     t = Table(title=title)
     cols = ["case", "T [N]", "p [kPa]", "F [N]", "tip x,y,z [mm]", "slack [mm]", "its", "time [ms]"]
-    for c in cols:
-        t.add_column(c, justify="right" if c not in ("case",) else "left")
+    for c in cols:   # escape: rich would read "[kPa]" as a style tag and drop the unit
+        t.add_column(escape(c), justify="right" if c not in ("case",) else "left")
     for r in rows:
         eq = r["eq"]
         t.add_row(r["case"], " ".join(f"{x:.3f}" for x in eq.tensions), f"{eq.pressure / 1e3:.1f}",
@@ -55,12 +64,21 @@ def _table(rows: list[dict], title: str) -> Table:
 
 def _emit(rows, title, as_json):
     if as_json:
-        typer.echo(json.dumps({r["case"]: equilibrium_summary(r["eq"], r["seconds"]) for r in rows}, indent=2))
+        typer.echo(json.dumps({r["case"]: _summary(r) for r in rows}, indent=2))
     else:
         console.print(_table(rows, title))
         for r in rows:
             if r.get("note"):
-                console.print(f"  {r['case']:>7}: {r['note']}")
+                console.print(escape(f"  {r['case']:>7}: {r['note']}"))
+            if r["eq"].limit_violations:
+                console.print(escape(f"  {r['case']:>7}: OUTSIDE the actuator's limits: "
+                                     f"{'; '.join(r['eq'].limit_violations)}"))
+
+
+def _summary(row) -> dict:
+    eq = row["eq"]
+    return dict(equilibrium_summary(eq, row["seconds"]), stable=bool(eq.stable),
+                min_eigenvalue=eq.min_eigenvalue, limit_violations=list(eq.limit_violations))
 
 
 def _timed(fn, *a, **k):
@@ -75,12 +93,16 @@ def fk(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N], comma 
        preset: str = typer.Option("paper", help=PRESET_HELP),
        n_elements: Optional[int] = typer.Option(None, help="Override the number of elements."),
        vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
+       force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+       no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP),
        as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Forward kinetostatics: tensions, pressure, tip load → equilibrium shape and tip."""
+    vtu = _vtu_path(vtu, force)
     model = _model(preset, n_elements)
     T = parse_vector(tensions_n, model.m, "--tensions-n")
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
-    eq, s = _timed(model.fk, T, pressure_kpa * 1e3, F)
+    warm_up()
+    eq, s = _timed(model.fk, T, pressure_kpa * 1e3, F, check_limits=not no_limits)
     if vtu:
         save_vtu(vtu, model, eq)
     _emit([{"case": "fk", "eq": eq, "seconds": s}], f"FK on '{model.params.name}'", as_json)
@@ -92,12 +114,17 @@ def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z
        preset: str = typer.Option("paper", help=PRESET_HELP),
        n_elements: Optional[int] = typer.Option(None, help="Override the number of elements."),
        vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
+       force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+       no_limits: bool = typer.Option(False, "--no-limits", help="Accept a pressure outside the actuator's "
+                                      "limits (the tensions always stay within theirs)."),
        as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Inverse kinetostatics: target tip position → tensions (within their limits) and shape."""
+    vtu = _vtu_path(vtu, force)
     model = _model(preset, n_elements)
     pd = parse_vector(target_mm, 3, "--target-mm") * 1e-3
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
-    eq, s = _timed(model.ik, pd, pressure_kpa * 1e3, F)
+    warm_up()
+    eq, s = _timed(model.ik, pd, pressure_kpa * 1e3, F, check_limits=not no_limits)
     if vtu:
         save_vtu(vtu, model, eq)
     _emit([{"case": "ik", "eq": eq, "seconds": s}], f"IK on '{model.params.name}'", as_json)
@@ -108,12 +135,24 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
            tip_force_n: str = typer.Option("0,0,0", help="External tip force [N]."),
            method: str = typer.Option("active_set", help="'active_set' (exact) or 'gamma' (paper eq. 6)."),
            preset: str = typer.Option("paper", help=PRESET_HELP),
+           vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
+           force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+           no_limits: bool = typer.Option(False, "--no-limits", help="Report states whose tensions exceed the "
+                                          "actuator's limit (marked in the output) instead of rejecting them."),
            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Locked-tendon-length FK: tendon lengths, pressure, load → shape, tensions and slack."""
+    vtu = _vtu_path(vtu, force)
     model = _model(preset, None)
     l0 = parse_vector(lengths_mm, model.m, "--lengths-mm") * 1e-3
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
-    eq, s = _timed(model.fk_locked, l0, pressure_kpa * 1e3, F, method=method)
+    if method not in ("active_set", "gamma"):
+        raise InputError(f"--method must be 'active_set' or 'gamma', got {method!r}")
+    warm_up()
+    eq, s = _timed(model.fk_locked, l0, pressure_kpa * 1e3, F, method=method, check_limits=not no_limits)
+    if not no_limits:
+        eq.require_within_limits()
+    if vtu:
+        save_vtu(vtu, model, eq)
     _emit([{"case": "locked", "eq": eq, "seconds": s}], f"locked FK on '{model.params.name}'", as_json)
 
 
@@ -122,6 +161,7 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
                tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] at the state."),
                load_direction: str = typer.Option("0,0,-1", help="Direction of the extra load (locked active set)."),
                preset: str = typer.Option("paper", help=PRESET_HELP),
+               no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP),
                as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Tip compliance [mm/N] and stiffness [N/m] at an FK state: constant tension and locked tendons
     (exact KKT form, paper eq. 13, paper eq. 15)."""
@@ -130,7 +170,7 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
     T = parse_vector(tensions_n, model.m, "--tensions-n")
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
     u = parse_vector(load_direction, 3, "--load-direction")
-    eq = model.fk(T, pressure_kpa * 1e3, F)
+    eq = model.fk(T, pressure_kpa * 1e3, F, check_limits=not no_limits)
     forms = {"tension": cp.tension(model, eq)}
     for method in ("exact", "paper", "ik"):
         forms[f"locked/{method}"] = cp.locked(model, eq, method, load_direction=u)
@@ -143,7 +183,7 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
         return
     t = Table(title=f"tip compliance at T = {T.tolist()} N, p = {pressure_kpa:g} kPa (tip {np.round(eq.tip * 1e3, 2).tolist()} mm)")
     for c in ("form", "active", "C_p [mm/N] rows", "k_x [N/m]", "k_y [N/m]", "k_z [N/m]"):
-        t.add_column(c)
+        t.add_column(escape(c))
     for name, d in data.items():
         C = np.array(d["C_p_m_per_N"]) * 1e3
         t.add_row(name, str(d["active"]), "\n".join(" ".join(f"{x:8.3f}" for x in r) for r in C),
@@ -153,17 +193,32 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
                   "least-squares forms (see validation/compliance_check.py for their error).")
 
 
-def params(preset: str = typer.Option("paper", help=PRESET_HELP)):
-    """Print a preset as TOML (a starting point for your own actuator file)."""
-    typer.echo(presets.get(preset).to_toml())
+def params(preset: str = typer.Option("paper", help=PRESET_HELP),
+           out: Optional[pathlib.Path] = typer.Option(None, help="Write the TOML to this .toml file instead."),
+           force: bool = typer.Option(False, "--force", help=FORCE_HELP)):
+    """Print a preset as TOML (a starting point for your own actuator file; SI units in the key names —
+    length_mm, angle_deg, pressure_max_kPa, ... are accepted too).  The file reads back to the same
+    parameters."""
+    path = None if out is None else prepare_output_file(out, force=force, suffixes=(".toml",))
+    text = presets.get(preset).to_toml()
+    if path is None:
+        typer.echo(text, nl=False)
+    else:
+        atomic_write_text(path, text)
+        console.print(f"wrote {path}")
+
+
+DEMO_FILES = ("demo.png", "demo.json", "droop.vtu", "bend.vtu", "ik.vtu", "locked.vtu")
 
 
 def demo(out: pathlib.Path = typer.Option(pathlib.Path("bellows_out"), help="Output folder."),
          preset: str = typer.Option("paper", help=PRESET_HELP),
+         force: bool = typer.Option(False, "--force", help="Overwrite the results of an earlier demo in --out."),
          as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """A short tour on a preset: gravity droop, a bend, an IK target and a locked-tendon load case.
 
-    Prints a table and writes demo.png, one .vtu per case and demo.json to ``--out``."""
+    Prints a table and writes demo.png, one .vtu per case and demo.json to the --out folder."""
+    out = prepare_output_dir(out, DEMO_FILES, force=force)
     model = _model(preset, None)
     t0 = time.perf_counter()
     warm_up()
@@ -212,6 +267,10 @@ def run_demo(model: Model) -> list[dict]:
     return rows
 
 
+def _vtu_path(vtu: Optional[pathlib.Path], force: bool) -> Optional[pathlib.Path]:
+    return None if vtu is None else prepare_output_file(vtu, force=force, suffixes=(".vtu",))
+
+
 def _model(preset: str, n_elements: Optional[int]) -> Model:
     p = presets.get(preset)
     if n_elements is not None:
@@ -219,7 +278,17 @@ def _model(preset: str, n_elements: Optional[int]) -> Model:
     return Model(p)
 
 
+SHORT_HELP = {
+    "demo": "A short tour on a preset: droop, bend, IK, locked load case.",
+    "fk": "Forward kinetostatics: T, p, tip load → shape and tip.",
+    "ik": "Inverse kinetostatics: target tip → tensions and shape.",
+    "locked": "Locked tendon lengths, p, load → shape, tensions, slack.",
+    "compliance": "Tip compliance and stiffness at an FK state.",
+    "params": "Print a preset as a TOML parameter file.",
+}
+
+
 def register(app: typer.Typer) -> None:
     """Attach this module's commands to the root ``bellows`` app."""
     for fn in (demo, fk, ik, locked, compliance, params):
-        app.command(fn.__name__)(fn)
+        app.command(fn.__name__, short_help=SHORT_HELP[fn.__name__])(fn)

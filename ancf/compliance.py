@@ -69,6 +69,11 @@ class Compliance:
 def _parts(model: Model, eq: Equilibrium):
     """(H, J_p, J_l) in free coordinates at ``eq``, cached on the equilibrium object for this model so
     that several compliance evaluations at one state assemble once."""
+    if not isinstance(model, Model) or not isinstance(eq, Equilibrium):
+        raise InputError(f"compliance needs (Model, Equilibrium), got ({type(model).__name__}, {type(eq).__name__})")
+    if np.shape(eq.q) != (model.ndof,):
+        raise InputError(f"the equilibrium has {np.size(eq.q)} coordinates but the model has {model.ndof}: it "
+                         "comes from a model with another element count")
     key = (id(model), eq.q.tobytes(), eq.tensions.tobytes(), float(eq.pressure), eq.tip_force.tobytes())
     cached = getattr(eq, "_compliance_parts", None)
     if cached is not None and cached[0] == key:
@@ -190,7 +195,7 @@ def directional_stiffness(C: np.ndarray, direction) -> float:
     if nu == 0:
         raise InputError("direction must be non-zero")
     u = u / nu
-    c = float(u @ np.asarray(C, float) @ u)
+    c = float(u @ check_finite("C", C, (3, 3)) @ u)
     if c <= 0:
         raise InputError(f"compliance along {u} is not positive ({c:g} m/N)")
     return 1.0 / c
@@ -199,7 +204,10 @@ def directional_stiffness(C: np.ndarray, direction) -> float:
 def stiffness_ellipsoid(C: np.ndarray, n: int = 24):
     """Surface of directional stiffness: points k(u) u [N/m] on a (n, 2n) grid of directions u, plus the
     principal stiffnesses and axes of the symmetric part of C (for plots)."""
-    Cs = 0.5 * (np.asarray(C, float) + np.asarray(C, float).T)
+    C = check_finite("C", C, (3, 3))
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 2 <= n <= 1000:
+        raise InputError(f"n must be an integer in [2, 1000], got {n!r}")
+    Cs = 0.5 * (C + C.T)
     th = np.linspace(0, np.pi, n)
     ph = np.linspace(0, 2 * np.pi, 2 * n)
     U = np.stack([np.outer(np.sin(th), np.cos(ph)), np.outer(np.sin(th), np.sin(ph)),

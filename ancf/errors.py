@@ -9,6 +9,7 @@ with one ``except``.  Each subclass also derives from the matching builtin (``Va
     BellowsError
     ├── ConfigError (ValueError)            bad parameter file / value / unit, unknown key
     ├── InputError (ValueError)             NaN / inf / wrong shape / out-of-range call argument
+    │   ├── LimitError                      outside the actuator's stated operating limits
     │   └── OutputExistsError               an output exists and overwriting was not asked for
     ├── ConvergenceError (RuntimeError)     a nonlinear solve did not converge (carries residual history)
     ├── UnstableEquilibriumError (RuntimeError)  a solve reached an equilibrium that is not a minimum
@@ -34,6 +35,12 @@ class ConfigError(BellowsError, ValueError):
 
 class InputError(BellowsError, ValueError):
     """A call argument is invalid (NaN, wrong shape, outside the operating range, ...)."""
+
+
+class LimitError(InputError):
+    """An input, or the state it leads to, is outside the actuator's stated operating limits (tension,
+    pressure, tip load).  The API analyses it anyway with ``check_limits=False``; the CLI with
+    ``--no-limits``."""
 
 
 class OutputExistsError(InputError):
@@ -127,10 +134,38 @@ class HardwareError(BellowsError, RuntimeError):
 
 
 def check_finite(name: str, value, shape: tuple[int, ...] | None = None) -> np.ndarray:
-    """Return ``value`` as a float array, raising :class:`InputError` on NaN/inf or a wrong shape."""
-    arr = np.asarray(value, dtype=float)
-    if shape is not None and arr.shape != shape:
-        raise InputError(f"{name} must have shape {shape}, got {arr.shape}")
+    """Return ``value`` as a C-contiguous float64 array, raising :class:`InputError` on NaN/inf, a wrong
+    shape, or a value that is not real numbers (a string, a boolean, a complex number, ``None``, an
+    object array).  The one gate every array passes before it reaches a compiled kernel."""
+    if isinstance(value, (str, bytes)) or value is None:
+        raise InputError(f"{name} must be a number or an array of numbers, got {value!r}")
+    try:
+        raw = np.asarray(value)
+    except (ValueError, TypeError) as exc:  # ragged nested sequences
+        raise InputError(f"{name} must be a regular array of numbers: {exc}") from None
+    if raw.dtype.kind not in "iuf":
+        kind = {"b": "booleans", "c": "complex numbers", "U": "text", "S": "text", "O": "objects",
+                "M": "dates", "m": "time spans", "V": "records"}.get(raw.dtype.kind, str(raw.dtype))
+        raise InputError(f"{name} must be real numbers, got {kind} ({_short(value)})")
+    arr = np.asarray(raw, dtype=np.float64, order="C")
+    if shape is not None and arr.shape != tuple(shape):
+        raise InputError(f"{name} must have shape {tuple(shape)}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise InputError(f"{name} contains NaN or inf: {arr}")
+        raise InputError(f"{name} contains NaN or inf: {_short(arr)}")
     return arr
+
+
+def check_scalar(name: str, value, *, low: float | None = None, high: float | None = None,
+                 unit: str = "") -> float:
+    """A finite real number (not a string or a boolean) inside ``[low, high]``, as a float; else
+    :class:`InputError` naming ``name``, the value and the unit."""
+    v = float(check_finite(name, value, ()))
+    if (low is not None and v < low) or (high is not None and v > high):
+        rng = f"[{'-inf' if low is None else f'{low:g}'}, {'inf' if high is None else f'{high:g}'}]"
+        raise InputError(f"{name} = {v:g}{' ' + unit if unit else ''} is outside {rng}{' ' + unit if unit else ''}")
+    return v
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import CollapsedStateError
+
 
 def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss–Legendre points ξ and weights on [0, 1] (n points, exact for degree 2n − 1)."""
@@ -100,7 +102,8 @@ def rodrigues(t, e1) -> np.ndarray:
     v = np.cross(e1, t)
     c = float(np.dot(e1, t))
     if c <= -1.0 + 1e-12:
-        raise ValueError("Rodrigues rotation undefined for t = -e1 (180 degree fold)")
+        raise CollapsedStateError("tip frame undefined: the tip tangent points against the base axis "
+                                  "(a 180 degree fold)")
     V = skew(v)
     return np.eye(3) + V + V @ V / (1.0 + c)
 

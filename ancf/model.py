@@ -26,7 +26,7 @@ Solvers:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, asdict
+from dataclasses import asdict, dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -34,7 +34,16 @@ import scipy.optimize as so
 
 from . import kinematics as kin
 from .assembly import assemble
-from .errors import ConvergenceError, InfeasibleTargetError, InputError, check_finite
+from .errors import (
+    CollapsedStateError,
+    ConvergenceError,
+    InfeasibleTargetError,
+    InputError,
+    LimitError,
+    UnstableEquilibriumError,
+    check_finite,
+    check_scalar,
+)
 from .params import ActuatorParams
 from .solvers import SolveInfo, minimize_newton, solve_root
 
@@ -58,7 +67,9 @@ class Equilibrium:
     q (ndof,), tip (3,) tool point p_end [m], tip_rotation (3, 3), tendon_lengths (m,) [m],
     tensions (m,) [N], slack (m,) [m] (locked FK only, else None), active (tuple of taut tendon indices,
     locked FK only), pressure [Pa], tip_force (3,) [N], converged (always True: failures raise),
-    iterations, residual_norm, energy [J], solver.
+    iterations, residual_norm, energy [J], solver, stable (True: the reduced Hessian is positive definite;
+    False only when the solve was asked not to check, ``check_stability=False``), ``min_eigenvalue``,
+    limit_violations (tuple of texts: result quantities outside the actuator's limits, locked FK).
     """
     q: np.ndarray
     tip: np.ndarray
@@ -75,6 +86,30 @@ class Equilibrium:
     active: Optional[tuple] = None
     converged: bool = True
     history: list = field(default_factory=list)
+    stable: bool = True
+    limit_violations: tuple = ()
+
+    def require_within_limits(self) -> "Equilibrium":
+        """Return self, or raise :class:`~ancf.errors.LimitError` if the state violates the actuator's
+        operating limits (``limit_violations``, e.g. locked-tendon tensions above ``tension_max``)."""
+        if self.limit_violations:
+            raise LimitError(f"{self.solver}: the state is outside the actuator's limits "
+                             f"({'; '.join(self.limit_violations)}); change the inputs or lower the load")
+        return self
+
+    @property
+    def min_eigenvalue(self) -> float:
+        """Smallest eigenvalue of the reduced Hessian ∇²Π in free coordinates (for locked tendons: on the
+        tangent space of the taut tendons' length constraints).  Positive at a stable equilibrium (a
+        minimum of the potential).  Mixed units (N/m for positions, N m for slopes); computed on first
+        access (an eigen-decomposition), while ``stable`` comes from the Cholesky factorisation done in
+        every solve."""
+        cached = self.__dict__.get("_min_eig")
+        if cached is None:
+            H = self.__dict__.get("_stability_matrix")
+            cached = float("nan") if H is None else float(np.linalg.eigvalsh(H)[0])
+            self.__dict__["_min_eig"] = cached
+        return cached
 
     def to_dict(self) -> dict:
         """JSON-friendly dictionary (lists instead of arrays)."""
@@ -123,14 +158,25 @@ class Model:
         self.nz = self.ndof - 6 + (1 if p.free_base_stretch else 0)
         # scale for mixing force and position residuals (N/m): axial stiffness of the whole actuator
         self._kscale = float(p.stiffness.EA(1.0)) / p.length
-        # default residual tolerance [N]: round-off of the generalized forces scales with EA
-        self.default_tol = 1e-9 + 1e-13 * float(p.stiffness.EA(1.0))
+        # default residual tolerance [N]: the round-off floor of the generalized forces grows with the
+        # stiffness and the element count — axial terms like EA/h, bending terms like EI/h³ (h = L/n), summed
+        # over ndof entries.  Measured floors (paper preset): 2e-12 N at n = 6, 1.5e-10 N at n = 50, 1.4e-9 N
+        # at n = 120; the size term below stays 10–100× above them, and negligible (5e-11 N) at n = 6.
+        inv_h = self.n / p.length
+        self.default_tol = (1e-9 + 1e-13 * float(p.stiffness.EA(1.0))
+                            + np.finfo(float).eps * np.sqrt(self.ndof)
+                            * (abs(float(p.stiffness.EA(1.0))) * inv_h + abs(float(p.stiffness.EI(1.0))) * inv_h ** 3))
         self._droop: dict[float, Equilibrium] = {}
         # series compliance of each tendon path 1/k_s [m/N] (0: inextensible)
         self._cs = 0.0 if p.tendon_stiffness is None else 1.0 / p.tendon_stiffness
+        self._lam_range = p.stiffness.valid_stretch_range
 
     # ----------------------------------------------------------------------------- coordinate maps
     def to_free(self, q: np.ndarray) -> np.ndarray:
+        """Free coordinates z (nz,) of full coordinates q (ndof,)."""
+        return self._to_free(self._q(q))
+
+    def _to_free(self, q: np.ndarray) -> np.ndarray:
         if self._P is None:
             return q[6:].copy()
         z = np.empty(self.nz)
@@ -139,6 +185,10 @@ class Model:
         return z
 
     def to_full(self, z: np.ndarray) -> np.ndarray:
+        """Full coordinates q (ndof,) of free coordinates z (nz,)."""
+        return self._to_full(check_finite("z", z, (self.nz,)))
+
+    def _to_full(self, z: np.ndarray) -> np.ndarray:
         if self._P is None:
             q = self._q_fix.copy()
             q[6:] = z
@@ -147,15 +197,30 @@ class Model:
 
     def reduce_vec(self, v: np.ndarray) -> np.ndarray:
         """Pᵀ v for a vector (ndof,) or rows (k, ndof) → (k, nz)."""
+        v = check_finite("v", v)
+        if v.ndim not in (1, 2) or v.shape[-1] != self.ndof:
+            raise InputError(f"reduce_vec needs shape ({self.ndof},) or (k, {self.ndof}), got {v.shape}")
+        return self._reduce_vec(v)
+
+    def _reduce_vec(self, v: np.ndarray) -> np.ndarray:
         if self._P is None:
             return v[..., 6:]
         return v @ self._P
 
     def reduce_mat(self, K: np.ndarray) -> np.ndarray:
         """Pᵀ K P (nz, nz)."""
+        return self._reduce_mat(check_finite("K", K, (self.ndof, self.ndof)))
+
+    def _reduce_mat(self, K: np.ndarray) -> np.ndarray:
         if self._P is None:
             return K[6:, 6:]
         return self._P.T @ K @ self._P
+
+    @staticmethod
+    def _per_element(k) -> int:
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= 1000:
+            raise InputError(f"per_element must be an integer in [1, 1000], got {k!r}")
+        return int(k)
 
     # ----------------------------------------------------------------------------- evaluation
     def _check_inputs(self, tensions, pressure, tip_force, check_limits: bool):
@@ -166,12 +231,13 @@ class Model:
         if check_limits:
             for i, t in enumerate(T):
                 if t < p.tension_min - 1e-12 or t > p.tension_max + 1e-12:
-                    raise InputError(f"tension T{i + 1} = {t:g} N is outside the limits "
-                                     f"[{p.tension_min:g}, {p.tension_max:g}] N (pass check_limits=False to "
-                                     f"analyse it anyway)")
+                    raise LimitError(f"tension T{i + 1} = {t:g} N is outside the actuator's limits "
+                                     f"[{p.tension_min:g}, {p.tension_max:g}] N (check_limits=False analyses "
+                                     f"it anyway)")
             if pr < p.pressure_min - 1e-9 or pr > p.pressure_max + 1e-9:
-                raise InputError(f"pressure {pr:g} Pa is outside the limits [{p.pressure_min:g}, "
-                                 f"{p.pressure_max:g}] Pa (note: SI pascals, 30 kPa = 30e3)")
+                raise LimitError(f"pressure {pr / 1e3:g} kPa is outside the actuator's limits "
+                                 f"[{p.pressure_min / 1e3:g}, {p.pressure_max / 1e3:g}] kPa (the Python API takes "
+                                 f"pascals: 30 kPa = 30e3; check_limits=False analyses it anyway)")
         return np.ascontiguousarray(T, dtype=float), pr, np.ascontiguousarray(F, dtype=float)
 
     def total_tip_load(self, tip_force, gravity_scale: float = 1.0) -> np.ndarray:
@@ -184,7 +250,27 @@ class Model:
 
         ``lengths``: True — tendon lengths, arc length and their gradients; ``"values"`` — the lengths
         without gradients (``J_l``, ``J_arc`` zero); False — none of them (``lengths`` zero too; faster
-        inside Newton loops)."""
+        inside Newton loops).  Every argument is checked (shape, real numbers, finite) before the compiled
+        assembly runs; a state with a collapsed section (|r_x| < 0.2 somewhere) raises
+        :class:`~ancf.errors.CollapsedStateError` instead of returning an infinite energy."""
+        q = self._q(q)
+        T = np.zeros(self.m) if tensions is None else check_finite("tensions", tensions, (self.m,))
+        pr = float(check_finite("pressure", pressure, ()))
+        F = check_finite("tip_force", tip_force, (3,))
+        gs = float(check_finite("gravity_scale", gravity_scale, ()))
+        if lengths not in (True, False, "values"):
+            raise InputError(f"lengths must be True, False or 'values', got {lengths!r}")
+        ev = self._evaluate(q, T, pr, F, bool(hessian), gs, lengths)
+        if not np.isfinite(ev.energy):
+            lam = self.stretches(q)
+            raise CollapsedStateError(
+                f"state has a collapsed section: stretch |r_x| = {lam.min():.3g} (< 0.2) at a quadrature "
+                "point; the model is not defined there", solver="evaluate", stretch=float(lam.min()))
+        return ev
+
+    def _evaluate(self, q, tensions=None, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
+                  hessian: bool = True, gravity_scale: float = 1.0, lengths=True) -> Evaluation:
+        """:meth:`evaluate` without argument checks (solver internals: arguments already checked)."""
         T = np.zeros(self.m) if tensions is None else np.ascontiguousarray(tensions, dtype=float)
         F = self.total_tip_load(tip_force, gravity_scale)
         E, Q, K, lc, Jl, arc, Jarc = assemble(
@@ -193,6 +279,29 @@ class Model:
             self._so, T, self.params.tool_offset, F, hessian,
             2 if lengths is True else (1 if lengths == "values" else 0))
         return Evaluation(E, Q, K if hessian else None, lc, Jl, arc, Jarc)
+
+    # ----------------------------------------------------------------------------- argument checks
+    def _q(self, q, name: str = "q") -> np.ndarray:
+        """Full coordinates (ndof,) as a checked float64 array (the only way q reaches a kernel)."""
+        q = check_finite(name, q, (self.ndof,))
+        return q
+
+    def _q_tip(self, q) -> np.ndarray:
+        q = self._q(q)
+        if not np.linalg.norm(q[-3:]) > 1e-12:
+            raise InputError("q has a zero tip slope r_x at the last node: the tip frame is undefined")
+        return q
+
+    def stretches(self, q) -> np.ndarray:
+        """Local stretch λ = |r_x| at every quadrature point, array (n_elements, quadrature_points)."""
+        q = self._q(q)
+        return self._stretches(q)
+
+    def _stretches(self, q) -> np.ndarray:
+        idx = 6 * np.arange(self.n)[:, None] + np.arange(12)[None, :]
+        qe = q[idx].reshape(self.n, 4, 3)                       # element nodal vectors
+        a = np.einsum("kj,ejc->ekc", self._N[:, 1, :], qe)      # r_x at quadrature points
+        return np.sqrt(np.einsum("ekc,ekc->ek", a, a))
 
     # convenience accessors (full coordinates) ---------------------------------------------------
     def residual(self, q, tensions=None, pressure=0.0, tip_force=(0, 0, 0)) -> np.ndarray:
@@ -210,7 +319,7 @@ class Model:
     def dQ_dp(self, q) -> np.ndarray:
         """∂Q/∂p = −∂V/∂q (ndof,) [m²], V = ∫ A(λ) λ dx the chamber volume."""
         zero3 = np.zeros(3)
-        _, Q, *_ = assemble(np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, np.zeros(1),
+        _, Q, *_ = assemble(self._q(q), self.n, self._N, self._wq, np.zeros(1),
                             np.zeros(1), self._vc, zero3, self._E, self._d, self._co, self._so, np.zeros(self.m),
                             0.0, zero3, False, 0)
         return Q
@@ -229,26 +338,33 @@ class Model:
 
     def tip(self, q) -> np.ndarray:
         """Tool point p_end [m]."""
-        return kin.tip_position(np.asarray(q, float), self.params.tool_offset)
+        return kin.tip_position(self._q_tip(q), self.params.tool_offset)
+
+    def _tip(self, q) -> np.ndarray:
+        return kin.tip_position(q, self.params.tool_offset)
+
+    def _tip_jacobian(self, q) -> np.ndarray:
+        return kin.tip_position_jacobian(q, self.params.tool_offset)
 
     def tip_jacobian(self, q) -> np.ndarray:
         """∂p_end/∂q (3, ndof)."""
-        return kin.tip_position_jacobian(np.asarray(q, float), self.params.tool_offset)
+        return kin.tip_position_jacobian(self._q_tip(q), self.params.tool_offset)
 
     def tip_rotation(self, q) -> np.ndarray:
         """Tip orientation R (3, 3), Rodrigues rotation of the base axis onto the tip tangent."""
-        return kin.tip_rotation(np.asarray(q, float), self._e1)
+        return kin.tip_rotation(self._q_tip(q), self._e1)
 
     def tip_angular_jacobian(self, q) -> np.ndarray:
         """J_ω (3, ndof): δR = [J_ω δq]× R."""
-        return kin.tip_angular_jacobian(np.asarray(q, float), self._e1)
+        return kin.tip_angular_jacobian(self._q_tip(q), self._e1)
 
     def centreline(self, q, per_element: int = 10) -> np.ndarray:
         """Points along the centreline (m, 3) [m]."""
-        return kin.interpolate(np.asarray(q, float), self.n, self.params.length, per_element)
+        return kin.interpolate(self._q(q), self.n, self.params.length, self._per_element(per_element))
 
     def tendon_paths(self, q, per_element: int = 10) -> np.ndarray:
         """Tendon routing points r + d R(t) o, array (m_tendons, points, 3) [m]."""
+        q, per_element = self._q(q), self._per_element(per_element)
         r = kin.interpolate(q, self.n, self.params.length, per_element, 0)
         a = kin.interpolate(q, self.n, self.params.length, per_element, 1)
         out = np.empty((self.m, len(r), 3))
@@ -260,37 +376,92 @@ class Model:
         return out
 
     # ----------------------------------------------------------------------------- results
-    def _result(self, q, T, pr, F, info, ev: Evaluation, solver, slack=None, active=None) -> Equilibrium:
-        return Equilibrium(q=q, tip=self.tip(q), tip_rotation=self.tip_rotation(q),
-                           tendon_lengths=ev.lengths.copy(), tensions=np.array(T, float), pressure=pr,
-                           tip_force=np.array(F, float), iterations=info.iterations,
-                           residual_norm=info.residual_norm, energy=ev.energy, solver=solver, slack=slack,
-                           active=active, history=info.history)
+    def _result(self, q, T, pr, F, info, ev: Evaluation, solver, slack=None, active=None, *, H=None, JA=None,
+                check_stability: bool = True) -> Equilibrium:
+        """Verify a converged state (stretch inside the law's validity range, stable) and package it."""
+        Hr, stable = self._verify(q, H, JA, solver, check_stability)
+        eq = Equilibrium(q=q, tip=self._tip(q), tip_rotation=self.tip_rotation(q),
+                         tendon_lengths=ev.lengths.copy(), tensions=np.array(T, float), pressure=pr,
+                         tip_force=np.array(F, float), iterations=info.iterations,
+                         residual_norm=info.residual_norm, energy=ev.energy, solver=solver, slack=slack,
+                         active=active, history=info.history, stable=stable)
+        eq.__dict__["_stability_matrix"] = Hr
+        return eq
+
+    def _verify(self, q, H, JA, solver: str, check_stability: bool):
+        """CollapsedStateError outside the stiffness law's validity range; UnstableEquilibriumError when
+        the reduced Hessian ``H`` (nz, nz) projected on the null space of the active constraint rows ``JA``
+        (k, nz) is not positive definite.  Returns (projected Hessian, stable)."""
+        lam = self._stretches(q)
+        lo, hi = self._lam_range
+        lmin, lmax = float(lam.min()), float(lam.max())
+        if lmin <= lo or lmax >= hi:
+            bad = lmin if lmin <= lo else lmax
+            raise CollapsedStateError(
+                f"{solver}: the solution has a local stretch λ = {bad:.3f} outside the stiffness law's valid "
+                f"range ({lo:.3f}, {hi:.3g}) where EA(λ) and EI(λ) are positive: the section has collapsed "
+                "and the state is not an equilibrium of the model (lower the load or the tendon tensions)",
+                solver=solver, stretch=bad)
+        if H is None:
+            return None, True
+        Hr = H
+        if JA is not None and len(JA):
+            Qf, _ = np.linalg.qr(np.asarray(JA, float).T, mode="complete")
+            Z = Qf[:, len(JA):]
+            Hr = Z.T @ H @ Z
+        Hr = 0.5 * (Hr + Hr.T)
+        try:
+            np.linalg.cholesky(Hr)
+            return Hr, True
+        except np.linalg.LinAlgError:
+            pass
+        lam_min = float(np.linalg.eigvalsh(Hr)[0])
+        if lam_min >= -1e-10 * max(float(np.max(np.abs(np.diag(Hr)))), 1e-300):
+            return Hr, True                      # positive semi-definite within round-off
+        if not check_stability:
+            return Hr, False
+        what = "on the tangent space of the locked tendons " if JA is not None and len(JA) else ""
+        raise UnstableEquilibriumError(
+            f"the solve converged to an unstable equilibrium (a saddle of the potential: the reduced "
+            f"Hessian {what}has a negative eigenvalue), not a usable state; perturb the start (q0), apply the "
+            f"load in steps from a stable state, or lower the load", solver=solver, min_eigenvalue=lam_min)
 
     def _initial_z(self, q0) -> np.ndarray:
         if q0 is None:
-            return self.to_free(self.q_ref)
+            return self._to_free(self.q_ref)
         q0 = check_finite("q0", q0, (self.ndof,))
-        return self.to_free(q0)
+        return self._to_free(q0)
 
     # ----------------------------------------------------------------------------- FK
     def fk(self, tensions=(0.0, 0.0, 0.0), pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
-           q0=None, *, tol: Optional[float] = None, max_iter: int = 60, check_limits: bool = True) -> Equilibrium:
+           q0=None, *, tol: Optional[float] = None, max_iter: int = 60, check_limits: bool = True,
+           check_stability: bool = True) -> Equilibrium:
         """Forward kinetostatics (T [N], p [Pa], F_e [N]) → equilibrium (paper Sec. III-A).
 
         ``q0`` (ndof,) warm-starts; default: the straight reference.  Converged when the free
-        generalized-force residual ‖Q‖₂ < ``tol`` [N, N m] (default ``model.default_tol``, 1e-9 N plus
-        1e-13 EA).  Raises ConvergenceError otherwise.
+        generalized-force residual ‖Q‖₂ < ``tol`` [N, N m] (default ``model.default_tol``: 1e-9 N + 1e-13 EA
+        plus a round-off term that grows with the element count, see ``Model.__init__``).  Raises ConvergenceError otherwise, UnstableEquilibriumError if the state
+        found is a saddle (``check_stability=False`` returns it with ``stable=False`` instead),
+        CollapsedStateError if it leaves the stiffness law's validity range, InputError for bad arguments
+        or loads outside the actuator's limits (``check_limits=False`` to analyse them anyway).
         """
-        tol = self.default_tol if tol is None else tol
+        tol, max_iter = self._check_solver_options(tol, max_iter)
         if tensions is not None and np.ndim(tensions) == 1 and len(tensions) != self.m:
             raise InputError(f"tensions needs {self.m} values (one per tendon), got {len(tensions)}")
         T, pr, F = self._check_inputs(tensions, pressure, tip_force, check_limits)
         z0 = self._initial_z(q0)
         z, info = self._fk_z(z0, T, pr, F, tol, max_iter)
-        q = self.to_full(z)
-        ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
-        return self._result(q, T, pr, F, info, ev, "fk")
+        q = self._to_full(z)
+        ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
+        return self._result(q, T, pr, F, info, ev, "fk", H=info.matrix, check_stability=check_stability)
+
+    def _check_solver_options(self, tol, max_iter):
+        tol = self.default_tol if tol is None else check_scalar("tol", tol, low=0.0)
+        if not tol > 0:
+            raise InputError("tol must be > 0 (a residual of exactly zero is never reached in floating point)")
+        if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or not 1 <= max_iter <= 10_000:
+            raise InputError(f"max_iter must be an integer in [1, 10000], got {max_iter!r}")
+        return float(tol), int(max_iter)
 
     def _fk_fun(self, T, pr, F, load=1.0):
         """Potential, free gradient and free Hessian at free coordinates z (lean path for Newton)."""
@@ -301,12 +472,12 @@ class Model:
         p = self.params
 
         def fun(z, hessian):
-            q = self.to_full(z)
+            q = self._to_full(z)
             E, Q, K, *_ = assemble(q, self.n, self._N, self._wq, self._ea, self._ei, pa, mg, self._E, self._d,
                                    self._co, self._so, Ts, p.tool_offset, Ftot, hessian, 0)
             if not np.isfinite(E):
                 return np.inf, None, None
-            return E, self.reduce_vec(Q), (self.reduce_mat(K) if hessian else None)
+            return E, self._reduce_vec(Q), (self._reduce_mat(K) if hessian else None)
         return fun
 
     @staticmethod
@@ -321,7 +492,7 @@ class Model:
             return minimize_newton(self._fk_fun(T, pr, F), z0, tol=tol, max_iter=min(max_iter, 25), name="fk")
         except ConvergenceError as exc:
             first = exc
-        z_prev = z = self.to_free(self.q_ref)
+        z_prev = z = self._to_free(self.q_ref)
         s_prev, s, ds, total_it, hist = 0.0, 0.0, 0.25, first.iterations, list(first.history)
         while s < 1.0:
             s_try = min(1.0, s + ds)
@@ -343,33 +514,38 @@ class Model:
             total_it += info.iterations
             hist += info.history
             ds = min(ds * (2.0 if info.iterations <= 6 else 1.2), 1.0)
-        return z, SolveInfo(total_it, hist[-1], hist)
+        return z, SolveInfo(total_it, hist[-1], hist, info.matrix)
 
     def droop(self, pressure: float = 0.0) -> Equilibrium:
         """Gravity-only equilibrium (T = 0, no tip force) at ``pressure`` [Pa] — the stored warm start of
         the paper's LACC (computed once per pressure and kept)."""
-        key = float(pressure)
+        key = check_scalar("pressure", pressure, unit="Pa")
         if key not in self._droop:
             self._droop[key] = self.fk(np.zeros(self.m), key, (0, 0, 0))
         return self._droop[key]
 
     # ----------------------------------------------------------------------------- IK
     def ik(self, target, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None, tensions0=None, *,
-           tol: Optional[float] = None, tol_position: float = 1e-9, max_iter: int = 60) -> Equilibrium:
+           tol: Optional[float] = None, tol_position: float = 1e-9, max_iter: int = 60,
+           check_limits: bool = True, check_stability: bool = True) -> Equilibrium:
         """Inverse kinetostatics (p_d [m], p [Pa], F_e [N]) → (q, T) with T_min ≤ T ≤ T_max
         (paper Sec. III-A, eq. 2).
 
         Raises InfeasibleTargetError (naming the violated bound and giving the nearest reachable tip)
         when no tensions inside the bounds reach the target, ConvergenceError if a solve fails.
         With more than 3 tendons the solution is not unique: the one with the least Σ T² is returned.
+        The state returned is a stable equilibrium at the tensions found (UnstableEquilibriumError
+        otherwise, unless ``check_stability=False``).  The pressure is checked against the actuator's
+        limits (``check_limits=False`` skips that; the tensions always stay inside their bounds).
         """
-        tol = self.default_tol if tol is None else tol
+        tol, max_iter = self._check_solver_options(tol, max_iter)
+        tol_position = check_scalar("tol_position", tol_position, low=1e-15, high=1e-2, unit="m")
         pd = check_finite("target", target, (3,))
-        _, pr, F = self._check_inputs(None, pressure, tip_force, True)
+        _, pr, F = self._check_inputs(None, pressure, tip_force, check_limits)
         p = self.params
         T0 = np.zeros(self.m) if tensions0 is None else check_finite("tensions0", tensions0, (self.m,))
         if q0 is None:
-            q0 = self.fk(np.clip(T0, p.tension_min, p.tension_max), pr, F).q
+            q0 = self.fk(np.clip(T0, p.tension_min, p.tension_max), pr, F, check_limits=check_limits).q
         z0 = self._initial_z(q0)
         sol = None
         if self.m == 3:
@@ -381,27 +557,28 @@ class Model:
             z, T, info = sol
             if np.all(T >= p.tension_min - 1e-9) and np.all(T <= p.tension_max + 1e-9):
                 T = np.clip(T, p.tension_min, p.tension_max)
-                q = self.to_full(z)
-                ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
-                return self._result(q, T, pr, F, info, ev, "ik")
+                q = self._to_full(z)
+                ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
+                return self._result(q, T, pr, F, info, ev, "ik", H=info.matrix[:self.nz, :self.nz],
+                                    check_stability=check_stability)
         # bounded reduced solve over the tensions: feasible solution or nearest reachable point
         unconstrained = None if sol is None else sol[1]
-        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained)
+        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability)
 
     def _ik_newton(self, z0, T0, pd, pr, F, tol, tol_position, max_iter):
         nz, m = self.nz, self.m
 
         def fun(x):
             z, T = x[:nz], x[nz:]
-            q = self.to_full(z)
-            ev = self.evaluate(q, T, pr, F)
+            q = self._to_full(z)
+            ev = self._evaluate(q, T, pr, F)
             if not self._admissible(ev):
                 return np.full(nz + 3, np.nan), None
-            R = np.concatenate([self.reduce_vec(ev.Q), self.tip(q) - pd])
+            R = np.concatenate([self._reduce_vec(ev.Q), self._tip(q) - pd])
             J = np.zeros((nz + 3, nz + m))
-            J[:nz, :nz] = self.reduce_mat(ev.K)
-            J[:nz, nz:] = self.reduce_vec(ev.J_l).T
-            J[nz:, :nz] = self.reduce_vec(self.tip_jacobian(q))
+            J[:nz, :nz] = self._reduce_mat(ev.K)
+            J[:nz, nz:] = self._reduce_vec(ev.J_l).T
+            J[nz:, :nz] = self._reduce_vec(self._tip_jacobian(q))
             return R, J
 
         w = np.concatenate([np.ones(nz), np.full(3, self._kscale)])
@@ -410,27 +587,27 @@ class Model:
                              weights=w)
         return x[:nz], x[nz:], info
 
-    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained):
+    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability=True):
         p = self.params
-        state = {"z": z0}
+        state = {"z": z0, "info": None}
         lo, hi = np.full(self.m, p.tension_min), np.full(self.m, p.tension_max)
 
         def solve_fk(T):
             z, info = self._fk_z(state["z"], T, pr, F, tol, 60)
-            state["z"] = z
+            state["z"], state["info"] = z, info
             return z
 
         def fun(T):
             z = solve_fk(T)
-            return self.tip(self.to_full(z)) - pd
+            return self._tip(self._to_full(z)) - pd
 
         def jac(T):
             z = solve_fk(T)
-            q = self.to_full(z)
-            ev = self.evaluate(q, T, pr, F)
-            H = self.reduce_mat(ev.K)
-            dz = -np.linalg.solve(H, self.reduce_vec(ev.J_l).T)
-            return self.reduce_vec(self.tip_jacobian(q)) @ dz
+            q = self._to_full(z)
+            ev = self._evaluate(q, T, pr, F)
+            H = self._reduce_mat(ev.K)
+            dz = -np.linalg.solve(H, self._reduce_vec(ev.J_l).T)
+            return self._reduce_vec(self._tip_jacobian(q)) @ dz
 
         x0 = np.clip(T0 if unconstrained is None else unconstrained, lo, hi)
         res = so.least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", xtol=1e-14, ftol=1e-15,
@@ -438,8 +615,8 @@ class Model:
         T = res.x
         nfev = int(res.nfev)
         z = solve_fk(T)
-        q = self.to_full(z)
-        err = float(np.linalg.norm(self.tip(q) - pd))
+        q = self._to_full(z)
+        err = float(np.linalg.norm(self._tip(q) - pd))
         feasible = err <= max(tol_position * 10, 1e-8)
         if feasible and self.m > 3:
             # redundant tendons: least total tension Σ T² on the solution manifold, inside the bounds
@@ -453,12 +630,13 @@ class Model:
                     and opt.x @ opt.x < T @ T):
                 T = np.clip(opt.x, lo, hi)
                 z = solve_fk(T)
-                q = self.to_full(z)
-                err = float(np.linalg.norm(self.tip(q) - pd))
+                q = self._to_full(z)
+                err = float(np.linalg.norm(self._tip(q) - pd))
         if feasible:
-            ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
-            info = SolveInfo(nfev, float(np.linalg.norm(self.reduce_vec(ev.Q))), [])
-            return self._result(q, T, pr, F, info, ev, "ik")
+            ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
+            info = SolveInfo(nfev, float(np.linalg.norm(self._reduce_vec(ev.Q))), [])
+            return self._result(q, T, pr, F, info, ev, "ik", H=state["info"].matrix,
+                                check_stability=check_stability)
         violated = []
         for i in range(self.m):
             need = None if unconstrained is None else unconstrained[i]
@@ -470,7 +648,7 @@ class Model:
         if not violated:
             violated = [f"T{i + 1} at {'lower' if T[i] <= lo[i] + 1e-9 else 'upper'} bound"
                         for i in range(self.m) if T[i] <= lo[i] + 1e-9 or T[i] >= hi[i] - 1e-9]
-        near = self.tip(q)
+        near = self._tip(q)
         raise InfeasibleTargetError(
             f"IK target {np.round(pd * 1e3, 3).tolist()} mm is not reachable with tensions in "
             f"[{p.tension_min:g}, {p.tension_max:g}] N at p = {pr / 1e3:g} kPa: violated "
@@ -485,26 +663,69 @@ class Model:
 
     def fk_locked(self, tendon_lengths, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None,
                   tensions0=None, *, method: str = "active_set", tol: Optional[float] = None, tol_length: float = 1e-10,
-                  max_iter: int = 60) -> Equilibrium:
+                  max_iter: int = 60, check_limits: bool = True, check_stability: bool = True) -> Equilibrium:
         """FK with locked tendon lengths l⁰ [m] (paper eqs. 3–6): returns q, tensions T ≥ 0 and slack
         β = l⁰ − l(q) ≥ 0 with T_i β_i = 0.  ``method``: ``"active_set"`` (exact) or ``"gamma"`` (paper).
         With elastic tendons (``tendon_stiffness`` k_s) a taut tendon obeys l(q) − T/k_s = l⁰, the rest
-        length (lock at :meth:`rest_lengths` of an equilibrium)."""
-        tol = self.default_tol if tol is None else tol
+        length (lock at :meth:`rest_lengths` of an equilibrium).
+
+        The pressure is checked against the actuator's limits up front (``check_limits=False`` skips
+        it).  The tensions are a result here: tensions above ``tension_max`` are listed in
+        ``eq.limit_violations`` (and :meth:`Equilibrium.require_within_limits` raises
+        :class:`~ancf.errors.LimitError` for them; the CLI does so unless ``--no-limits``).  The state must be a minimum of the potential on the
+        tangent space of the taut tendons' constraints (UnstableEquilibriumError otherwise, unless
+        ``check_stability=False``)."""
+        tol, max_iter = self._check_solver_options(tol, max_iter)
+        tol_length = check_scalar("tol_length", tol_length, low=1e-15, high=1e-3, unit="m")
         l0 = check_finite("tendon_lengths", tendon_lengths, (self.m,))
-        _, pr, F = self._check_inputs(None, pressure, tip_force, True)
+        if np.any(l0 <= 0) or np.any(l0 > 3 * self.params.length):
+            raise InputError(f"tendon_lengths {np.round(l0 * 1e3, 3).tolist()} mm must be positive and below "
+                             f"3 × the actuator length ({3e3 * self.params.length:g} mm)")
+        if method not in ("active_set", "gamma"):
+            raise InputError(f"fk_locked method must be 'active_set' or 'gamma', got {method!r}")
+        _, pr, F = self._check_inputs(None, pressure, tip_force, check_limits)
+        q0_given = q0 is not None
         if q0 is None:
-            q0 = self.fk(np.zeros(self.m), pr, F).q
+            q0 = self.fk(np.zeros(self.m), pr, F, check_limits=check_limits).q
         z0 = self._initial_z(q0)
         if tensions0 is None:
             T0 = np.zeros(self.m)
         else:
             T0 = check_finite("tensions0", tensions0, (self.m,))
-        if method == "active_set":
-            return self._locked_active_set(z0, T0, l0, pr, F, tol, tol_length, max_iter)
-        if method == "gamma":
-            return self._locked_gamma(z0, T0, l0, pr, F, tol, tol_length, max_iter)
-        raise InputError(f"fk_locked method must be 'active_set' or 'gamma', got {method!r}")
+        solve = self._locked_active_set if method == "active_set" else self._locked_gamma
+        # Start from the given state and tensions; if that fails (e.g. four tendons all taut at lock time
+        # make the KKT system nearly singular while the answer has one slack), restart from the same state
+        # with the active set taken from the lengths, then from a cold start.
+        starts = [lambda: (z0, T0)]
+        if np.any(T0 != 0):
+            starts.append(lambda: (z0, np.zeros(self.m)))
+        if q0_given:
+            starts.append(lambda: (self._to_free(self.fk(np.zeros(self.m), pr, F, check_limits=check_limits).q),
+                                   np.zeros(self.m)))
+        first = None
+        for start in starts:
+            try:
+                z_s, T_s = start()
+                eq = solve(z_s, T_s, l0, pr, F, tol, tol_length, max_iter, check_stability)
+                break
+            except (ConvergenceError, UnstableEquilibriumError, CollapsedStateError) as exc:
+                first = first or exc
+        else:
+            raise first
+        p = self.params
+        eq.limit_violations = tuple(
+            f"T{i + 1} = {eq.tensions[i]:.3g} N > tension_max = {p.tension_max:g} N" for i in range(self.m)
+            if eq.tensions[i] > p.tension_max * (1 + 1e-9) + 1e-12)
+        return eq
+
+    def _locked_accept(self, tol, tol_length):
+        """Convergence of a locked solve in the rows' own units: ‖Q‖ < tol [N] and every length residual
+        below tol_length [m] (the weighted norm alone would ask lengths EA/L × L times more than stated)."""
+        nz = self.nz
+
+        def accept(R):
+            return bool(np.linalg.norm(R[:nz]) < tol and np.max(np.abs(R[nz:]), initial=0.0) < tol_length)
+        return accept
 
     def _locked_system(self, A, l0, pr, F):
         nz = self.nz
@@ -514,23 +735,23 @@ class Model:
             z, TA = x[:nz], x[nz:]
             T = np.zeros(self.m)
             T[A] = TA
-            q = self.to_full(z)
-            ev = self.evaluate(q, T, pr, F)
+            q = self._to_full(z)
+            ev = self._evaluate(q, T, pr, F)
             if not self._admissible(ev):
                 return np.full(nz + len(A), np.nan), None
-            JlA = self.reduce_vec(ev.J_l[A])
-            R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths[A] - self._cs * TA - l0[A]])
+            JlA = self._reduce_vec(ev.J_l[A])
+            R = np.concatenate([self._reduce_vec(ev.Q), ev.lengths[A] - self._cs * TA - l0[A]])
             J = np.zeros((nz + len(A), nz + len(A)))
-            J[:nz, :nz] = self.reduce_mat(ev.K)
+            J[:nz, :nz] = self._reduce_mat(ev.K)
             J[:nz, nz:] = JlA.T
             J[nz:, :nz] = JlA
             J[nz:, nz:] = -self._cs * np.eye(len(A))
             return R, J
         return fun
 
-    def _locked_active_set(self, z0, T0, l0, pr, F, tol, tol_length, max_iter):
+    def _locked_active_set(self, z0, T0, l0, pr, F, tol, tol_length, max_iter, check_stability=True):
         # initial active set: tendons carrying tension at lock time, else those the start state stretches
-        l_start = self.evaluate(self.to_full(z0), hessian=False, lengths="values").lengths
+        l_start = self._evaluate(self._to_full(z0), hessian=False, lengths="values").lengths
         A = [i for i in range(self.m) if T0[i] > 0 or l_start[i] > l0[i]]
         z, T = z0.copy(), T0.copy()
         seen = set()
@@ -542,24 +763,27 @@ class Model:
             seen.add(key)
             fun = self._locked_system(A, l0, pr, F)
             w = np.concatenate([np.ones(self.nz), np.full(len(A), self._kscale * self.params.length)])
-            x, info = solve_root(fun, np.concatenate([z, T[A]]), tol=min(tol, self._kscale * self.params.length
+            x, info = solve_root(fun, np.concatenate([z, T[A]]), accept=self._locked_accept(tol, tol_length),
+                                 tol=min(tol, self._kscale * self.params.length
                                                                        * tol_length), max_iter=max_iter,
                                  name="fk_locked", weights=w)
             total += info.iterations
             z = x[:self.nz]
             T = np.zeros(self.m)
             T[A] = x[self.nz:]
-            lengths = self.evaluate(self.to_full(z), hessian=False, lengths="values").lengths
+            lengths = self._evaluate(self._to_full(z), hessian=False, lengths="values").lengths
             neg = [i for i in A if T[i] < -1e-10]
             over = [i for i in range(self.m) if i not in A and lengths[i] > l0[i] + tol_length]
             if not neg and not over:
-                q = self.to_full(z)
+                q = self._to_full(z)
                 T = np.maximum(T, 0.0)
-                ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
+                ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
                 slack = np.maximum(l0 - ev.lengths, 0.0)
                 slack[A] = 0.0
                 info.iterations = total
-                return self._result(q, T, pr, F, info, ev, "fk_locked", slack=slack, active=tuple(A))
+                return self._result(q, T, pr, F, info, ev, "fk_locked", slack=slack, active=tuple(A),
+                                    H=info.matrix[:self.nz, :self.nz], JA=info.matrix[self.nz:, :self.nz],
+                                    check_stability=check_stability)
             if neg:
                 A.remove(min(neg, key=lambda i: T[i]))
             if over:
@@ -568,14 +792,14 @@ class Model:
         raise ConvergenceError("active-set loop of the locked-length FK cycled", solver="fk_locked",
                                iterations=total, residual_norm=float("nan"), tolerance=tol)
 
-    def _locked_gamma(self, z0, T0, l0, pr, F, tol, tol_length, max_iter):
+    def _locked_gamma(self, z0, T0, l0, pr, F, tol, tol_length, max_iter, check_stability=True):
         """Paper eq. (6): T = γ², β = 0 for γ > 0; T = 0, β = γ² for γ ≤ 0, Newton/LM on (z, γ).
 
         The γ column of the Jacobian vanishes at γ = 0, so a tendon that has to change from taut to
         slack (or back) can stall there; the solve is then restarted with the initial sign of γ flipped
         for the tendons that started at zero tension (at most 2^m starts)."""
         nz, m = self.nz, self.m
-        l_start = self.evaluate(self.to_full(z0), hessian=False, lengths="values").lengths
+        l_start = self._evaluate(self._to_full(z0), hessian=False, lengths="values").lengths
         g_base = np.where(T0 > 0, np.sqrt(np.maximum(T0, 0)), -np.sqrt(np.maximum(l0 - l_start, 0)))
         undecided = [i for i in range(m) if g_base[i] == 0.0]
         g_base = np.where(g_base == 0, 1e-3, g_base)
@@ -584,14 +808,14 @@ class Model:
             z, gam = x[:nz], x[nz:]
             T = np.where(gam > 0, gam ** 2, 0.0)
             beta = np.where(gam > 0, 0.0, gam ** 2)
-            q = self.to_full(z)
-            ev = self.evaluate(q, T, pr, F)
+            q = self._to_full(z)
+            ev = self._evaluate(q, T, pr, F)
             if not self._admissible(ev):
                 return np.full(nz + m, np.nan), None
-            Jl = self.reduce_vec(ev.J_l)
-            R = np.concatenate([self.reduce_vec(ev.Q), ev.lengths - self._cs * T + beta - l0])
+            Jl = self._reduce_vec(ev.J_l)
+            R = np.concatenate([self._reduce_vec(ev.Q), ev.lengths - self._cs * T + beta - l0])
             J = np.zeros((nz + m, nz + m))
-            J[:nz, :nz] = self.reduce_mat(ev.K)
+            J[:nz, :nz] = self._reduce_mat(ev.K)
             J[:nz, nz:] = Jl.T * np.where(gam > 0, 2 * gam, 0.0)
             J[nz:, :nz] = Jl
             J[nz:, nz:] = np.diag(np.where(gam > 0, -2 * self._cs * gam, 2 * gam))
@@ -607,6 +831,7 @@ class Model:
                     g0[i] = -1e-2
             try:
                 x, info = solve_root(fun, np.concatenate([z0, g0]), tol=tol_w, max_iter=max_iter * 3,
+                                     accept=self._locked_accept(tol, tol_length),
                                      name="fk_locked(gamma)", weights=w)
                 break
             except ConvergenceError as exc:
@@ -616,7 +841,9 @@ class Model:
         z, gam = x[:nz], x[nz:]
         T = np.where(gam > 0, gam ** 2, 0.0)
         slack = np.where(gam > 0, 0.0, gam ** 2)
-        q = self.to_full(z)
-        ev = self.evaluate(q, T, pr, F, hessian=False, lengths="values")
+        q = self._to_full(z)
+        ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
         return self._result(q, T, pr, F, info, ev, "fk_locked(gamma)", slack=slack,
-                            active=tuple(int(i) for i in np.flatnonzero(gam > 0)))
+                            active=tuple(int(i) for i in np.flatnonzero(gam > 0)),
+                            H=info.matrix[:nz, :nz], JA=info.matrix[nz:, :nz][gam > 0],
+                            check_stability=check_stability)

@@ -14,7 +14,13 @@ import pathlib
 from typing import Any, Optional
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationError, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 try:  # Python >= 3.11
     import tomllib
@@ -54,23 +60,62 @@ STIFFNESS_FIELDS = {"law": None, "a": "force", "b": "force", "D_a": "length", "E
                     "EI": "bending_stiffness", "EA_coeffs": "force", "EI_coeffs": "bending_stiffness"}
 TENDON_FIELDS = {"distance": "length", "angle": "angle"}
 
+# Plausible magnitudes (SI) for a soft bellows actuator: (low, high, zero allowed).  A value outside is
+# almost always a unit mistake (160 written under length_m, 0.16 under length_mm) and is rejected with the
+# range in the unit the value was given in.  Fields not listed are checked by their own validators.
+PLAUSIBLE: dict[str, tuple[float, float, bool]] = {
+    "length": (1e-3, 10.0, False),             # 1 mm … 10 m
+    "D_eff": (1e-3, 1.0, False),               # 1 mm … 1 m
+    "D_a": (1e-3, 1.0, False),
+    "distance": (1e-4, 0.5, False),            # 0.1 mm … 0.5 m
+    "tool_offset": (1e-4, 1.0, True),          # 0, or 0.1 mm … 1 m
+    "tip_mass": (1e-5, 10.0, True),            # 0, or 0.01 g … 10 kg
+    "line_mass": (1e-4, 100.0, True),          # 0, or 0.1 g/m … 100 kg/m
+    "tension_min": (0.0, 1e3, True),
+    "tension_max": (1e-3, 1e3, False),         # 1 mN … 1 kN
+    "pressure_min": (0.0, 10e6, True),
+    "pressure_max": (1e3, 10e6, True),         # 0, or 1 kPa … 10 MPa
+    "angle": (-2 * math.pi, 2 * math.pi, True),
+    "EA": (1e-3, 1e9, False),                  # N
+    "EI": (1e-9, 1e6, False),                  # N m²
+    "a": (-1e9, 1e9, True),
+    "b": (-1e9, 1e9, True),
+}
+INT_FIELDS = ("n_elements", "quadrature_points")
+BOOL_FIELDS = ("free_base_stretch",)
+TEXT_FIELDS = ("name", "description", "law")
 
-def _parse_table(table: dict, fields: dict[str, str | None], where: str) -> dict[str, Any]:
-    """Map ``{key_with_unit: value}`` to ``{field: SI value}``; reject unknown keys and missing units."""
+
+def _implausible(field: str, si_value: float) -> str | None:
+    """None if ``si_value`` is plausible for ``field`` (see PLAUSIBLE), else the SI range as text."""
+    rng = PLAUSIBLE.get(field)
+    if rng is None:
+        return None
+    lo, hi, zero_ok = rng
+    if (zero_ok and si_value == 0.0) or lo <= si_value <= hi:
+        return None
+    return f"{lo:g} … {hi:g}" + (" (or 0)" if zero_ok else "")
+
+
+def _parse_table(table, fields: dict[str, str | None], where: str) -> dict[str, Any]:
+    """Map ``{key_with_unit: value}`` to ``{field: SI value}``; reject unknown keys, missing units, values
+    of the wrong type and implausible magnitudes for the stated unit."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{where}: expected a table of keys, got {table!r}")
     out: dict[str, Any] = {}
     spellings = {}
     for f, dim in fields.items():
         if dim is None or dim == "dimensionless":
-            spellings[f] = (f, 1.0)
+            spellings[f] = (f, 1.0, "")
         else:
             for u, fac in UNITS[dim].items():
-                spellings[f"{f}_{u}"] = (f, fac)
+                spellings[f"{f}_{u}"] = (f, fac, u)
     for key, value in table.items():
         if key in spellings:
-            f, fac = spellings[key]
+            f, fac, unit = spellings[key]
             if f in out:
                 raise ConfigError(f"{where}: '{f}' given twice (e.g. in two units)")
-            out[f] = _scale(value, fac, f"{where}.{key}")
+            out[f] = _typed_value(value, f, fac, unit, fields[f], f"{where}.{key}")
             continue
         if key in fields and fields[key] not in (None, "dimensionless"):
             units = ", ".join(f"{key}_{u}" for u in UNITS[fields[key]])
@@ -81,20 +126,74 @@ def _parse_table(table: dict, fields: dict[str, str | None], where: str) -> dict
     return out
 
 
-def _scale(value, fac: float, where: str):
-    if isinstance(value, (bool, str)):
+def _typed_value(value, field: str, fac: float, unit: str, dim: str | None, where: str):
+    """Check the TOML type of one value and convert it to SI (numbers, lists of numbers)."""
+    if field in TEXT_FIELDS:
+        if not isinstance(value, str):
+            raise ConfigError(f"{where}: expected text in quotes, got {value!r}")
         return value
-    if isinstance(value, (list, tuple)):
-        return [_scale(v, fac, where) for v in value]
-    if not isinstance(value, (int, float)):
-        raise ConfigError(f"{where}: expected a number, got {value!r}")
+    if field in BOOL_FIELDS:
+        if not isinstance(value, bool):
+            raise ConfigError(f"{where}: expected true or false, got {value!r}")
+        return value
+    if field in INT_FIELDS:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{where}: expected a whole number (no quotes, no decimal point), got {value!r}")
+        return value
+    if dim is None:
+        return value
+    if isinstance(value, list):
+        return [_number(v, fac, field, unit, f"{where}[{i}]") for i, v in enumerate(value)]
+    return _number(value, fac, field, unit, where)
+
+
+def _number(value, fac: float, field: str, unit: str, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        what = "quoted text" if isinstance(value, str) else type(value).__name__
+        raise ConfigError(f"{where}: expected a number without quotes, got {what} {value!r} (a value of the "
+                          "wrong type is never converted)")
     v = float(value) * fac
     if not math.isfinite(v):
         raise ConfigError(f"{where}: value must be finite, got {value!r}")
-    return v if fac != 1.0 or isinstance(value, float) else value
+    rng = _implausible(field, v)
+    if rng is not None:
+        lo, hi, zero_ok = PLAUSIBLE[field]
+        shown = f"{lo / fac:g} … {hi / fac:g}{' ' + unit if unit else ''}" + (" (or 0)" if zero_ok else "")
+        raise ConfigError(f"{where} = {value!r} is implausible for this unit: expected {shown}; check the unit "
+                          "in the key name")
+    return v
 
 
 # ------------------------------------------------------------------------------------------- objects
+def _pydantic_init(init, data: dict, what: str) -> None:
+    """Run a pydantic constructor, turning its ValidationError into one readable ConfigError line."""
+    try:
+        init(**data)
+    except ValidationError as exc:
+        msgs = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'value'}: "
+                         f"{e['msg'].removeprefix('Value error, ')}" for e in exc.errors())
+        raise ConfigError(f"{what}: {msgs}") from None
+
+
+def _real_number(v, name: str):
+    """Before-validator: a real number (int or float, numpy scalars included), never text or a boolean."""
+    if isinstance(v, (bool, np.bool_, str, bytes)) or v is None:
+        raise ValueError(f"expected a number, got {v!r}")
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return float(v)
+    return v
+
+
+def _plausible(v: float, name: str, unit: str) -> float:
+    if not math.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {v}")
+    rng = _implausible(name, v)
+    if rng is not None:
+        raise ValueError(f"{name} = {v:g} {unit} is implausible: expected {rng} {unit} (SI units in the Python "
+                         "API: metres, kilograms, pascals)")
+    return v
+
+
 class Tendon(BaseModel):
     """One tendon: routing distance ``distance`` [m] from the axis, angle ``angle`` [rad] about the
     axis measured from the reference direction."""
@@ -103,12 +202,18 @@ class Tendon(BaseModel):
     distance: float
     angle: float
 
-    @field_validator("distance")
+    def __init__(self, **data):
+        _pydantic_init(super().__init__, data, "invalid tendon")
+
+    @field_validator("distance", "angle", mode="before")
     @classmethod
-    def _d(cls, v):
-        if not (0 < v < 0.5):
-            raise ValueError(f"tendon distance {v} m must be in (0, 0.5) m")
-        return v
+    def _real(cls, v, info):
+        return _real_number(v, info.field_name)
+
+    @field_validator("distance", "angle")
+    @classmethod
+    def _d(cls, v, info):
+        return _plausible(v, info.field_name, "m" if info.field_name == "distance" else "rad")
 
 
 class ActuatorParams(BaseModel):
@@ -168,12 +273,47 @@ class ActuatorParams(BaseModel):
             raise ValueError(f"tendon_stiffness {v} N/m must be finite and > 0 (omit it for inextensible tendons)")
         return v
 
-    @field_validator("length")
+    @field_validator("length", "D_eff", "pressure_area_slope", "line_mass", "tip_mass", "tool_offset",
+                     "tension_min", "tension_max", "pressure_min", "pressure_max", mode="before")
     @classmethod
-    def _len(cls, v):
-        if not (0 < v < 10):
-            raise ValueError(f"length {v} m must be in (0, 10) m (SI metres: 160 mm is 0.16)")
+    def _real(cls, v, info):
+        return _real_number(v, info.field_name)
+
+    @field_validator("base_axis", "reference_direction", "gravity", mode="before")
+    @classmethod
+    def _real_vec(cls, v, info):
+        if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+            raise ValueError(f"expected 3 numbers, got {v!r}")
+        return tuple(_real_number(x, info.field_name) for x in v)
+
+    @field_validator("n_elements", "quadrature_points", mode="before")
+    @classmethod
+    def _int(cls, v):
+        if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)):
+            raise ValueError(f"expected a whole number, got {v!r}")
+        return int(v)
+
+    @field_validator("free_base_stretch", mode="before")
+    @classmethod
+    def _bool(cls, v):
+        if not isinstance(v, (bool, np.bool_)):
+            raise ValueError(f"expected True or False, got {v!r}")
+        return bool(v)
+
+    @field_validator("name", "description", mode="before")
+    @classmethod
+    def _text(cls, v):
+        if not isinstance(v, str):
+            raise ValueError(f"expected text, got {v!r}")
         return v
+
+    @field_validator("length", "D_eff", "line_mass", "tip_mass", "tool_offset", "tension_min", "tension_max",
+                     "pressure_min", "pressure_max")
+    @classmethod
+    def _magnitude(cls, v, info):
+        unit = {"line_mass": "kg/m", "tip_mass": "kg", "tension_min": "N", "tension_max": "N",
+                "pressure_min": "Pa", "pressure_max": "Pa"}.get(info.field_name, "m")
+        return _plausible(v, info.field_name, unit)
 
     @field_validator("n_elements")
     @classmethod
@@ -187,13 +327,6 @@ class ActuatorParams(BaseModel):
     def _ng(cls, v):
         if not (4 <= v <= 20):
             raise ValueError("quadrature_points must be in [4, 20]")
-        return v
-
-    @field_validator("D_eff")
-    @classmethod
-    def _deff(cls, v):
-        if not (0 < v < 1):
-            raise ValueError(f"D_eff {v} m must be in (0, 1) m (SI metres: 26 mm is 0.026)")
         return v
 
     @field_validator("pressure_area_slope")
@@ -227,8 +360,8 @@ class ActuatorParams(BaseModel):
         if not np.all(np.isfinite(er)) or abs(np.linalg.norm(er) - 1) > 1e-9 or abs(e1 @ er) > 1e-9:
             raise ValueError(f"reference_direction {self.reference_direction} must be a unit vector "
                              f"perpendicular to base_axis {self.base_axis}")
-        if not np.all(np.isfinite(self.gravity)):
-            raise ValueError("gravity must be finite")
+        if not np.all(np.isfinite(self.gravity)) or np.linalg.norm(self.gravity) > 100.0:
+            raise ValueError(f"gravity {self.gravity} m/s² must be finite and at most 100 m/s² in magnitude")
         if not (self.tension_max > self.tension_min):
             raise ValueError("tension_max must exceed tension_min")
         if not (self.pressure_max >= self.pressure_min):
@@ -236,12 +369,8 @@ class ActuatorParams(BaseModel):
         return self
 
     def __init__(self, **data):
-        try:
-            super().__init__(**data)
-        except ValidationError as exc:  # re-raise as the product's own error with a readable message
-            msgs = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'params'}: {e['msg']}"
-                             for e in exc.errors())
-            raise ConfigError(f"invalid actuator parameters: {msgs}") from None
+        # re-raise as the product's own error with a readable message
+        _pydantic_init(super().__init__, data, "invalid actuator parameters")
 
     # ----------------------------------------------------------------------------- derived quantities
     @property
@@ -300,8 +429,8 @@ class ActuatorParams(BaseModel):
         """Load parameters from a TOML file with unit-suffixed keys (see module docstring)."""
         path = pathlib.Path(path)
         try:
-            text = path.read_text()
-        except OSError as exc:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
             raise ConfigError(f"cannot read actuator file {path}: {exc}") from None
         return cls.from_toml_string(text, where=str(path))
 
@@ -316,8 +445,12 @@ class ActuatorParams(BaseModel):
         tendons = raw.pop("tendons", None)
         if stiff is None:
             raise ConfigError(f"{where}: missing [stiffness] table")
+        if not isinstance(stiff, dict):
+            raise ConfigError(f"{where}: 'stiffness' must be a table ([stiffness]), got {stiff!r}")
         if not tendons:
             raise ConfigError(f"{where}: missing [[tendons]] entries")
+        if not isinstance(tendons, list) or not all(isinstance(t, dict) for t in tendons):
+            raise ConfigError(f"{where}: 'tendons' must be [[tendons]] tables, got {tendons!r}")
         top = _parse_table(raw, TOP_FIELDS, where)
         s = _parse_table(stiff, STIFFNESS_FIELDS, f"{where}[stiffness]")
         law = s.pop("law", None)
@@ -327,6 +460,8 @@ class ActuatorParams(BaseModel):
             elif law == "constant":
                 stiffness = StiffnessLaw.constant(**s)
             elif law == "polynomial":
+                if set(s) != {"EA_coeffs", "EI_coeffs"}:
+                    raise TypeError(f"needs EA_coeffs and EI_coeffs, got {sorted(s)}")
                 stiffness = StiffnessLaw.polynomial(EA=s["EA_coeffs"], EI=s["EI_coeffs"])
             else:
                 raise ConfigError(f"{where}[stiffness]: law must be 'linear', 'constant' or 'polynomial', "
@@ -336,17 +471,19 @@ class ActuatorParams(BaseModel):
         tl = [Tendon(**_parse_table(t, TENDON_FIELDS, f"{where}[[tendons]][{i}]")) for i, t in enumerate(tendons)]
         for k in ("base_axis", "reference_direction", "gravity"):
             if k in top:
-                top[k] = tuple(float(x) for x in top[k])
-                if k != "gravity":
-                    v = np.asarray(top[k])
-                    top[k] = tuple(v / np.linalg.norm(v))
+                if not isinstance(top[k], list) or len(top[k]) != 3:
+                    raise ConfigError(f"{where}.{k}: expected a list of 3 numbers, got {top[k]!r}")
+                top[k] = tuple(_number(x, 1.0, k, "", f"{where}.{k}") for x in top[k])
+                v = np.asarray(top[k])
+                if k != "gravity" and abs(np.linalg.norm(v) - 1.0) > 1e-12 and np.linalg.norm(v) > 0:
+                    top[k] = tuple(float(x) for x in v / np.linalg.norm(v))   # exact unit vectors are kept
         return cls(stiffness=stiffness, tendons=tuple(tl), **top)
 
     def to_toml(self) -> str:
         """Serialise to the TOML format read by :meth:`from_toml` (SI units spelled out)."""
-        lines = [f'name = "{self.name}"']
+        lines = [f"name = {_toml_string(self.name)}"]
         if self.description:
-            lines.append(f'description = "{self.description}"')
+            lines.append(f"description = {_toml_string(self.description)}")
         lines += [
             f"length_m = {self.length!r}", f"n_elements = {self.n_elements}",
             f"quadrature_points = {self.quadrature_points}", f"D_eff_m = {self.D_eff!r}",
@@ -371,3 +508,20 @@ class ActuatorParams(BaseModel):
         for t in self.tendons:
             lines += ["", "[[tendons]]", f"distance_m = {t.distance!r}", f"angle_rad = {t.angle!r}"]
         return "\n".join(lines) + "\n"
+
+
+def _toml_string(text: str) -> str:
+    """A TOML basic string (quotes, backslashes and control characters escaped)."""
+    out = []
+    for ch in text:
+        if ch in ('"', "\\"):
+            out.append("\\" + ch)
+        elif ch == "\n":
+            out.append("\\n")
+        elif ch == "\t":
+            out.append("\\t")
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'

@@ -12,7 +12,7 @@ state is never returned as a result.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Optional
 
 import numpy as np
 from numba import njit
@@ -25,6 +25,7 @@ class SolveInfo:
     iterations: int
     residual_norm: float
     history: list[float] = field(default_factory=list)
+    matrix: Optional[np.ndarray] = None     # Hessian (minimize_newton) / Jacobian (solve_root) at the solution
 
 
 @njit(cache=True)
@@ -79,7 +80,7 @@ def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int 
     for it in range(max_iter):
         gn = hist[-1]
         if gn < tol:
-            return x, SolveInfo(it, gn, hist)
+            return x, SolveInfo(it, gn, hist, H)
         # Newton direction, shifted (LM) until the matrix is positive definite
         scale = max(np.max(np.abs(np.diag(H))), 1e-12)
         dx = _chol_solve(H, -g) if mu == 0.0 else None
@@ -116,11 +117,13 @@ def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int 
 
 
 def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60, name: str = "ik",
-               weights: np.ndarray | None = None) -> tuple[np.ndarray, SolveInfo]:
+               weights: np.ndarray | None = None,
+               accept: Callable[[np.ndarray], bool] | None = None) -> tuple[np.ndarray, SolveInfo]:
     """Solve a square system F(x) = 0 (``fun(x) -> (F, J)``) by Newton with backtracking on the
     weighted residual norm ‖W F‖₂, switching to Levenberg–Marquardt steps when Newton stalls.
 
-    Converged when ‖W F‖₂ < tol.
+    Converged when ‖W F‖₂ < tol, or when ``accept(F)`` is true (per-block criteria in the rows' own units,
+    e.g. forces below their tolerance and lengths below theirs).
     """
     x = np.array(x0, float)
     w = np.ones(len(x)) if weights is None else np.asarray(weights, float)
@@ -129,8 +132,8 @@ def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
     hist = [r]
     lm = 1e-2                                     # paper: LM damping factor 0.01 (relative here)
     for it in range(max_iter):
-        if r < tol:
-            return x, SolveInfo(it, r, hist)
+        if r < tol or (accept is not None and np.isfinite(r) and accept(F)):
+            return x, SolveInfo(it, r, hist, J)
         Jw = w[:, None] * J
         Fw = w * F
         step_ok = False

@@ -20,12 +20,28 @@ so that W(1) = W'(1) = 0 at the undeformed state (for the constant law W = EA ε
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, field_validator
+from pydantic import BaseModel, ConfigDict, ValidationError, field_validator
 
-from .errors import ConfigError
+from .errors import ConfigError, check_finite
+
+
+def _real(name: str, v) -> float:
+    """A finite real number (not text, not a boolean) as float, else ConfigError."""
+    if isinstance(v, (bool, np.bool_, str, bytes)) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise ConfigError(f"stiffness law: {name} must be a number, got {v!r}")
+    if not math.isfinite(float(v)):
+        raise ConfigError(f"stiffness law: {name} must be finite, got {v!r}")
+    return float(v)
+
+
+def _stretch(lam):
+    """Stretch argument(s) as float (scalar stays scalar); InputError for text, booleans, NaN."""
+    arr = check_finite("stretch λ", lam)
+    return float(arr) if arr.ndim == 0 else arr
 
 
 class StiffnessLaw(BaseModel):
@@ -50,6 +66,21 @@ class StiffnessLaw(BaseModel):
     EI_coeffs: tuple[float, ...]
     source: dict[str, float] = {}
 
+    def __init__(self, **data):
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:
+            msgs = "; ".join(f"{'.'.join(str(p) for p in e['loc']) or 'value'}: "
+                             f"{e['msg'].removeprefix('Value error, ')}" for e in exc.errors())
+            raise ConfigError(f"invalid stiffness law: {msgs}") from None
+
+    @field_validator("EA_coeffs", "EI_coeffs", mode="before")
+    @classmethod
+    def _numbers(cls, v):
+        if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+            raise ValueError(f"expected a list of numbers, got {v!r}")
+        return tuple(_real("coefficient", c) for c in v)
+
     @field_validator("EA_coeffs", "EI_coeffs")
     @classmethod
     def _finite(cls, v):
@@ -63,8 +94,7 @@ class StiffnessLaw(BaseModel):
     @classmethod
     def linear(cls, a: float, b: float, D_a: float) -> "StiffnessLaw":
         """The paper's law ``k(λ) = a λ + b`` [N] with equivalent diameter ``D_a`` [m]."""
-        if not (np.isfinite(a) and np.isfinite(b) and np.isfinite(D_a)):
-            raise ConfigError("linear stiffness law: a, b, D_a must be finite")
+        a, b, D_a = _real("a", a), _real("b", b), _real("D_a", D_a)
         if D_a <= 0 or D_a > 1.0:
             raise ConfigError(f"linear stiffness law: D_a = {D_a} m is not a plausible diameter "
                               "(expected metres, e.g. 0.02959)")
@@ -77,7 +107,8 @@ class StiffnessLaw(BaseModel):
     @classmethod
     def constant(cls, EA: float, EI: float) -> "StiffnessLaw":
         """Constant axial stiffness ``EA`` [N] and bending stiffness ``EI`` [N m²]."""
-        if not (np.isfinite(EA) and np.isfinite(EI)) or EA <= 0 or EI <= 0:
+        EA, EI = _real("EA", EA), _real("EI", EI)
+        if EA <= 0 or EI <= 0:
             raise ConfigError(f"constant stiffness law needs EA > 0 and EI > 0, got EA={EA}, EI={EI}")
         return cls(kind="constant", EA_coeffs=(float(EA),), EI_coeffs=(float(EI),),
                    source={"EA": float(EA), "EI": float(EI)})
@@ -99,28 +130,49 @@ class StiffnessLaw(BaseModel):
     def ei(self) -> np.ndarray:
         return np.asarray(self.EI_coeffs, float)
 
+    @property
+    def valid_stretch_range(self) -> tuple[float, float]:
+        """Open interval (λ_lo, λ_hi) of stretches around λ = 1 where the law is valid: EA(λ) > 0 and
+        EI(λ) > 0.  Outside it the section has collapsed (the paper's linear law EA = a λ + b reaches zero
+        at λ = −b/a ≈ 0.43); a state with a stretch outside this interval is never returned as an
+        equilibrium (:class:`~ancf.errors.CollapsedStateError`).  ``λ_hi`` may be ``inf``."""
+        lo, hi = 0.0, math.inf
+        for coeffs in (self.EA_coeffs, self.EI_coeffs):
+            c = np.trim_zeros(np.asarray(coeffs, float), "b")
+            if c.size < 2:
+                continue
+            roots = np.polynomial.polynomial.polyroots(c)
+            real = roots[np.abs(roots.imag) <= 1e-12 * np.maximum(1.0, np.abs(roots.real))].real
+            below, above = real[real < 1.0], real[real > 1.0]
+            if below.size:
+                lo = max(lo, float(below.max()))
+            if above.size:
+                hi = min(hi, float(above.min()))
+        return lo, hi
+
     def EA(self, lam):
         """Axial stiffness EA(λ) [N]."""
-        return np.polynomial.polynomial.polyval(lam, self.ea)
+        return np.polynomial.polynomial.polyval(_stretch(lam), self.ea)
 
     def EI(self, lam):
         """Bending stiffness EI(λ) [N m²]."""
-        return np.polynomial.polynomial.polyval(lam, self.ei)
+        return np.polynomial.polynomial.polyval(_stretch(lam), self.ei)
 
     def axial_energy(self, lam):
         """W(λ) [J/m = N], with W(1) = 0 (see module docstring)."""
-        lam = np.asarray(lam, float)
+        lam = _stretch(lam)
         return sum(c / 2 * ((lam ** (k + 4) - 1) / (k + 4) - (lam ** (k + 2) - 1) / (k + 2))
                    for k, c in enumerate(self.EA_coeffs))
 
     def axial_force(self, lam):
         """W'(λ) = EA(λ) ε λ [N]: the axial force at stretch λ."""
-        lam = np.asarray(lam, float)
+        lam = _stretch(lam)
         return 0.5 * self.EA(lam) * (lam ** 3 - lam)
 
     def stretch_under_force(self, force: float, lam0: float = 1.0) -> float:
         """Uniform stretch λ with W'(λ) = ``force`` [N] (closed-form root of a polynomial)."""
         # W'(λ) = ½ Σ c_k (λ^{k+3} − λ^{k+1}) − force = 0
+        force, lam0 = _real("force", force), _real("lam0", lam0)
         n = len(self.EA_coeffs) + 3
         poly = np.zeros(n + 1)
         for k, c in enumerate(self.EA_coeffs):

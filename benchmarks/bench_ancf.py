@@ -87,7 +87,43 @@ def main(repeats: int = 200) -> dict:
     return rows
 
 
+def verification_cost(repeats: int = 200) -> dict:
+    """Cost of the result verification every solve now does (stretch inside the law's validity range,
+    Cholesky of the reduced Hessian / of its projection on the locked tendons' tangent space): the same
+    calls with ``Model._verify`` bypassed ("without") and as shipped ("with"), interleaved; medians [ms]."""
+    m = Model(presets.paper())
+    ref = m.fk((2.0, 0.5, 1.0), 30e3, (0, 0, -0.2))
+    calls = {
+        "FK cold, paper": lambda: m.fk((2.0, 0.5, 1.0), 30e3, (0, 0, -0.2)),
+        "FK warm, paper": lambda: m.fk((2.05, 0.5, 1.0), 30e3, (0, 0, -0.2), q0=ref.q),
+        "IK warm, paper": lambda: m.ik(ref.tip + 2e-5, 30e3, (0, 0, -0.2), q0=ref.q, tensions0=ref.tensions),
+        "locked FK warm, paper": lambda: m.fk_locked(ref.tendon_lengths, 30e3, (0, 0, -0.5), q0=ref.q,
+                                                     tensions0=ref.tensions),
+    }
+    shipped = Model._verify
+    t = {k: {"with": [], "without": []} for k in calls}
+    for _ in range(repeats):
+        for name, fn in calls.items():
+            for mode in ("without", "with"):
+                Model._verify = (lambda self, q, H, JA, solver, cs: (H, True)) if mode == "without" else shipped
+                _, s = timed(fn)
+                t[name][mode].append(s)
+    Model._verify = shipped
+    print(f"\nresult verification (median of {repeats}, milliseconds)")
+    print(f"  {'call':28s} {'without':>9s} {'with':>9s} {'ratio':>7s}")
+    out = {}
+    for name, d in t.items():
+        a, b = statistics.median(d["without"]) * 1e3, statistics.median(d["with"]) * 1e3
+        out[name] = (a, b)
+        print(f"  {name:28s} {a:9.3f} {b:9.3f} {b / a:7.3f}")
+    return out
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=200)
-    main(ap.parse_args().repeats)
+    ap.add_argument("--verification-only", action="store_true", help="only the verification cost table")
+    args = ap.parse_args()
+    if not args.verification_only:
+        main(args.repeats)
+    verification_cost(args.repeats)

@@ -48,7 +48,7 @@ from . import presets
 from .geometry import BellowsGeometry
 from .material import Material
 from .mesh import MESH_LEVELS, BellowsMesh, MeshLevel, build_mesh
-from .model import BellowsModel
+from .model import BellowsModel, OperatingLimits
 from .results import BellowsResult
 
 __all__ = [
@@ -59,6 +59,7 @@ __all__ = [
            "BellowsResult",
            "Material",
            "MeshLevel",
+           "OperatingLimits",
            "build_mesh",
            "presets",
 ]

@@ -7,6 +7,11 @@ Examples::
     bellows fem info                               # preset values and the GUESSED table
 
 Standalone: ``python -m fem_reference.cli solve ...``.
+
+Rules (docs/errors.md): every option given is used or rejected (``--mu-mpa 0`` is an error, not the
+preset's value); ``--out`` is checked before the mesh is built and existing results are only replaced with
+``--force``; loads outside the model's operating limits are rejected unless ``--no-limits``; every handled
+error prints one ``error:`` line and exits with status 2.
 """
 
 from __future__ import annotations
@@ -18,10 +23,13 @@ from pathlib import Path
 import numpy as np
 import typer
 
-from ancf.errors import BellowsError
+from ancf import clitools
+from ancf.errors import InputError
+from ancf.outputs import atomic_write_text, prepare_output_dir
 
 app = typer.Typer(help="scikit-fem 3-D hyperelastic reference model of the bellows actuator.",
-                  no_args_is_help=True, add_completion=False)
+                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
+                  rich_markup_mode=None, context_settings=clitools.HELP_SETTINGS)
 
 
 class MeshChoice(str, Enum):
@@ -40,10 +48,34 @@ def _floats(text: str, n: int, name: str) -> list[float]:
     try:
         vals = [float(v) for v in text.split(",")]
     except ValueError:
-        raise typer.BadParameter(f"{name}: expected {n} comma-separated numbers, got {text!r}")
-    if len(vals) != n:
-        raise typer.BadParameter(f"{name}: expected {n} comma-separated numbers, got {text!r}")
+        raise InputError(f"{name}: expected {n} comma-separated numbers, got {text!r}") from None
+    if len(vals) != n or not all(np.isfinite(vals)):
+        raise InputError(f"{name}: expected {n} comma-separated finite numbers, got {text!r}")
     return vals
+
+
+def _locked(text: str | None) -> list[float | None] | None:
+    if text is None:
+        return None
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise InputError("--locked-lengths-mm needs 3 comma-separated entries (empty allowed)")
+    try:
+        vals = [float(p) * 1e-3 if p.strip() else None for p in parts]
+    except ValueError:
+        raise InputError(f"--locked-lengths-mm: expected numbers or empty entries, got {text!r}") from None
+    if any(v is not None and not (np.isfinite(v) and v > 0) for v in vals):
+        raise InputError(f"--locked-lengths-mm: lengths must be positive, got {text!r}")
+    return vals
+
+
+def _modulus(value_mpa: float | None, default_pa: float, option: str) -> float:
+    """A given modulus is used (and must be positive); only an absent one takes the preset's value."""
+    if value_mpa is None:
+        return default_pa
+    if not (np.isfinite(value_mpa) and value_mpa > 0):
+        raise InputError(f"{option} must be a positive modulus in MPa, got {value_mpa:g}")
+    return value_mpa * 1e6
 
 
 def _geometry(preset: PresetChoice):
@@ -56,7 +88,7 @@ def _geometry(preset: PresetChoice):
     return presets.straight_tube_test()
 
 
-@app.command()
+@app.command(short_help="Solve one static load case: tip pose, tensions, cable lengths, timings.")
 def solve(
     pressure_kpa: float = typer.Option(0.0, help="cavity gauge pressure [kPa]"),
     tensions_n: str = typer.Option("0,0,0", help="tendon tensions [N], comma-separated (θ = 0, 120°, 240°)"),
@@ -72,6 +104,10 @@ def solve(
     compliance: bool = typer.Option(False, help="also compute the 3×3 tip compliance (tension and locked)"),
     out: Path | None = typer.Option(None, help="output directory (result.json, result.vtu)"),
     png: bool = typer.Option(False, help="render result.png into --out (headless pyvista)"),
+    force: bool = typer.Option(False, "--force", help="overwrite results already in --out"),
+    no_limits: bool = typer.Option(False, "--no-limits", help="analyse loads outside the model's operating "
+                                   "limits (pressure, tensions, tip force) instead of rejecting them"),
+    max_time_s: float | None = typer.Option(None, help="give up after this many seconds of solving [s]"),
     json_out: bool = typer.Option(False, "--json", help="print the JSON summary on stdout"),
 ):
     """Solve one static load case and report tip pose, tensions, cable lengths and timings."""
@@ -80,45 +116,47 @@ def solve(
 
     from . import presets
     from .material import Material
-    from .model import BellowsModel
+    from .model import BellowsModel, OperatingLimits
 
     console = Console(stderr=True)
+    if png and out is None:
+        raise InputError("--png writes result.png into --out: give --out")
+    if out is not None:   # checked before any work: a bad --out fails now, not after the solve
+        files = ["result.json", "result.vtu"] + (["result.png"] if png else [])
+        out = prepare_output_dir(out, files, force=force)
     T = _floats(tensions_n, 3, "--tensions-n")
+    if min(T) < 0:
+        raise InputError(f"--tensions-n must be >= 0 N (a cable cannot push), got {tensions_n!r}")
     F = _floats(tip_force_n, 3, "--tip-force-n")
-    locked = None
-    if locked_lengths_mm is not None:
-        parts = locked_lengths_mm.split(",")
-        if len(parts) != 3:
-            raise typer.BadParameter("--locked-lengths-mm needs 3 comma-separated entries (empty allowed)")
-        locked = [float(p) * 1e-3 if p.strip() else None for p in parts]
+    if not np.isfinite(pressure_kpa):
+        raise InputError(f"--pressure-kpa must be finite, got {pressure_kpa}")
+    locked = _locked(locked_lengths_mm)
+    if not no_limits:     # the loads, before minutes of meshing and solving
+        OperatingLimits().check_loads(T, pressure_kpa * 1e3, F, [v is not None for v in locked or [None] * 3])
     base = presets.paper_material()
-    mat = Material.neo_hookean(mu=(mu_mpa * 1e6 if mu_mpa else base.mu),
-                               kappa=(kappa_mpa * 1e6 if kappa_mpa else base.kappa), density=base.density)
-    try:
-        with console.status(f"building {mesh.value} mesh and assembler ..."):
-            model = BellowsModel(_geometry(preset), mat, mesh.value, linear_solver=solver)
-        console.print(f"[bold]{model.n_dofs}[/] reduced DOFs, {model.bmesh.n_elements} Hex2 elements")
-        with Progress(TextColumn("load"), BarColumn(), TextColumn("λ = {task.completed:.3f}"),
-                      TextColumn("{task.fields[info]}"), TimeElapsedColumn(), console=console,
-                      transient=False) as prog:
-            task = prog.add_task("solve", total=1.0, info="")
+    mat = Material.neo_hookean(mu=_modulus(mu_mpa, base.mu, "--mu-mpa"),
+                               kappa=_modulus(kappa_mpa, base.kappa, "--kappa-mpa"), density=base.density)
+    with console.status(f"building {mesh.value} mesh and assembler ..."):
+        model = BellowsModel(_geometry(preset), mat, mesh.value, linear_solver=solver)
+    console.print(f"[bold]{model.n_dofs}[/] reduced DOFs, {model.bmesh.n_elements} Hex2 elements")
+    with Progress(TextColumn("load"), BarColumn(), TextColumn("λ = {task.completed:.3f}"),
+                  TextColumn("{task.fields[info]}"), TimeElapsedColumn(), console=console,
+                  transient=False) as prog:
+        task = prog.add_task("solve", total=1.0, info="")
 
-            def cb(d):
-                prog.update(task, completed=d["lam"],
-                            info=f"step {d['step']}: {d['iterations']} it, |r| {d['residuals'][-1]:.1e}")
+        def cb(d):
+            prog.update(task, completed=d["lam"],
+                        info=f"step {d['step']}: {d['iterations']} it, |r| {d['residuals'][-1]:.1e}")
 
-            res = model.solve(tensions=T, pressure=pressure_kpa * 1e3, tip_force=F, gravity=gravity,
-                              locked_lengths=locked, progress=cb)
-        summary = res.summary()
-        if compliance:
-            summary["tip_compliance_tension_m_per_N"] = model.tip_compliance(res, "tension").tolist()
-            summary["tip_compliance_locked_m_per_N"] = model.tip_compliance(res, "locked").tolist()
-    except BellowsError as e:
-        console.print(f"[red]error:[/] {e}")
-        raise typer.Exit(code=1)
+        res = model.solve(tensions=T, pressure=pressure_kpa * 1e3, tip_force=F, gravity=gravity,
+                          locked_lengths=locked, progress=cb, check_limits=not no_limits,
+                          time_limit_s=max_time_s)
+    summary = res.summary()
+    if compliance:
+        summary["tip_compliance_tension_m_per_N"] = model.tip_compliance(res, "tension").tolist()
+        summary["tip_compliance_locked_m_per_N"] = model.tip_compliance(res, "locked").tolist()
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "result.json").write_text(json.dumps(summary, indent=2))
+        atomic_write_text(out / "result.json", json.dumps(summary, indent=2))
         res.save_vtu(out / "result.vtu")
         if png:
             from .render import render_result
@@ -129,10 +167,10 @@ def solve(
         typer.echo(json.dumps(summary))
     else:
         tip = 1e3 * res.tip_position
-        console.print(f"tip position (mm): {np.array2string(tip, precision=3)}")
-        console.print(f"cap rotation vector (deg): {np.array2string(np.degrees(res.cap_rotation_vector), precision=3)}")
-        console.print(f"tensions (N): {np.array2string(res.tensions, precision=4)}  "
-                      f"cable lengths (mm): {np.array2string(1e3 * res.tendon_lengths, precision=4)}")
+        console.print(f"tip position \\[mm]: {np.array2string(tip, precision=3)}")
+        console.print(f"cap rotation vector \\[deg]: {np.array2string(np.degrees(res.cap_rotation_vector), precision=3)}")
+        console.print(f"tensions \\[N]: {np.array2string(res.tensions, precision=4)}  "
+                      f"cable lengths \\[mm]: {np.array2string(1e3 * res.tendon_lengths, precision=4)}")
         st = res.stats
         console.print(f"{res.iterations} Newton iterations in {len(st.steps)} load steps, {st.t_total:.2f} s "
                       f"(linear solver {st.t_linear:.2f} s, assembly {st.t_assembly:.2f} s)")
@@ -155,7 +193,7 @@ def info(preset: PresetChoice = typer.Option(PresetChoice.paper, help="geometry 
 
 
 def main():  # pragma: no cover
-    app()
+    clitools.run(app, prog_name="python -m fem_reference.cli")
 
 
 if __name__ == "__main__":  # pragma: no cover

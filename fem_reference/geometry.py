@@ -47,6 +47,8 @@ import numpy as np
 
 from ancf.errors import ConfigError
 
+from ._checks import validated
+
 __all__ = ["BellowsGeometry", "e_radial"]
 
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz  # numpy < 2 fallback
@@ -104,6 +106,9 @@ class BellowsGeometry:
     tip_offset: float = 0.0
 
     def __post_init__(self):
+        validated(self, "BellowsGeometry")
+
+    def _validate(self):
         object.__setattr__(self, "tendon_angles", tuple(float(a) for a in self.tendon_angles))
         pos = dict(length=self.length, root_radius=self.root_radius, crest_radius=self.crest_radius,
                    wall_thickness=self.wall_thickness, tendon_radius=self.tendon_radius)

@@ -59,6 +59,8 @@ import numpy as np
 
 from ancf.errors import ConfigError
 
+from ._checks import validated
+
 __all__ = ["Material"]
 
 
@@ -94,6 +96,9 @@ class Material:
     c01: float = 0.0
 
     def __post_init__(self):
+        validated(self, "Material")
+
+    def _validate(self):
         for k in ("mu", "kappa", "density"):
             v = getattr(self, k)
             if not np.isfinite(v) or v <= 0:
@@ -111,7 +116,15 @@ class Material:
     def neo_hookean(cls, mu: float, kappa: float, density: float = 1100.0,
                     formulation: Literal["decoupled", "ex43"] = "decoupled") -> Material:
         """Neo-Hookean solid with shear modulus ``mu`` [Pa], bulk modulus ``kappa`` [Pa], ``density`` [kg/m³]."""
-        return cls(float(mu), float(kappa), float(density), formulation)
+        if any(isinstance(v, (str, bytes, bool, np.bool_)) for v in (mu, kappa, density)):
+            raise ConfigError(f"Material.neo_hookean needs numbers [Pa, Pa, kg/m³], got {mu!r}, {kappa!r}, "
+                              f"{density!r}")
+        try:
+            mu, kappa, density = float(mu), float(kappa), float(density)
+        except (TypeError, ValueError):
+            raise ConfigError(f"Material.neo_hookean needs numbers [Pa, Pa, kg/m³], got {mu!r}, {kappa!r}, "
+                              f"{density!r}") from None
+        return cls(mu, kappa, density, formulation)
 
     @classmethod
     def mooney_rivlin(cls, c10: float, c01: float, kappa: float, density: float = 1100.0) -> "Material":

@@ -35,7 +35,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
-from ancf.errors import ConfigError, ConvergenceError, InputError
+from ancf.errors import (
+    ConfigError,
+    ConvergenceError,
+    InputError,
+    LimitError,
+    UnstableEquilibriumError,
+    check_finite,
+)
 
 from .assembly import HexAssembler, PressureAssembler, gravity_load
 from .geometry import BellowsGeometry, e_radial
@@ -57,14 +64,64 @@ from .loads.tendons import (
 )
 from .material import Material
 from .mesh import BellowsMesh, build_mesh
-from .solver import NewtonStats, StepFailed, factorize
+from .solver import NewtonStats, StepFailed, available_solvers, factorize
 
 if TYPE_CHECKING:  # pragma: no cover
     from .results import BellowsResult
 
-__all__ = ["BellowsModel", "LoadCase", "State"]
+__all__ = ["BellowsModel", "LoadCase", "OperatingLimits", "State"]
 
 G_DEFAULT = (0.0, 0.0, -9.81)
+
+
+@dataclass(frozen=True)
+class OperatingLimits:
+    """The loads a solve accepts without being told otherwise (``solve(check_limits=False)``, CLI
+    ``--no-limits``).  Defaults: the paper actuator's operating range (0–120 kPa, tendon tensions up to
+    5 N) with margin, so that a unit slip (a pressure in Pa written as kPa, 30 000 kPa) is rejected in a
+    millisecond instead of failing after minutes of load steps.
+
+    pressure_min, pressure_max [Pa]; tension_max [N] per tendon; tip_force_max [N] (magnitude);
+    locked_stretch (lo, hi): locked cable lengths as a fraction of the undeformed cable length.
+    """
+    pressure_min: float = -50e3
+    pressure_max: float = 200e3
+    tension_max: float = 20.0
+    tip_force_max: float = 10.0
+    locked_stretch: tuple[float, float] = (0.6, 1.5)
+
+    def check_loads(self, tensions, pressure: float, tip_force, locked=None) -> None:
+        """Raise :class:`~ancf.errors.LimitError` naming the first of tension [N] (m,), pressure [Pa] and tip
+        force [N] (3,) outside the limits (``locked``: boolean mask of locked tendons, whose tension is
+        not an input)."""
+        how = "check_limits=False analyses it anyway"
+        if not self.pressure_min <= pressure <= self.pressure_max:
+            raise LimitError(f"pressure {pressure / 1e3:g} kPa is outside the FEM model's operating limits "
+                             f"[{self.pressure_min / 1e3:g}, {self.pressure_max / 1e3:g}] kPa ({how})")
+        T = np.asarray(tensions, float)
+        free = np.ones(T.size, bool) if locked is None else ~np.asarray(locked, bool)
+        over = np.flatnonzero(free & (T > self.tension_max))
+        if over.size:
+            k = int(over[0])
+            raise LimitError(f"tension T{k + 1} = {T[k]:g} N is above the FEM model's operating limit "
+                             f"{self.tension_max:g} N ({how})")
+        fn = float(np.linalg.norm(tip_force))
+        if fn > self.tip_force_max:
+            raise LimitError(f"tip force |F| = {fn:g} N is above the FEM model's operating limit "
+                             f"{self.tip_force_max:g} N ({how})")
+
+    def check(self, lc: "LoadCase", cable_lengths: np.ndarray) -> None:
+        """:meth:`check_loads` for a load case, plus locked cable lengths against ``locked_stretch``."""
+        how = "check_limits=False analyses it anyway"
+        locked = ~np.isnan(lc.locked_lengths)
+        self.check_loads(lc.tensions, lc.pressure, lc.tip_force, locked)
+        lo, hi = self.locked_stretch
+        for k in np.flatnonzero(locked):
+            ratio = lc.locked_lengths[k] / cable_lengths[k]
+            if not lo <= ratio <= hi:
+                raise LimitError(f"locked length {lc.locked_lengths[k] * 1e3:g} mm of tendon {k + 1} is "
+                                 f"{ratio:.2f} × its undeformed length {cable_lengths[k] * 1e3:g} mm, outside "
+                                 f"the operating range [{lo:g}, {hi:g}] ({how})")
 
 
 @dataclass
@@ -113,14 +170,25 @@ class BellowsModel:
     mesh : {"coarse", "medium", "reference"}, MeshLevel or BellowsMesh
     linear_solver : {"auto", "pardiso", "splu"}
     gravity_vector : (3,) [m/s²]
+    limits : OperatingLimits
+        Loads accepted by :meth:`solve` unless ``check_limits=False``.
     """
 
     def __init__(self, geometry: BellowsGeometry, material: Material, mesh="coarse",
-                 linear_solver: str = "auto", gravity_vector=G_DEFAULT):
+                 linear_solver: str = "auto", gravity_vector=G_DEFAULT, limits: OperatingLimits | None = None):
+        if not isinstance(geometry, BellowsGeometry) or not isinstance(material, Material):
+            raise InputError(f"BellowsModel needs (BellowsGeometry, Material), got "
+                             f"({type(geometry).__name__}, {type(material).__name__})")
+        known = ("auto", "pardiso", "pardiso_no_reuse", "splu", "splu_partial_pivoting", "umfpack")
+        base = str(linear_solver).split("_")[0] if linear_solver != "splu_partial_pivoting" else "splu"
+        if linear_solver not in known or (linear_solver != "auto" and base not in available_solvers()):
+            raise ConfigError(f"linear solver {linear_solver!r} is not available here; choose one of "
+                              f"{['auto'] + available_solvers()}")       # before minutes of meshing
         self.geometry = geometry
         self.material = material
         self.linear_solver = linear_solver
-        self.g = np.asarray(gravity_vector, float)
+        self.g = check_finite("gravity_vector", gravity_vector, (3,))
+        self.limits = OperatingLimits() if limits is None else limits
         t0 = time.perf_counter()
         self.bmesh = mesh if isinstance(mesh, BellowsMesh) else build_mesh(geometry, mesh)
         bm = self.bmesh
@@ -435,26 +503,25 @@ class BellowsModel:
     # ------------------------------------------------------------------ public solve
     def _loadcase(self, tensions, pressure, tip_force, gravity, locked_lengths) -> LoadCase:
         m = self.m
-        T = np.zeros(m) if tensions is None else np.asarray(tensions, float).ravel()
-        if T.shape != (m,):
-            raise InputError(f"tensions must have {m} entries [N], got {T.shape}")
-        if not np.all(np.isfinite(T)) or np.any(T < 0):
+        T = np.zeros(m) if tensions is None else check_finite("tensions [N]", tensions, (m,))
+        if np.any(T < 0):
             raise InputError(f"tensions must be finite and >= 0 N (a cable cannot push), got {T}")
-        p = float(pressure)
-        if not np.isfinite(p):
-            raise InputError("pressure must be finite [Pa]")
-        F = np.asarray(tip_force, float).ravel()
-        if F.shape != (3,) or not np.all(np.isfinite(F)):
-            raise InputError(f"tip_force must be a finite 3-vector [N], got {tip_force!r}")
-        gs = float(gravity) if not isinstance(gravity, bool) else (1.0 if gravity else 0.0)
+        p = float(check_finite("pressure [Pa]", pressure, ()))
+        F = check_finite("tip_force [N]", tip_force, (3,))
+        gs = (1.0 if gravity else 0.0) if isinstance(gravity, (bool, np.bool_)) else \
+            float(check_finite("gravity (scale)", gravity, ()))
         ll = np.full(m, np.nan)
         if locked_lengths is not None:
+            if isinstance(locked_lengths, (str, bytes)) or not hasattr(locked_lengths, "__len__"):
+                raise InputError(f"locked_lengths must be a sequence of {m} lengths [m] or None, got "
+                                 f"{locked_lengths!r}")
             vals = list(locked_lengths)
             if len(vals) != m:
                 raise InputError(f"locked_lengths must have {m} entries (None = tension mode)")
             for k, v in enumerate(vals):
                 if v is not None and not (isinstance(v, float) and np.isnan(v)):
-                    if not np.isfinite(v) or v <= 0:
+                    v = float(check_finite(f"locked length {k} [m]", v, ()))
+                    if v <= 0:
                         raise InputError(f"locked length {k} must be a positive length [m], got {v}")
                     ll[k] = float(v)
         return LoadCase(T, p, F, gs, ll)
@@ -463,7 +530,9 @@ class BellowsModel:
               locked_lengths: Sequence[float | None] | None = None, initial: BellowsResult | None = None,
               n_steps: int | None = None, rtol: float = 1e-9, atol: float = 1e-9, ltol: float = 1e-11,
               max_iter: int = 25, max_cuts: int = 8, growth: float = 1e4,
-              progress: Callable[[dict], None] | None = None) -> BellowsResult:
+              progress: Callable[[dict], None] | None = None, *, check_limits: bool = True,
+              max_steps: int = 60, time_limit_s: float | None = None,
+              check_stability: bool = True) -> BellowsResult:
         """Static equilibrium under the given loads (SI units).
 
         Parameters
@@ -488,6 +557,17 @@ class BellowsModel:
             Locked length tolerance [m].
         progress : callable(dict), optional
             Called after each converged load step with ``{"lam", "step", "iterations", "residuals"}``.
+        check_limits : bool
+            Reject loads outside ``self.limits`` up front (:class:`~ancf.errors.LimitError`) — the default;
+            ``False`` analyses them anyway.
+        max_steps : int
+            Bound on the load increments tried (converged and cut back): a failing solve reports within it.
+        time_limit_s : float, optional
+            Wall-clock bound [s]; the solve raises ConvergenceError when it is exceeded.
+        check_stability : bool
+            Check that the equilibrium is a minimum (inertia of the reduced tangent, see
+            :meth:`stability`; one extra factorisation) and raise UnstableEquilibriumError if it is not;
+            ``False`` skips the check (``res.stable`` is then None).
 
         Returns
         -------
@@ -496,16 +576,28 @@ class BellowsModel:
         Raises
         ------
         ancf.errors.ConvergenceError
-            When a load increment fails after ``max_cuts`` cut-backs (carries the residual history).
+            When a load increment fails after ``max_cuts`` cut-backs, more than ``max_steps`` increments are
+            needed, or ``time_limit_s`` is exceeded (carries the residual history).
+        ancf.errors.LimitError
+            A load outside the operating limits (unless ``check_limits=False``).
         """
         from .results import BellowsResult
 
+        for name, v, lo in (("max_iter", max_iter, 1), ("max_cuts", max_cuts, 0), ("max_steps", max_steps, 1)):
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+                raise InputError(f"{name} must be an integer >= {lo}, got {v!r}")
+        for name, v in (("rtol", rtol), ("atol", atol), ("ltol", ltol)):
+            if not float(check_finite(name, v, ())) > 0:
+                raise InputError(f"{name} must be > 0, got {v!r}")
+        if time_limit_s is not None and not float(check_finite("time_limit_s", time_limit_s, ())) > 0:
+            raise InputError(f"time_limit_s must be > 0 s, got {time_limit_s!r}")
         target = self._loadcase(tensions, pressure, tip_force, gravity, locked_lengths)
+        if check_limits:
+            self.limits.check(target, self.tendon_lengths(self.zero_state()))
         t_start = time.perf_counter()
         stats = NewtonStats()
         if initial is not None:
-            if initial.model is not self:
-                raise InputError("initial must be a result of this same BellowsModel")
+            self._own(initial)
             st = initial.state.copy()
             start = initial.loadcase
             start = LoadCase(st.T.copy(), start.pressure, start.tip_force.copy(), start.gravity,
@@ -524,8 +616,19 @@ class BellowsModel:
             dT = float(np.abs(target.tensions - start.tensions).sum())
             n_steps = 1 + int(dp / 20e3) + int(dT / 3.0)
         lam, dlam, cuts = 0.0, 1.0 / max(1, int(n_steps)), 0
-        step = 0
+        step = tried = 0
         while lam < 1.0 - 1e-14:
+            tried += 1
+            elapsed = time.perf_counter() - t_start
+            if tried > max_steps or (time_limit_s is not None and elapsed > time_limit_s):
+                why = (f"more than max_steps = {max_steps} load increments" if tried > max_steps
+                       else f"more than time_limit_s = {time_limit_s:g} s")
+                last = stats.steps[-1]["residuals"] if stats.steps else []
+                raise ConvergenceError(
+                    f"load stepping stopped at λ = {lam:.4g} after {why} ({step} converged, {cuts} cut back, "
+                    f"{elapsed:.1f} s): the load is likely beyond what the structure carries; lower it or "
+                    f"raise the bound", solver="fem_newton", iterations=stats.n_iterations,
+                    residual_norm=last[-1] if last else np.nan, tolerance=max(atol, rtol), history=last)
             lam_t = min(1.0, lam + dlam)
             lc = start.lerp(target, lam_t)
             lc_prev = start.lerp(target, lam)
@@ -568,12 +671,65 @@ class BellowsModel:
                 dlam = min(1.0, dlam * 1.5)
         stats.t_total = time.perf_counter() - t_start
         target.tensions = st.T.copy()
-        return BellowsResult(model=self, state=st, loadcase=target, stats=stats,
-                             tendon_lengths=self.tendon_lengths(st))
+        res = BellowsResult(model=self, state=st, loadcase=target, stats=stats,
+                            tendon_lengths=self.tendon_lengths(st))
+        if check_stability:
+            n_neg = self.stability(res)
+            if n_neg:
+                raise UnstableEquilibriumError(
+                    f"the solve converged to an unstable equilibrium ({n_neg} negative direction(s) of the "
+                    "reduced tangent: a saddle, e.g. beyond a buckling load), not a usable state; perturb the "
+                    "start (initial=...), apply the load in steps from a stable state, or lower the load",
+                    solver="fem_newton", min_eigenvalue=float("nan"))
+        return res
 
     # ------------------------------------------------------------------ compliance
+    def stability(self, res: BellowsResult) -> int | None:
+        """Number of negative eigenvalues of the reduced tangent at ``res`` (0: a stable minimum), from its
+        inertia; sets ``res.stable`` and ``res.negative_directions``.
+
+        The symmetric part of K is factorised by SuperLU with diagonal pivots only (symmetric mode), so
+        by Sylvester's law the signs of U's diagonal are the signs of its eigenvalues.  With taut locked
+        tendons (constraint gradients g, n × k) the count is taken on the constraint tangent space by
+        Haynsworth's inertia additivity for the bordered matrix [[K, g], [gᵀ, 0]]:
+        n₋(reduced) = n₋(K) + n₊(gᵀ K⁻¹ g) − k.  Returns None (inconclusive) if the factorisation had to
+        pivot off the diagonal or K is singular.
+        """
+        import scipy.sparse.linalg as spla
+
+        self._own(res)
+        st = res.state
+        ev = self.evaluate(st, res.loadcase, tangent=True)
+        K = ev["K"]
+        Ks = (0.5 * (K + K.T)).tocsc()
+        try:
+            lu = spla.splu(Ks, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                           options=dict(SymmetricMode=True))
+        except RuntimeError:        # exactly singular
+            res.stable, res.negative_directions = None, None
+            return None
+        d = lu.U.diagonal()
+        if not np.array_equal(lu.perm_r, lu.perm_c) or np.any(d == 0):
+            res.stable, res.negative_directions = None, None
+            return None
+        n_neg = int(np.sum(d < 0))
+        active = ~np.isnan(res.loadcase.locked_lengths) & ~st.slack
+        if active.any():
+            g = np.asarray(ev["g"][:, active], float)
+            S = g.T @ lu.solve(g)
+            n_neg += int(np.sum(np.linalg.eigvalsh(0.5 * (S + S.T)) > 0)) - int(active.sum())
+        res.stable, res.negative_directions = n_neg == 0, n_neg
+        return n_neg
+
+    def _own(self, res) -> None:
+        """InputError unless ``res`` is a result of this model (another mesh has other unknowns)."""
+        if getattr(res, "model", None) is not self:
+            raise InputError("the result must come from this same BellowsModel (a result of another model or "
+                             f"mesh has other unknowns), got {type(res).__name__}")
+
     def cap_compliance(self, res: BellowsResult) -> np.ndarray:
         """6×6 compliance of the cap centre: ``[δu_c; δθ] = C [δF; δM]`` (tension mode) [m/N, 1/N ...]."""
+        self._own(res)
         ev = self.evaluate(res.state, res.loadcase, tangent=True)
         fac = factorize(ev["K"], self.linear_solver)
         E = np.zeros((self.n_dofs, 6))
@@ -588,6 +744,7 @@ class BellowsModel:
         """
         if mode not in ("tension", "locked"):
             raise InputError("mode must be 'tension' or 'locked'")
+        self._own(res)
         st = res.state
         ev = self.evaluate(st, res.loadcase, tangent=True)
         fac = factorize(ev["K"], self.linear_solver)
@@ -616,6 +773,7 @@ class BellowsModel:
         """
         if res is None:
             res = self.solve()
+        self._own(res)
         L = self.geometry.length
         st, lc = res.state, res.loadcase
         ev = self.evaluate(st, lc, tangent=True)

@@ -23,6 +23,9 @@ class BellowsResult:
     loadcase : LoadCase — the loads that were reached (tensions hold the final tensions/multipliers)
     stats : NewtonStats — timings [s], iterations, per-step residual histories
     tendon_lengths : ndarray (m,) — cable path lengths [m]
+    stable : bool or None — the reduced tangent is positive definite (on the tangent space of the taut
+        locked tendons): a minimum of the potential; None if not checked or inconclusive
+    negative_directions : int or None — number of negative eigenvalues of that reduced tangent
     """
 
     model: object
@@ -30,6 +33,8 @@ class BellowsResult:
     loadcase: object
     stats: object
     tendon_lengths: np.ndarray
+    stable: bool | None = None
+    negative_directions: int | None = None
 
     @property
     def tip_position(self) -> np.ndarray:
@@ -95,6 +100,7 @@ class BellowsResult:
             load_steps=len(self.stats.steps),
             timings_s=self.stats.as_dict(),
             n_dofs=int(self.model.n_dofs),
+            stable=self.stable,
         )
 
     def save_vtu(self, path: str | Path) -> Path:

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ancf.errors import InputError
+
 from .assembly import HexAssembler
 from .material import Material
 from .solver import factorize
@@ -92,7 +94,7 @@ def rivlin_ring_exact(p_over_mu: float, A: float, B: float) -> float:
         return np.log(B / A) - np.log(b / a) + 0.5 * c * (1 / a ** 2 - 1 / b ** 2) - p_over_mu
 
     if p_over_mu >= np.log(B / A):
-        raise ValueError("above the limit pressure μ ln(B/A)")
+        raise InputError("above the limit pressure μ ln(B/A) of the thick-walled tube")
     hi = A * 1.01
     while g(hi) < 0:
         hi *= 1.5

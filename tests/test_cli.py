@@ -50,7 +50,7 @@ def test_ik_round_trip_json():
 
 @pytest.mark.parametrize("args, message", [
     (["fk", "--tensions-n", "2,0"], "expected 3 values"),
-    (["fk", "--tensions-n", "9,0,0"], "outside the limits"),
+    (["fk", "--tensions-n", "9,0,0"], "outside the actuator's limits"),
     (["ik", "--target-mm", "158,0,12", "--pressure-kpa", "30"], "not reachable"),
     (["fk", "--preset", "nonexistent"], "unknown preset"),
     (["fk", "--tip-force-n", "0,nan,0"], "finite"),

@@ -78,7 +78,7 @@ def test_ik_bad_target_rejected(paper_model, bad):
 
 def test_fk_bad_inputs(paper_model):
     m = paper_model
-    with pytest.raises(InputError, match="outside the limits"):
+    with pytest.raises(InputError, match="outside the actuator's limits"):
         m.fk((6.0, 0, 0))
     with pytest.raises(InputError, match="pressure"):
         m.fk((0, 0, 0), 30.0e6)

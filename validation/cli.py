@@ -1,22 +1,22 @@
 """The ``bellows`` console command: one entry point, subcommands from each package.
 
 ``bellows demo | fk | ik | locked | params`` come from :mod:`ancf.cli`; ``bellows fem ...`` from
-:mod:`fem_reference.cli` (needs scikit-fem).  Errors of the product are printed as one clear line and
-exit with status 2; nothing is returned silently wrong.
+:mod:`fem_reference.cli` (needs scikit-fem).  Every handled error (a product error or a usage error) is
+printed as one ``error: …`` line and exits with status 2 (:mod:`ancf.clitools`); nothing is returned
+silently wrong.
 """
 
 from __future__ import annotations
 
-import sys
-
 import typer
 
 from ancf import cli as ancf_cli
-from ancf.errors import BellowsError
+from ancf import clitools
 
 app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM reference, compliance control.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
-                  rich_markup_mode=None)   # help texts state units as "[kPa]": no markup parsing
+                  rich_markup_mode=None,   # help texts state units as "[kPa]": no markup parsing
+                  context_settings=clitools.HELP_SETTINGS)   # whole command summaries in --help
 ancf_cli.register(app)
 
 try:  # the paper's studies (workspace, stiffness, Table I, loading)
@@ -42,12 +42,9 @@ app.command("control")(rig_cli.control)
 app.add_typer(rig_cli.log_app, name="log", help="Inspect run logs: show | export.")
 
 
-def main() -> None:
-    try:
-        app()
-    except BellowsError as exc:
-        typer.secho(f"error: {exc}", fg=typer.colors.RED, err=True)
-        sys.exit(2)
+def main(args=None) -> None:
+    """Console entry point: runs ``app`` under the one-line error contract (exit status 2)."""
+    clitools.run(app, args)
 
 
 if __name__ == "__main__":

@@ -21,11 +21,16 @@ def test_cli_solve_json_and_files(tmp_path):
     assert json.loads((tmp_path / "result.json").read_text())["pressure_Pa"] == 0.0
 
 
-def test_cli_rejects_bad_input():
-    r = CliRunner().invoke(app, ["solve", "--tensions-n", "1,2"])
-    assert r.exit_code != 0
-    r = CliRunner().invoke(app, ["solve", "--preset", "tube", "--tensions-n", "-1,0,0"])
-    assert r.exit_code == 1 and "push" in r.output
+def test_cli_rejects_bad_input(capsys):
+    from validation.cli import main
+
+    for args, message in ((["--tensions-n", "1,2"], "expected 3"),
+                          (["--preset", "tube", "--tensions-n", "-1,0,0"], "push")):
+        with pytest.raises(SystemExit) as info:
+            main(["fem", "solve", *args])
+        err = capsys.readouterr().err
+        lines = err.strip().splitlines()
+        assert info.value.code == 2 and len(lines) == 1 and lines[0].startswith("error:") and message in err
 
 
 def test_cli_info():

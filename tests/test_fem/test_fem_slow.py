@@ -22,12 +22,12 @@ def test_tip_compliance_mesh_convergence_rate():
     assert rate > 1.5, (vals, rate)
 
 
-def test_examples_run():
+def test_examples_run(tmp_path):
     import importlib.util
     import pathlib
 
     root = pathlib.Path(__file__).resolve().parents[2] / "examples"
-    for name, argv in (("fem_quickstart.py", ["--mesh", "coarse", "--out", "/tmp/fem_quickstart_test"]),
+    for name, argv in (("fem_quickstart.py", ["--mesh", "coarse", "--out", str(tmp_path / "fem")]),
                        ("fem_locked_stiffness.py", ["--quick"])):
         spec = importlib.util.spec_from_file_location(name[:-3], root / name)
         mod = importlib.util.module_from_spec(spec)
