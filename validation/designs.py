@@ -50,7 +50,7 @@ except ModuleNotFoundError:  # pragma: no cover
 
 __all__ = ["load_design", "design_to_toml", "design_limits", "PRESETS", "DEFAULT_LIMITS"]
 
-GEOMETRY_FIELDS = {"name": None, "description": None, "length": "length", "n_convolutions": "dimensionless",
+GEOMETRY_FIELDS = {"name": None, "description": None, "length": "length", "n_convolutions": None,
                    "root_radius": "length", "crest_radius": "length", "wall_thickness": "length",
                    "collar_length": "length", "tendon_radius": "length", "tendon_angles": "angle",
                    "cap_mass": "mass", "cap_com_offset": "length", "tip_offset": "length"}

@@ -37,7 +37,7 @@ def one_error_line(err: str) -> str:
     (["fk", "--pressure-kpa", "500"], "kPa"),
     (["fk", "--n-elements", "0"], "n_elements"),
     (["fk", "--preset", "/nonexistent/file.toml"], "cannot read"),
-    (["locked", "--lengths-mm", "150,150,150"], "outside the actuator's limits"),
+    (["locked", "--lengths-mm", "150,150,150", "--preset", "paper_unscaled"], "outside the actuator's limits"),
     (["locked", "--lengths-mm", "160,160,160", "--method", "newton"], "--method"),
     (["ik", "--target-mm", "158,0,12", "--pressure-kpa", "30"], "not reachable"),
     (["fem", "solve", "--mu-mpa", "0"], "--mu-mpa"),                      # 0 is not "not given"
