@@ -83,7 +83,20 @@ def loading(**kw) -> dict:
     return _call_study("loading", kw)
 
 
+def trajectory_tracking(**kw) -> dict:
+    """Open-loop IK trajectory tracking (Sec. V-B): 30 mm circle, 50 mm rose curve, "SJTU"; RMSE."""
+    return _call_study("trajectory_tracking", kw)
+
+
+def feedforward_loading(**kw) -> dict:
+    """Open-loop tracking under tip loads (Fig. 8 protocol: 15 g + 25 + 25 + 50 g)."""
+    return _call_study("feedforward_loading", kw)
+
+
 CONTROL_STUDIES = {"table1": table1, "ablation": compliance_ablation, "loading": loading}
+#: Rig-protocol studies run on their own command (not by ``run_all``: minutes each).
+RIG_STUDIES = {"tracking": trajectory_tracking, "feedforward": feedforward_loading}
+RIG_FILES = {"tracking": "trajectories.json", "feedforward": "feedforward_loading.json"}
 #: JSON file of each controller study in the output folder (the names control_studies itself writes).
 CONTROL_FILES = {"table1": "table1.json", "ablation": "compliance_ablation.json", "loading": "loading.json"}
 

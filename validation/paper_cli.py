@@ -148,13 +148,29 @@ def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper")
     con = _console(as_json)
     with _scheduler_errors(None):
         params = paper.resolve_params(preset)
-        res = paper.CONTROL_STUDIES[name](out=out, params=params)
-    path = paper.write_json(out / paper.CONTROL_FILES[name], res)
+        res = {**paper.CONTROL_STUDIES, **paper.RIG_STUDIES}[name](out=out, params=params)
+    path = paper.write_json(out / {**paper.CONTROL_FILES, **paper.RIG_FILES}[name], res)
     if as_json:
         _echo_json(res)
     else:
         paper.print_control_study(name, res, con)
     con.print(f"wrote {path}")
+
+
+@app.command()
+def tracking(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+             preset: str = typer.Option("paper", help=PRESET_HELP),
+             as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Open-loop IK tracking of a 30 mm circle, a 50 mm rose curve and "SJTU" (Sec. V-B): RMSE."""
+    _control("tracking", out, as_json, preset)
+
+
+@app.command()
+def feedforward(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+                preset: str = typer.Option("paper", help=PRESET_HELP),
+                as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Open-loop tracking under tip loads, Fig. 8 protocol (15 g + 25 + 25 + 50 g)."""
+    _control("feedforward", out, as_json, preset)
 
 
 @app.command()

@@ -133,3 +133,17 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path, monkeypatch):
                                   "--no-progress", "--out", str(tmp_path)])
     assert res.exit_code == 2
     assert "dask scheduler" in res.output and "Traceback" not in res.output
+
+
+def test_tracking_command_reports_rmse_per_trajectory(tmp_path):
+    """``bellows paper tracking``: the Sec. V-B trajectories, RMSE in mm and % of L, written as JSON."""
+    import json
+    import subprocess
+    import sys
+    r = subprocess.run([sys.executable, "-m", "validation.cli", "paper", "tracking", "--out", str(tmp_path)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "trajectories.json").read_text())
+    text = json.dumps(data)
+    for name in ("circle", "rose", "SJTU"):
+        assert name in text and name in r.stdout
