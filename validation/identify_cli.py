@@ -163,7 +163,9 @@ def identify_cmd(
         cache: pathlib.Path = CACHE_OPT,
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/identify"), help="Output folder."),
         force: bool = FORCE_OPT):
-    """Identify the reduced model (k(λ), D_a, D_eff, …) from the FEM or from rig data: actuator.toml + fit.json."""
+    """Identify k(λ), D_a, D_eff from the FEM or rig data.
+
+    Writes actuator.toml (with 95 % intervals) and fit.json into --out."""
     _source_check(design, measurements)
     names = _forms(forms)
     d = prepare_output_dir(out, ("actuator.toml", "fit.json"), force=force)
@@ -190,7 +192,9 @@ def validate_cmd(
         cache: pathlib.Path = CACHE_OPT,
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/validate"), help="Output folder."),
         force: bool = FORCE_OPT):
-    """Reduced model vs the FEM on the held-out states: tip, shape and compliance errors (validation.json)."""
+    """Validate a reduced model against the FEM.
+
+    Tip, shape and compliance errors on the held-out states, written to validation.json."""
     from ancf import presets
     from .compare import validate
     from .designs import load_design
@@ -223,8 +227,9 @@ def report_cmd(
         cache: pathlib.Path = CACHE_OPT,
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/report"), help="Output folder."),
         force: bool = FORCE_OPT):
-    """Identify, validate against the FEM and write one self-contained HTML report (report.html) with the
-    actuator file, the fit data and the figures."""
+    """Identify, validate and write one HTML report.
+
+    report.html is self-contained; beside it: the actuator file, the fit data and the figures."""
     from .compare import compare_records, stiffness_vs_tension
     from .designs import load_design
     from .fem_sweep import FemSpec
@@ -278,7 +283,9 @@ def calibrate_cmd(
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/calibrated_design.toml"),
                                          help="Design .toml to write."),
         force: bool = typer.Option(False, help="Overwrite --out if it exists.")):
-    """Adjust an FEM design so that its rod measures (EA, EI, D_eff) match targets; writes a design .toml."""
+    """Fit an FEM design to target EA, EI, D_eff.
+
+    Adjusts the chosen dimensions and writes a design .toml."""
     from .calibrate import GEOMETRY_PARAMETERS, calibrate
     from .designs import design_to_toml, load_design
     target = {k: v for k, v in (("EA", target_ea_n), ("EI", target_ei_n_m2),

@@ -73,7 +73,7 @@ def test_friction_makes_a_hysteresis(paper_model, ref):
 
 def test_lacc_converges_on_a_mismatched_plant(paper_model, ref):
     m = paper_model
-    plant = SimulatedPlant(m, P, load=(0, 0.05, -0.4), options=PlantOptions.mismatched(seed=3))
+    plant = SimulatedPlant(m, P, load=(0, 0.05, -0.4), options=PlantOptions.mismatched(base=m.params, seed=3))
     res = run_iterations(LACC(m, P, compliance="exact"), plant, ref.tip, iterations=12)
     assert res.errors[0] > 1e-3
     assert res.converged and res.final_error < 3e-4          # 0.2 mm measured, with 0.05 mm noise
@@ -82,7 +82,7 @@ def test_lacc_converges_on_a_mismatched_plant(paper_model, ref):
 @pytest.mark.slow
 def test_default_lacc_converges_on_a_mismatched_plant(paper_model, ref):
     m = paper_model
-    plant = SimulatedPlant(m, P, load=(0, 0.05, -0.4), options=PlantOptions.mismatched(seed=3))
+    plant = SimulatedPlant(m, P, load=(0, 0.05, -0.4), options=PlantOptions.mismatched(base=m.params, seed=3))
     res = run_iterations(LACC(m, P), plant, ref.tip, iterations=40)
     assert res.converged
 
@@ -136,7 +136,7 @@ def test_lacc_holds_within_0_2_mm_under_stochastic_loading_on_a_mismatched_rig(p
     settled after each change.  Each measurement averages 4 tracker frames (noise 0.025 mm per axis) and the
     controller's deadband is 0.1 mm on the measured error, so the true error stays below 0.2 mm despite the
     tracker noise."""
-    opts = PlantOptions.mismatched(seed=5)
+    opts = PlantOptions.mismatched(base=paper_model.params, seed=5)
     load = load_profile("stochastic", period=3.0, seed=11)
     rig = SimulatedRig(paper_model, load=load, options=opts)
     res = run_on_rig(LACC(paper_model, P, tolerance=1e-4), rig, ref.tip, log=tmp_path / "hold.h5", duration=12.0,

@@ -57,7 +57,8 @@ def test_every_handled_error_is_one_line_with_status_2(capsys, args, message):
 
 
 def test_the_same_limits_apply_to_locked_mode_with_an_explicit_override(capsys):
-    code, out, err = run(capsys, "locked", "--lengths-mm", "150,150,150", "--no-limits", "--json")
+    code, out, err = run(capsys, "locked", "--lengths-mm", "150,150,150", "--no-limits", "--json",
+                         "--preset", "paper_unscaled")
     assert code == 0, err
     data = json.loads(out)["locked"]
     assert max(data["tensions_N"]) > 5 and data["limit_violations"] and data["stable"] is True
