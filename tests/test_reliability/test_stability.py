@@ -83,11 +83,11 @@ def test_locked_solvers_agree_on_stable_states(paper_model):
 
 def test_stretch_outside_the_law_is_a_collapsed_state():
     """The paper's law EA = a λ + b is zero at λ = −b/a ≈ 0.43: a solve that ends below it raises."""
-    law = presets.paper().stiffness
+    law = presets.paper_unscaled().stiffness
     lo, hi = law.valid_stretch_range
     assert lo == pytest.approx(-law.source["b"] / law.source["a"]) and hi == np.inf
     assert law.EA(lo) == pytest.approx(0.0, abs=1e-9) and law.EA(lo + 1e-6) > 0 and law.EI(lo + 1e-6) > 0
-    m = Model(presets.paper())
+    m = Model(presets.paper_unscaled())
     with pytest.raises(CollapsedStateError) as info:
         m.fk_locked(m.tendon_lengths(m.q_ref) * 0.5, 30e3)
     assert info.value.stretch < lo
