@@ -157,44 +157,28 @@ def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper")
     con.print(f"wrote {path}")
 
 
-@app.command()
-def tracking(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
-             preset: str = typer.Option("paper", help=PRESET_HELP),
-             as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Open-loop IK tracking of a 30 mm circle, a 50 mm rose curve and "SJTU" (Sec. V-B): RMSE."""
-    _control("tracking", out, as_json, preset)
+#: Controller and rig-protocol studies: one command each, same options (name → summary for --help).
+CONTROL_COMMANDS = {
+    "table1": "Table I: VF-CC vs LACC residual error after five iterations (up / horizontal / down).",
+    "ablation": "FK- vs IK-derived compliance in the LACC loop (paper: IK-derived ≈ 50 % faster).",
+    "loading": "Continuous (0 → 110 g → 0 over 50 s) and cyclic (0.125 Hz) loading (paper Sec V-E).",
+    "tracking": "Open-loop IK tracking of a 30 mm circle, a 50 mm rose curve and \"SJTU\" (Sec V-B): RMSE",
+    "feedforward": "Open-loop tracking under tip loads, Fig 8 protocol (15 g + 25 + 25 + 50 g)",
+}
 
 
-@app.command()
-def feedforward(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+def _control_command(name: str, summary: str):
+    def command(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
                 preset: str = typer.Option("paper", help=PRESET_HELP),
                 as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Open-loop tracking under tip loads, Fig. 8 protocol (15 g + 25 + 25 + 50 g)."""
-    _control("feedforward", out, as_json, preset)
+        _control(name, out, as_json, preset)
+    command.__doc__ = summary
+    command.__name__ = name
+    return command
 
 
-@app.command()
-def table1(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
-           preset: str = typer.Option("paper", help=PRESET_HELP),
-           as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Table I: VF-CC vs LACC residual error after five iterations (up / horizontal / down)."""
-    _control("table1", out, as_json, preset)
-
-
-@app.command()
-def ablation(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
-             preset: str = typer.Option("paper", help=PRESET_HELP),
-             as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """FK- vs IK-derived compliance in the LACC loop (paper: IK-derived ≈ 50 % faster)."""
-    _control("ablation", out, as_json, preset)
-
-
-@app.command()
-def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
-            preset: str = typer.Option("paper", help=PRESET_HELP),
-            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Continuous (0 → 110 g → 0 over 50 s) and cyclic (0.125 Hz) loading (paper Sec V-E)."""
-    _control("loading", out, as_json, preset)
+for _name, _summary in CONTROL_COMMANDS.items():
+    app.command(_name)(_control_command(_name, _summary))
 
 
 @app.command("all")
