@@ -97,10 +97,7 @@ def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int 
         accepted = False
         for _ in range(30):
             xn = x + alpha * dx
-            try:
-                En, gn_, Hn = fun(xn, True)
-            except ZeroDivisionError:          # a trial point where the centreline degenerates (|r'| = 0)
-                En = np.inf
+            En, gn_, Hn = fun(xn, True)
             if np.isfinite(En) and (En <= E + 1e-4 * alpha * slope or
                                     (abs(En - E) <= 1e-14 * max(1.0, abs(E)) and
                                      np.linalg.norm(gn_) < hist[-1])):

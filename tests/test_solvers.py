@@ -208,3 +208,16 @@ def test_free_coordinate_map_round_trips(free):
     np.testing.assert_allclose(model.to_full(model.to_free(q)), q, rtol=0, atol=1e-15)
     eq = model.fk((0.0, 0.0, 0.0), 0.0)
     np.testing.assert_allclose(eq.q, model.q_ref, atol=1e-12)
+
+
+def test_degenerate_tip_slope_is_inadmissible_not_a_division_by_zero():
+    """The tip slope is not a quadrature point: a state with |r_x(L)| = 0 (a trial point of a line search)
+    is rejected like any collapsed section — infinite energy for the solvers, a typed error at the API."""
+    from ancf.errors import CollapsedStateError
+    m = Model(presets.paper_unscaled())
+    q = m.q_ref.copy()
+    q[-3:] = 0.0
+    q[-6] += 0.02
+    assert m._fk_fun(np.array([1.0, 0.0, 0.0]), 0.0, np.zeros(3))(m.to_free(q), True)[0] == np.inf
+    with pytest.raises(CollapsedStateError):
+        m.evaluate(q, (1.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0))
