@@ -117,12 +117,18 @@ def _limits(design: str, tension_max_n: Optional[float], pressure_max_kpa: Optio
     return lim
 
 
-def _identify_fem(design: str, mesh: str, workers, scheduler, cache: Optional[pathlib.Path], forms, fit_distance: bool,
-                  limits: dict):
+def _fem_design(design: Optional[str], tension_max_n, pressure_max_kpa) -> tuple:
+    """(name, geometry, material, limits) of the FEM design, read and checked before any work."""
     from .designs import load_design
+    name = design or "paper"
+    geo, mat = load_design(name)
+    return name, geo, mat, _limits(name, tension_max_n, pressure_max_kpa)
+
+
+def _identify_fem(fem: tuple, mesh: str, workers, scheduler, cache: Optional[pathlib.Path], forms, fit_distance: bool):
     from .identify import from_fem
-    geo, mat = load_design(design)
-    console.print(f"design {design}: operating range {limits['tension_max']:g} N, {limits['pressure_max'] / 1e3:g} kPa")
+    name, geo, mat, limits = fem
+    console.print(f"design {name}: operating range {limits['tension_max']:g} N, {limits['pressure_max'] / 1e3:g} kPa")
     return from_fem(geo, mat, mesh, workers=workers, scheduler=scheduler, cache_dir=cache, forms=forms,
                     fit_distance=fit_distance, progress=True, tension_max=limits["tension_max"],
                     pressure_max=limits["pressure_max"])
@@ -168,13 +174,13 @@ def identify_cmd(
     Writes actuator.toml (with 95 % intervals) and fit.json into --out."""
     _source_check(design, measurements)
     names = _forms(forms)
+    fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     d = prepare_output_dir(out, ("actuator.toml", "fit.json"), force=force)
     t0 = time.perf_counter()
     if measurements is not None:
         res = _identify_measured(measurements, base, names, fit_distance, heldout_fraction, gravity)
     else:
-        res = _identify_fem(design or "paper", mesh, workers, scheduler, cache, names, fit_distance,
-                            _limits(design or "paper", tension_max_n, pressure_max_kpa))
+        res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance)
     res.meta["command"] = _command_line()
     res.to_toml(d / "actuator.toml", force=force)
     res.save(d / "fit.json", force=force)
@@ -200,8 +206,8 @@ def validate_cmd(
     from .designs import load_design
     from .fem_sweep import FemSpec
     p = presets.get(params)
-    d = prepare_output_dir(out, ("validation.json",), force=force)
     geo, mat = load_design(design)
+    d = prepare_output_dir(out, ("validation.json",), force=force)
     val = validate(p, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler, cache_dir=cache)
     atomic_write_text(d / "validation.json", json.dumps(val.to_dict(), indent=1))
     _print_validation(val)
@@ -231,23 +237,22 @@ def report_cmd(
 
     report.html is self-contained; beside it: the actuator file, the fit data and the figures."""
     from .compare import compare_records, stiffness_vs_tension
-    from .designs import load_design
     from .fem_sweep import FemSpec
     from .report import write_report
     _source_check(design, measurements)
     names = _forms(forms, quick)
+    fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     d = prepare_output_dir(out, REPORT_FILES, force=force)
     t0 = time.perf_counter()
     val = stiff = None
     if measurements is not None:
         res = _identify_measured(measurements, base, names, fit_distance, 0.25, True)
     else:
-        res = _identify_fem(design or "paper", mesh, workers, scheduler, cache, names, fit_distance,
-                            _limits(design or "paper", tension_max_n, pressure_max_kpa))
+        res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance)
         val = compare_records(res.params, [r for r in res.records if r.case.role == "heldout"])
         if not quick:
             console.print("stiffness vs tension (Fig. 9 protocol) on the FEM …")
-            geo, mat = load_design(design or "paper")
+            _, geo, mat, _ = fem
             stiff = stiffness_vs_tension(res.params, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler,
                                          cache_dir=cache)
     res.meta["command"] = _command_line()
