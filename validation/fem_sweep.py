@@ -27,7 +27,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ancf.errors import BellowsError, InputError
+from ancf.errors import BellowsError, ConfigError, InputError
 
 from .experiments import LoadCase
 from .runner import ResultCache, RunInterrupted, run_tasks, source_fingerprint
@@ -41,6 +41,11 @@ class FemSpec:
     geometry: object
     material: object
     mesh: str = "coarse"
+
+    def __post_init__(self):
+        from fem_reference.mesh import MESH_LEVELS, MeshLevel
+        if not (isinstance(self.mesh, MeshLevel) or (isinstance(self.mesh, str) and self.mesh in MESH_LEVELS)):
+            raise ConfigError(f"unknown mesh level {self.mesh!r}; choose from {sorted(MESH_LEVELS)}")
 
     def key(self) -> dict:
         return {"geometry": self.geometry, "material": self.material, "mesh": self.mesh}

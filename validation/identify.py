@@ -298,7 +298,9 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     :mod:`validation.compare`).
     """
     from .fem_sweep import FemSpec, run_cases, run_rod
-    spec = FemSpec(geometry, material, str(mesh))
+    from .runner import check_workers
+    check_workers(workers)
+    spec = FemSpec(geometry, material, mesh)
     if design is None:
         design = default_design(tension_max=tension_max, pressure_max=pressure_max,
                                 tendon_distance=geometry.tendon_radius, length=geometry.length,

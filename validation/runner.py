@@ -37,7 +37,7 @@ from typing import Any, Callable, Iterable, Optional, Sequence
 
 from ancf.errors import BellowsError, InputError
 
-__all__ = ["RunInterrupted", "RunOutcome", "ResultCache", "run_tasks", "source_fingerprint", "task_key"]
+__all__ = ["RunInterrupted", "RunOutcome", "ResultCache", "run_tasks", "source_fingerprint", "task_key", "check_workers"]
 
 _BLAS_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
               "NUMBA_NUM_THREADS")
@@ -122,6 +122,12 @@ def source_fingerprint(*packages: str) -> str:
             h.update(str(path.relative_to(root)).encode())
             h.update(path.read_bytes())
     return h.hexdigest()[:16]
+
+
+def check_workers(workers) -> None:
+    """``workers`` is None (all cores) or a positive integer; InputError otherwise."""
+    if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool) or workers < 1):
+        raise InputError(f"workers must be a positive integer, got {workers!r}")
 
 
 class ResultCache:
@@ -262,8 +268,7 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence[Any], *, workers: Option
         raise InputError("run_tasks: fn must be callable")
     tasks = list(tasks)
     n = len(tasks)
-    if workers is not None and (not isinstance(workers, int) or isinstance(workers, bool) or workers < 1):
-        raise InputError(f"workers must be a positive integer, got {workers!r}")
+    check_workers(workers)
     w = [1.0] * n if weights is None else [float(x) for x in weights]
     if len(w) != n:
         raise InputError("weights must have one entry per task")

@@ -37,3 +37,13 @@ def test_interrupted_sweep_says_what_is_kept(monkeypatch, tmp_path):
     assert exc.value.saved_to == tmp_path and exc.value.completed
     with pytest.raises(RunInterrupted, match="not kept"):
         fem_sweep.run_cases(spec, cases, cache_dir=None, progress=False)
+
+
+def test_bad_run_options_fail_before_any_fem_work():
+    """An unknown mesh level or a worker count of 0 is rejected when the run is set up, not in a worker."""
+    from ancf.errors import ConfigError, InputError
+    from validation.identify import from_fem
+    with pytest.raises(ConfigError, match="mesh level"):
+        fem_sweep.FemSpec(None, None, "bogus")
+    with pytest.raises(InputError, match="workers"):
+        from_fem(None, None, "coarse", workers=0)
