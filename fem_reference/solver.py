@@ -148,8 +148,11 @@ class _PardisoFactor:
 
 class _UmfpackFactor:  # pragma: no cover - optional
     def __init__(self, A):
-        import scikits.umfpack as um
-
+        try:
+            import scikits.umfpack as um
+        except ImportError as exc:
+            raise ConfigError("the 'umfpack' linear solver needs scikit-umfpack (pip install scikit-umfpack); "
+                              f"available here: {available_solvers()}") from exc
         self.lu = um.splu(A.tocsc())
 
     def solve(self, b):

@@ -31,6 +31,7 @@ import json
 import os
 import pathlib
 import pickle
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable, Optional, Sequence
@@ -214,7 +215,55 @@ def _single_thread_env():
                 os.environ[v] = val
 
 
+class PlainProgress:
+    """Progress as plain lines on a stream, for output that is not a terminal (a log file, a pipe, CI):
+    ``description: k/N (P %) after E s, about R s left`` at most every ``every_s`` seconds and at the end.
+    The subset of :class:`rich.progress.Progress` that :func:`run_tasks` uses."""
+
+    def __init__(self, stream=None, every_s: float = 10.0, clock: Callable[[], float] = time.monotonic):
+        self.stream, self.every_s, self.clock = stream, every_s, clock
+        self.tasks: dict[int, dict] = {}
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for tid, t in self.tasks.items():
+            if t["printed"] != t["completed"]:
+                self._line(tid)
+
+    def add_task(self, description: str, total: float, completed: float = 0.0) -> int:
+        tid = len(self.tasks)
+        now = self.clock()
+        self.tasks[tid] = dict(description=description, total=float(total), completed=float(completed),
+                               start=now, start_completed=float(completed), last=now, printed=None)
+        return tid
+
+    def update(self, tid: int, advance: float = 0.0) -> None:
+        t = self.tasks[tid]
+        t["completed"] += advance
+        if self.clock() - t["last"] >= self.every_s or t["completed"] >= t["total"]:
+            self._line(tid)
+
+    def _line(self, tid: int) -> None:
+        t = self.tasks[tid]
+        now = self.clock()
+        elapsed, done, total = now - t["start"], t["completed"], t["total"]
+        rate_done = done - t["start_completed"]
+        pct = 100 * done / total if total else 100.0
+        line = f"{t['description']}: {done:g}/{total:g} ({pct:.0f} %) after {elapsed:.0f} s"
+        if 0 < rate_done and done < total:
+            line += f", about {elapsed / rate_done * (total - done):.0f} s left"
+        stream = self.stream or sys.stderr
+        stream.write(line + "\n")
+        stream.flush()
+        t["last"], t["printed"] = now, done
+
+
 def _progress_bar(enabled: bool, description: str, total: int):
+    """A rich progress bar on a terminal; plain progress lines on stderr where stdout is not one."""
+    if enabled and not sys.stdout.isatty():
+        return PlainProgress()
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
                                TimeRemainingColumn)
     bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
@@ -251,7 +300,7 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence[Any], *, workers: Option
     workers : local worker processes (default: all cores, at most the number of tasks; 1 = this process);
         with ``scheduler="local"`` the number of dask workers
     scheduler : None | "local" | "tcp://address" | dask.distributed.Client
-    progress : show a progress bar (rich; silent where stdout is not a terminal)
+    progress : show progress (a rich bar on a terminal, else plain lines on stderr every 10 s)
     on_result : called in this process as ``on_result(index, result)`` once per task, in completion
         order, also for cached results (first, in task order)
     cache : a :class:`ResultCache`; ``key_inputs(task)`` gives the identifying inputs hashed into the key

@@ -25,10 +25,10 @@ from __future__ import annotations
 import pathlib
 import time
 
-import sympy as sp
-
 
 def build() -> str:
+    import sympy as sp   # a development tool (the 'dev' extra): the product itself never imports it
+
     a = sp.Matrix(sp.symbols("a0 a1 a2", real=True))
     b = sp.Matrix(sp.symbols("b0 b1 b2", real=True))
     d, co, so = sp.symbols("d co so", real=True)

@@ -117,3 +117,39 @@ def test_unreachable_dask_scheduler_is_a_typed_error():
     pytest.importorskip("dask.distributed")
     with pytest.raises(BellowsError, match="cannot reach the dask scheduler"):
         run_tasks(T.square, [{"x": 1}], scheduler="tcp://127.0.0.1:9", progress=False)
+
+
+def test_plain_progress_lines_while_running_not_only_at_the_end():
+    """Where stdout is not a terminal, progress is plain lines as the run goes (throttled by the clock)."""
+    import io
+
+    from validation.runner import PlainProgress
+    now = [0.0]
+    out = io.StringIO()
+    with PlainProgress(stream=out, every_s=10.0, clock=lambda: now[0]) as bar:
+        tid = bar.add_task("FEM cases", total=4, completed=1)     # one from the cache
+        now[0] = 5.0
+        bar.update(tid, advance=1)                                 # < 10 s since the start: quiet
+        assert out.getvalue() == ""
+        now[0] = 20.0
+        bar.update(tid, advance=1)                                 # 3/4 after 20 s: 2 computed -> 10 s each
+        assert out.getvalue().splitlines() == ["FEM cases: 3/4 (75 %) after 20 s, about 10 s left"]
+        now[0] = 21.0
+        bar.update(tid, advance=1)                                 # the last one is always printed
+    lines = out.getvalue().splitlines()
+    assert lines[-1] == "FEM cases: 4/4 (100 %) after 21 s" and len(lines) == 2
+
+
+def test_run_tasks_prints_plain_progress_to_stderr_when_piped(tmp_path):
+    code = textwrap.dedent("""
+        import sys
+        sys.path.insert(0, %r)
+        import _runner_tasks as T
+        from validation.runner import run_tasks
+        out = run_tasks(T.square, [{"x": k} for k in range(3)], workers=1, progress=True, description="squares")
+        print("results", [r["y"] for r in out.results])
+    """ % os.path.dirname(__file__))
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "results [0, 1, 4]"               # stdout stays clean for data
+    assert "squares: 3/3 (100 %)" in res.stderr and "\x1b[" not in res.stderr
