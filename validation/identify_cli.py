@@ -214,7 +214,7 @@ def validate_cmd(
     console.print(f"wrote {d / 'validation.json'}")
 
 
-REPORT_FILES = ("report.html", "actuator.toml", "fit.json", "validation.json", "stiffness.json")
+REPORT_FILES = ("report.html", "actuator.toml", "fit.json", "validation.json", "stiffness.json", "figures")
 
 
 def report_cmd(
