@@ -27,10 +27,14 @@ from .errors import InputError
 from .export import equilibrium_summary, save_png, save_vtu, write_json
 from .model import Model
 from .outputs import atomic_write_text, prepare_output_dir, prepare_output_file
+from .textfmt import number, one_of, vector
 
 console = Console(width=120)
 
-PRESET_HELP = "Preset name (paper, paper_constant, four_tendon) or a path to an actuator .toml file."
+# lists of choices are built from the code's registries (presets.NAMES, LOCKED_METHODS): --help cannot drift
+PRESET_HELP = f"Preset name {one_of(presets.NAMES)} or a path to an actuator .toml file."
+#: methods of ``bellows locked --method``: the exact active-set solve, or the paper's eq. 6 tension law
+LOCKED_METHODS = {"active_set": "exact", "gamma": "paper eq. 6"}
 FORCE_HELP = "Overwrite existing output files."
 NO_LIMITS_HELP = "Analyse loads outside the actuator's operating limits (tensions, pressure) instead of rejecting them."
 
@@ -133,7 +137,8 @@ def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z
 def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm], comma separated."),
            pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
            tip_force_n: str = typer.Option("0,0,0", help="External tip force [N]."),
-           method: str = typer.Option("active_set", help="'active_set' (exact) or 'gamma' (paper eq. 6)."),
+           method: str = typer.Option("active_set", help=f"Method {one_of(LOCKED_METHODS)}: "
+                                      + ", ".join(f"{k} ({v})" for k, v in LOCKED_METHODS.items()) + "."),
            preset: str = typer.Option("paper", help=PRESET_HELP),
            vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -145,8 +150,8 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
     model = _model(preset, None)
     l0 = parse_vector(lengths_mm, model.m, "--lengths-mm") * 1e-3
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
-    if method not in ("active_set", "gamma"):
-        raise InputError(f"--method must be 'active_set' or 'gamma', got {method!r}")
+    if method not in LOCKED_METHODS:
+        raise InputError(f"--method must be one of {', '.join(LOCKED_METHODS)}, got {method!r}")
     warm_up()
     eq, s = _timed(model.fk_locked, l0, pressure_kpa * 1e3, F, method=method, check_limits=not no_limits)
     if not no_limits:

@@ -24,7 +24,9 @@ from rich.console import Console
 
 from ancf.errors import BellowsError
 from ancf.export import to_jsonable
+from ancf import presets as ancf_presets
 from ancf.outputs import prepare_output_dir
+from ancf.textfmt import one_of
 
 from . import paper
 from .runner import RunInterrupted
@@ -35,7 +37,7 @@ app = typer.Typer(help="Reproductions of the paper's studies (workspace, stiffne
 OUT_HELP = "Output folder for the JSON, figures (PNG, SVG) and data files."
 DEFAULT_OUT = pathlib.Path("bellows_out/paper")
 _DEFAULT_COMPARE = ("paper_unscaled", "paper_scaled", "paper_scaled_020", "paper_diameter")
-PRESET_HELP = "Actuator preset name (paper, ...) or a path to an actuator .toml file."
+PRESET_HELP = f"Actuator preset name {one_of(ancf_presets.NAMES)} or a path to an actuator .toml file."
 
 
 def _console(as_json: bool) -> Console:
