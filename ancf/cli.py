@@ -186,12 +186,13 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
     if as_json:
         typer.echo(json.dumps({"tip_m": eq.tip.tolist(), "forms": data}, indent=2))
         return
-    t = Table(title=f"tip compliance at T = {T.tolist()} N, p = {pressure_kpa:g} kPa (tip {np.round(eq.tip * 1e3, 2).tolist()} mm)")
+    t = Table(title=escape(f"tip compliance at T = {vector(T, 'N', digits=2)}, p = {number(pressure_kpa, 'kPa')} "
+                           f"(tip {vector(eq.tip, 'mm', 1e3, 2)})"))
     for c in ("form", "active", "C_p [mm/N] rows", "k_x [N/m]", "k_y [N/m]", "k_z [N/m]"):
         t.add_column(escape(c))
     for name, d in data.items():
         C = np.array(d["C_p_m_per_N"]) * 1e3
-        t.add_row(name, str(d["active"]), "\n".join(" ".join(f"{x:8.3f}" for x in r) for r in C),
+        t.add_row(name, _tendons(d["active"]), "\n".join(" ".join(f"{x:8.3f}" for x in r) for r in C),
                   *(f"{d['stiffness_N_per_m'][a]:.1f}" for a in axes))
     console.print(t)
     console.print("  'exact' is the exact locked linearisation; 'paper'/'ik' are the paper's stacked "
@@ -264,12 +265,17 @@ def run_demo(model: Model) -> list[dict]:
     target = np.round(model.fk(T_int, 30e3, (0, 0, 0)).tip, 4)
     ik_eq, s = _timed(model.ik, target, 30e3, (0, 0, 0))
     rows.append({"case": "ik", "eq": ik_eq, "seconds": s,
-                 "note": f"IK to {np.round(target * 1e3, 1).tolist()} mm at 30 kPa (cold start)"})
+                 "note": f"IK to {vector(target, 'mm', 1e3)} at 30 kPa (cold start)"})
     lk, s = _timed(model.fk_locked, ik_eq.tendon_lengths, 30e3, (0, 0, -0.05 * 9.81), q0=ik_eq.q,
                    tensions0=ik_eq.tensions)
     rows.append({"case": "locked", "eq": lk, "seconds": s,
                  "note": "motors locked at the IK state, then a 50 g tip load"})
     return rows
+
+
+def _tendons(indices) -> str:
+    """Tendon indices (0-based) as the tendons' names: ``(0, 2)`` → ``"T1, T3"``; none → ``"–"``."""
+    return ", ".join(f"T{i + 1}" for i in indices) or "–"
 
 
 def _vtu_path(vtu: Optional[pathlib.Path], force: bool) -> Optional[pathlib.Path]:

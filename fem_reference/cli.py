@@ -27,7 +27,7 @@ from ancf import clitools
 from ancf.errors import InputError
 from ancf.outputs import atomic_write_text, prepare_output_dir
 
-from ._textfmt import number, one_of, vector
+from ._textfmt import one_of, vector
 from .mesh import MESH_LEVELS
 from .model import LINEAR_SOLVERS
 
@@ -171,14 +171,18 @@ def solve(
     if json_out:
         typer.echo(json.dumps(summary))
     else:
-        tip = 1e3 * res.tip_position
-        console.print(f"tip position \\[mm]: {np.array2string(tip, precision=3)}")
-        console.print(f"cap rotation vector \\[deg]: {np.array2string(np.degrees(res.cap_rotation_vector), precision=3)}")
-        console.print(f"tensions \\[N]: {np.array2string(res.tensions, precision=4)}  "
-                      f"cable lengths \\[mm]: {np.array2string(1e3 * res.tendon_lengths, precision=4)}")
-        st = res.stats
-        console.print(f"{res.iterations} Newton iterations in {len(st.steps)} load steps, {st.t_total:.2f} s "
-                      f"(linear solver {st.t_linear:.2f} s, assembly {st.t_assembly:.2f} s)")
+        for line in summary_lines(res):
+            console.print(line, markup=False, highlight=False)
+
+
+def summary_lines(res) -> list[str]:
+    """The text summary of a solved load case: vectors as ``(x, y, z) unit``, never a numpy repr."""
+    st = res.stats
+    return [f"tip position: {vector(res.tip_position, 'mm', 1e3, 2)}",
+            f"cap rotation vector: {vector(np.degrees(res.cap_rotation_vector), 'deg', digits=3)}",
+            f"tensions: {vector(res.tensions, 'N', digits=3)}; cable lengths: {vector(res.tendon_lengths, 'mm', 1e3, 2)}",
+            f"{res.iterations} Newton iterations in {len(st.steps)} load steps, {st.t_total:.2f} s "
+            f"(linear solver {st.t_linear:.2f} s, assembly {st.t_assembly:.2f} s)"]
 
 
 @app.command()

@@ -42,7 +42,7 @@ def _status_printer(stream=None, every_s: float = 0.5):
         last[0] = s["t"]
         F = s["estimate_N"]
         line = (f"t {s['t']:8.2f} s  iter {s['iteration']:4d}  tip error {s['error_m'] * 1e3:8.4f} mm  "
-                f"{s['mode']:8s}  F̂ [{F[0]:+.3f} {F[1]:+.3f} {F[2]:+.3f}] N  p {s['pressure_Pa'] / 1e3:6.2f} kPa")
+                f"{s['mode']:8s}  F̂ ({F[0]:+.3f}, {F[1]:+.3f}, {F[2]:+.3f}) N  p {s['pressure_Pa'] / 1e3:6.2f} kPa")
         stream.write(("\r" + line) if tty else (line + "\n"))
         stream.flush()
     return status
@@ -140,7 +140,7 @@ def control(
     duration = duration_s if duration_s is not None else (None if max_iterations is not None else math.inf)
     where = f"; run log: {log}" if log else ""
     typer.echo(f"{ctrl.name} on {the_rig.name} ({'simulated' if simulated else 'hardware'}): target "
-               f"{[round(float(x) * 1e3, 3) for x in target]} mm at {pressure_kpa:g} kPa"
+               f"{vector(target, 'mm', 1e3, 3)} at {pressure_kpa:g} kPa"
                + (f", load profile {load_profile}" if simulated else "")
                + ("; Ctrl-C stops" if duration == math.inf else "") + where, err=True)
     t0 = time.monotonic()

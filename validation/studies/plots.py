@@ -115,6 +115,6 @@ def plot_comparison(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Pa
     ax.legend(fontsize=7, loc="lower right")
     s = res["settings"]
     ax.set_title(f"Headline numbers vs the paper (workspace: {s['samples_per_mode_per_seed']} samples per mode, "
-                 f"seeds {s['seeds']})", fontsize=9)
+                 f"seeds {', '.join(str(x) for x in s['seeds'])})", fontsize=9)
     fig.tight_layout()
     return _save_figure(fig, pathlib.Path(out), "compare")
