@@ -73,18 +73,15 @@ def _command_line() -> str:
 
 
 def _print_identification(res) -> None:
-    from .report import DISPLAY
-    t = Table(title=f"Identified parameters (form '{res.form}')")
-    for c in ("parameter", "value", "95 % CI", "unit"):
-        t.add_column(c, justify="left" if c in ("parameter", "unit") else "right")
-    for k, v in res.values.items():
-        scale, unit = DISPLAY.get(k, (1.0, ""))
-        lo, hi = res.ci95[k]
-        if v is None:
-            t.add_row(k, "not identifiable", "", unit)
-        else:
-            t.add_row(k, f"{v * scale:.5g}", f"{lo * scale:.5g} … {hi * scale:.5g}", unit)
-    console.print(t)
+    from .report import derived_rows, param_rows
+    for title, rows in ((f"Identified parameters of the form '{res.form}'", param_rows(res)),
+                        ("Derived values at rest (λ = 1)", derived_rows(res))):
+        t = Table(title=title)
+        for c in ("parameter", "value", "95 % CI", "unit"):
+            t.add_column(c, justify="left" if c in ("parameter", "unit") else "right")
+        for r in rows:
+            t.add_row(r["name"], *((r["value"], r["ci"]) if r["identifiable"] else ("not identifiable", "")), r["unit"])
+        console.print(t)
     f = Table(title="Model forms (tip error)")
     for c in ("form", "params", "train RMS [mm]", "held-out RMS [mm]", "held-out max [mm]", "not identifiable"):
         f.add_column(c, justify="left" if c in ("form", "not identifiable") else "right")
