@@ -27,10 +27,14 @@ from .errors import InputError
 from .export import equilibrium_summary, save_png, save_vtu, write_json
 from .model import Model
 from .outputs import atomic_write_text, prepare_output_dir, prepare_output_file
+from .textfmt import number, one_of, vector
 
 console = Console(width=120)
 
-PRESET_HELP = "Preset name (paper, paper_constant, four_tendon) or a path to an actuator .toml file."
+# lists of choices are built from the code's registries (presets.NAMES, LOCKED_METHODS): --help cannot drift
+PRESET_HELP = f"Preset name {one_of(presets.NAMES)} or a path to an actuator .toml file."
+#: methods of ``bellows locked --method``: the exact active-set solve, or the paper's eq. 6 tension law
+LOCKED_METHODS = {"active_set": "exact", "gamma": "paper eq. 6"}
 FORCE_HELP = "Overwrite existing output files."
 NO_LIMITS_HELP = "Analyse loads outside the actuator's operating limits (tensions, pressure) instead of rejecting them."
 
@@ -133,7 +137,8 @@ def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z
 def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm], comma separated."),
            pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
            tip_force_n: str = typer.Option("0,0,0", help="External tip force [N]."),
-           method: str = typer.Option("active_set", help="'active_set' (exact) or 'gamma' (paper eq. 6)."),
+           method: str = typer.Option("active_set", help=f"Method {one_of(LOCKED_METHODS)}: "
+                                      + ", ".join(f"{k} ({v})" for k, v in LOCKED_METHODS.items()) + "."),
            preset: str = typer.Option("paper", help=PRESET_HELP),
            vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -145,8 +150,8 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
     model = _model(preset, None)
     l0 = parse_vector(lengths_mm, model.m, "--lengths-mm") * 1e-3
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
-    if method not in ("active_set", "gamma"):
-        raise InputError(f"--method must be 'active_set' or 'gamma', got {method!r}")
+    if method not in LOCKED_METHODS:
+        raise InputError(f"--method must be one of {', '.join(LOCKED_METHODS)}, got {method!r}")
     warm_up()
     eq, s = _timed(model.fk_locked, l0, pressure_kpa * 1e3, F, method=method, check_limits=not no_limits)
     if not no_limits:
@@ -181,12 +186,13 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
     if as_json:
         typer.echo(json.dumps({"tip_m": eq.tip.tolist(), "forms": data}, indent=2))
         return
-    t = Table(title=f"tip compliance at T = {T.tolist()} N, p = {pressure_kpa:g} kPa (tip {np.round(eq.tip * 1e3, 2).tolist()} mm)")
+    t = Table(title=escape(f"tip compliance at T = {vector(T, 'N', digits=2)}, p = {number(pressure_kpa, 'kPa')} "
+                           f"(tip {vector(eq.tip, 'mm', 1e3, 2)})"))
     for c in ("form", "active", "C_p [mm/N] rows", "k_x [N/m]", "k_y [N/m]", "k_z [N/m]"):
         t.add_column(escape(c))
     for name, d in data.items():
         C = np.array(d["C_p_m_per_N"]) * 1e3
-        t.add_row(name, str(d["active"]), "\n".join(" ".join(f"{x:8.3f}" for x in r) for r in C),
+        t.add_row(name, _tendons(d["active"]), "\n".join(" ".join(f"{x:8.3f}" for x in r) for r in C),
                   *(f"{d['stiffness_N_per_m'][a]:.1f}" for a in axes))
     console.print(t)
     console.print("  'exact' is the exact locked linearisation; 'paper'/'ik' are the paper's stacked "
@@ -259,12 +265,17 @@ def run_demo(model: Model) -> list[dict]:
     target = np.round(model.fk(T_int, 30e3, (0, 0, 0)).tip, 4)
     ik_eq, s = _timed(model.ik, target, 30e3, (0, 0, 0))
     rows.append({"case": "ik", "eq": ik_eq, "seconds": s,
-                 "note": f"IK to {np.round(target * 1e3, 1).tolist()} mm at 30 kPa (cold start)"})
+                 "note": f"IK to {vector(target, 'mm', 1e3)} at 30 kPa (cold start)"})
     lk, s = _timed(model.fk_locked, ik_eq.tendon_lengths, 30e3, (0, 0, -0.05 * 9.81), q0=ik_eq.q,
                    tensions0=ik_eq.tensions)
     rows.append({"case": "locked", "eq": lk, "seconds": s,
                  "note": "motors locked at the IK state, then a 50 g tip load"})
     return rows
+
+
+def _tendons(indices) -> str:
+    """Tendon indices (0-based) as the tendons' names: ``(0, 2)`` → ``"T1, T3"``; none → ``"–"``."""
+    return ", ".join(f"T{i + 1}" for i in indices) or "–"
 
 
 def _vtu_path(vtu: Optional[pathlib.Path], force: bool) -> Optional[pathlib.Path]:

@@ -27,21 +27,31 @@ from ancf import clitools
 from ancf.errors import InputError
 from ancf.outputs import atomic_write_text, prepare_output_dir
 
+from ._textfmt import one_of, vector
+from .mesh import MESH_LEVELS
+from .model import LINEAR_SOLVERS
+
 app = typer.Typer(help="scikit-fem 3-D hyperelastic reference model of the bellows actuator.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
                   rich_markup_mode=None, context_settings=clitools.HELP_SETTINGS)
 
 
-class MeshChoice(str, Enum):
-    coarse = "coarse"
-    medium = "medium"
-    reference = "reference"
+#: Geometry presets of ``--preset``: name → the geometry (from :mod:`fem_reference.presets`).
+GEOMETRIES = {
+    "paper": lambda: _presets().paper_bellows(),
+    "paper-deep": lambda: _presets().paper_bellows("deep"),
+    "tube": lambda: _presets().straight_tube_test(),
+}
 
 
-class PresetChoice(str, Enum):
-    paper = "paper"
-    paper_deep = "paper-deep"
-    tube = "tube"
+def _presets():
+    from . import presets
+    return presets
+
+
+# the choices of --mesh and --preset are generated from the registries, so --help lists exactly what is accepted
+MeshChoice = Enum("MeshChoice", {name: name for name in MESH_LEVELS}, type=str)
+PresetChoice = Enum("PresetChoice", {name.replace("-", "_"): name for name in GEOMETRIES}, type=str)
 
 
 def _floats(text: str, n: int, name: str) -> list[float]:
@@ -78,14 +88,8 @@ def _modulus(value_mpa: float | None, default_pa: float, option: str) -> float:
     return value_mpa * 1e6
 
 
-def _geometry(preset: PresetChoice):
-    from . import presets
-
-    if preset == PresetChoice.paper:
-        return presets.paper_bellows()
-    if preset == PresetChoice.paper_deep:
-        return presets.paper_bellows("deep")
-    return presets.straight_tube_test()
+def _geometry(preset):
+    return GEOMETRIES[preset.value if isinstance(preset, Enum) else str(preset)]()
 
 
 @app.command(short_help="Solve one static load case: tip pose, tensions, cable lengths, timings.")
@@ -96,11 +100,12 @@ def solve(
     locked_lengths_mm: str | None = typer.Option(
         None, help="lock tendons at these cable lengths [mm], e.g. '159.5,,' (empty = tension mode)"),
     gravity: bool = typer.Option(True, help="include the dead weight (g = -9.81 m/s² along z)"),
-    mesh: MeshChoice = typer.Option(MeshChoice.coarse, help="mesh level"),
-    preset: PresetChoice = typer.Option(PresetChoice.paper, help="geometry preset"),
+    mesh: MeshChoice = typer.Option(MeshChoice("coarse"), help="mesh level"),
+    preset: PresetChoice = typer.Option(PresetChoice("paper"), help="geometry preset"),
     mu_mpa: float | None = typer.Option(None, help="shear modulus [MPa] (default: preset)"),
     kappa_mpa: float | None = typer.Option(None, help="bulk modulus [MPa] (default: preset)"),
-    solver: str = typer.Option("auto", help="linear solver: auto | pardiso | splu"),
+    solver: str = typer.Option("auto", help=f"linear solver {one_of(LINEAR_SOLVERS)} (a library's solver where it "
+                                            "is installed; auto: pardiso if installed, else splu)"),
     compliance: bool = typer.Option(False, help="also compute the 3×3 tip compliance (tension and locked)"),
     out: Path | None = typer.Option(None, help="output directory (result.json, result.vtu)"),
     png: bool = typer.Option(False, help="render result.png into --out (headless pyvista)"),
@@ -166,18 +171,22 @@ def solve(
     if json_out:
         typer.echo(json.dumps(summary))
     else:
-        tip = 1e3 * res.tip_position
-        console.print(f"tip position \\[mm]: {np.array2string(tip, precision=3)}")
-        console.print(f"cap rotation vector \\[deg]: {np.array2string(np.degrees(res.cap_rotation_vector), precision=3)}")
-        console.print(f"tensions \\[N]: {np.array2string(res.tensions, precision=4)}  "
-                      f"cable lengths \\[mm]: {np.array2string(1e3 * res.tendon_lengths, precision=4)}")
-        st = res.stats
-        console.print(f"{res.iterations} Newton iterations in {len(st.steps)} load steps, {st.t_total:.2f} s "
-                      f"(linear solver {st.t_linear:.2f} s, assembly {st.t_assembly:.2f} s)")
+        for line in summary_lines(res):
+            console.print(line, markup=False, highlight=False)
+
+
+def summary_lines(res) -> list[str]:
+    """The text summary of a solved load case: vectors as ``(x, y, z) unit``, never a numpy repr."""
+    st = res.stats
+    return [f"tip position: {vector(res.tip_position, 'mm', 1e3, 2)}",
+            f"cap rotation vector: {vector(np.degrees(res.cap_rotation_vector), 'deg', digits=3)}",
+            f"tensions: {vector(res.tensions, 'N', digits=3)}; cable lengths: {vector(res.tendon_lengths, 'mm', 1e3, 2)}",
+            f"{res.iterations} Newton iterations in {len(st.steps)} load steps, {st.t_total:.2f} s "
+            f"(linear solver {st.t_linear:.2f} s, assembly {st.t_assembly:.2f} s)"]
 
 
 @app.command()
-def info(preset: PresetChoice = typer.Option(PresetChoice.paper, help="geometry preset")):
+def info(preset: PresetChoice = typer.Option(PresetChoice("paper"), help="geometry preset")):
     """Print a preset's geometry and the table of guessed parameters."""
     from rich.console import Console
     from rich.table import Table

@@ -160,6 +160,10 @@ class State:
         return State(self.U.copy(), self.uc.copy(), self.R.copy(), self.T.copy(), self.slack.copy())
 
 
+#: Accepted ``linear_solver`` names (a library's solver only where it is installed: :func:`available_solvers`).
+LINEAR_SOLVERS = ("auto", "pardiso", "pardiso_no_reuse", "splu", "splu_partial_pivoting", "umfpack")
+
+
 class BellowsModel:
     """3-D hyperelastic FE model of the bellows with rigid caps, pressure, tendons, gravity, tip load.
 
@@ -168,7 +172,7 @@ class BellowsModel:
     geometry : BellowsGeometry
     material : Material
     mesh : {"coarse", "medium", "reference"}, MeshLevel or BellowsMesh
-    linear_solver : {"auto", "pardiso", "splu"}
+    linear_solver : one of :data:`LINEAR_SOLVERS` ("auto": pardiso if installed, else splu)
     gravity_vector : (3,) [m/s²]
     limits : OperatingLimits
         Loads accepted by :meth:`solve` unless ``check_limits=False``.
@@ -179,7 +183,7 @@ class BellowsModel:
         if not isinstance(geometry, BellowsGeometry) or not isinstance(material, Material):
             raise InputError(f"BellowsModel needs (BellowsGeometry, Material), got "
                              f"({type(geometry).__name__}, {type(material).__name__})")
-        known = ("auto", "pardiso", "pardiso_no_reuse", "splu", "splu_partial_pivoting", "umfpack")
+        known = LINEAR_SOLVERS
         base = str(linear_solver).split("_")[0] if linear_solver != "splu_partial_pivoting" else "splu"
         if linear_solver not in known or (linear_solver != "auto" and base not in available_solvers()):
             raise ConfigError(f"linear solver {linear_solver!r} is not available here; choose one of "

@@ -20,7 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["render_result", "to_pyvista"]
+from ._textfmt import number, vector
+
+__all__ = ["render_result", "result_title", "to_pyvista"]
 
 
 def _pv():
@@ -71,13 +73,18 @@ def render_result(res, path: str | Path, show_undeformed: bool = True, window_si
     pl.camera.up = (0.0, 0.0, 1.0)
     pl.reset_camera()
     pl.camera.zoom(1.7)
-    pl.add_text(f"p = {res.loadcase.pressure / 1e3:.1f} kPa, T = {np.round(res.state.T, 3)} N, "
-                f"tip = {np.round(1e3 * tip, 2)} mm", font_size=10)
+    pl.add_text(result_title(res), font_size=10)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     pl.screenshot(str(path))
     pl.close()
     return path
+
+
+def result_title(res) -> str:
+    """Title of a rendered result: the loads and the tip, with units (no numpy repr)."""
+    return (f"p = {number(res.loadcase.pressure, 'kPa', 1e-3)}, T = {vector(res.state.T, 'N', digits=2)}, "
+            f"tip = {vector(res.tip_position, 'mm', 1e3)}")
 
 
 def _accepts_algorithm(grid) -> bool:

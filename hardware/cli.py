@@ -16,7 +16,16 @@ from typing import Optional
 
 import typer
 
+from ancf.compliance import METHODS as COMPLIANCE_METHODS
 from ancf.errors import InputError
+from ancf.textfmt import one_of, vector
+
+from .loads import PROFILES as LOAD_PROFILES
+
+#: ``--controller`` choices (the classes live in :mod:`controller`, imported when the command runs)
+CONTROLLERS = ("lacc", "vfcc")
+#: what each LACC ``--compliance`` method is (keys: :data:`ancf.compliance.METHODS`)
+_COMPLIANCE_NOTES = {"exact": "default", "ik": "eq. 15/16", "paper": "eq. 13"}
 
 log_app = typer.Typer(help="Inspect run logs (HDF5) written by 'bellows control'.", no_args_is_help=True,
                       add_completion=False, rich_markup_mode=None)
@@ -33,7 +42,7 @@ def _status_printer(stream=None, every_s: float = 0.5):
         last[0] = s["t"]
         F = s["estimate_N"]
         line = (f"t {s['t']:8.2f} s  iter {s['iteration']:4d}  tip error {s['error_m'] * 1e3:8.4f} mm  "
-                f"{s['mode']:8s}  F̂ [{F[0]:+.3f} {F[1]:+.3f} {F[2]:+.3f}] N  p {s['pressure_Pa'] / 1e3:6.2f} kPa")
+                f"{s['mode']:8s}  F̂ ({F[0]:+.3f}, {F[1]:+.3f}, {F[2]:+.3f}) N  p {s['pressure_Pa'] / 1e3:6.2f} kPa")
         stream.write(("\r" + line) if tty else (line + "\n"))
         stream.flush()
     return status
@@ -43,12 +52,13 @@ def control(
     rig: str = typer.Option("sim", "--rig", help="'sim' (simulated rig, paper preset) or a rig TOML file"),
     target_mm: str = typer.Option(..., "--target-mm", help="desired tip position X,Y,Z [mm]"),
     pressure_kpa: float = typer.Option(..., "--pressure-kpa", help="chamber pressure [kPa], held constant"),
-    controller: str = typer.Option("lacc", "--controller", help="lacc | vfcc"),
-    compliance: Optional[str] = typer.Option(None, "--compliance",
-                                             help="LACC compliance: exact (default) | ik (eq. 15/16) | paper (eq. 13)"),
+    controller: str = typer.Option("lacc", "--controller", help=f"controller {one_of(CONTROLLERS)}"),
+    compliance: Optional[str] = typer.Option(
+        None, "--compliance", help=f"LACC compliance {one_of(COMPLIANCE_METHODS)}: "
+        + ", ".join(f"{m} ({_COMPLIANCE_NOTES[m]})" if m in _COMPLIANCE_NOTES else m for m in COMPLIANCE_METHODS)),
     tolerance_mm: float = typer.Option(0.2, "--tolerance-mm", help="stop correcting below this tip error [mm]"),
     load_profile: str = typer.Option("none", "--load-profile",
-                                     help="simulated rig only: none | step | stochastic | continuous | cyclic"),
+                                     help=f"simulated rig only: load profile {one_of(LOAD_PROFILES)}"),
     load_mass_g: Optional[float] = typer.Option(None, "--load-mass-g",
                                                 help="simulated rig: mass of the step/continuous/cyclic load [g]"),
     seed: Optional[int] = typer.Option(None, "--seed", help="simulated rig: random seed (noise, stochastic load)"),
@@ -84,8 +94,10 @@ def control(
         raise InputError(f"--pressure-kpa must be a finite pressure >= 0 kPa, got {pressure_kpa}")
     if not (math.isfinite(tolerance_mm) and tolerance_mm >= 0):
         raise InputError(f"--tolerance-mm must be >= 0 mm, got {tolerance_mm}")
-    if controller not in ("lacc", "vfcc"):
-        raise InputError(f"--controller must be 'lacc' or 'vfcc', got {controller!r}")
+    if controller not in CONTROLLERS:
+        raise InputError(f"--controller must be one of {', '.join(CONTROLLERS)}, got {controller!r}")
+    if compliance is not None and compliance not in COMPLIANCE_METHODS:
+        raise InputError(f"--compliance must be one of {', '.join(COMPLIANCE_METHODS)}, got {compliance!r}")
     if controller == "vfcc" and compliance is not None:
         raise InputError("--compliance applies to LACC only; VF-CC has no compliance option")
     if duration_s is not None and not (duration_s > 0):
@@ -128,7 +140,7 @@ def control(
     duration = duration_s if duration_s is not None else (None if max_iterations is not None else math.inf)
     where = f"; run log: {log}" if log else ""
     typer.echo(f"{ctrl.name} on {the_rig.name} ({'simulated' if simulated else 'hardware'}): target "
-               f"{[round(float(x) * 1e3, 3) for x in target]} mm at {pressure_kpa:g} kPa"
+               f"{vector(target, 'mm', 1e3, 3)} at {pressure_kpa:g} kPa"
                + (f", load profile {load_profile}" if simulated else "")
                + ("; Ctrl-C stops" if duration == math.inf else "") + where, err=True)
     t0 = time.monotonic()

@@ -42,6 +42,7 @@ import numpy as np
 from ancf.export import to_jsonable
 from ancf import InfeasibleTargetError, Model, presets
 from ancf.errors import BellowsError
+from ancf.textfmt import vector
 from controller import LACC, VFCC, PlantOptions, SimulatedPlant, run_iterations, run_timed
 
 G = 9.81
@@ -666,7 +667,7 @@ def trajectory_tracking(*, params=None, shapes: Sequence[str] = TRAJECTORIES, po
                 lo, hi = (mid, hi) if ok else (lo, mid)
             scale = lo
             if scale <= 0:
-                raise BellowsError(f"trajectory {name}: not reachable at any scale around {center.tolist()} m")
+                raise BellowsError(f"trajectory {name}: not reachable at any scale around {vector(center, 'mm', 1e3)}")
         pts = trajectory_points(name, center, points=points, scale=scale, length=L)
         rig = SimulatedPlant(model, pressure, options=opts)
         r = run_open_loop(model, rig, pts, pressure=pressure)

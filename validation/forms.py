@@ -46,10 +46,30 @@ from ancf import ActuatorParams, StiffnessLaw
 from ancf.assembly import assemble
 from ancf.errors import InputError
 
-__all__ = ["ModelForm", "FORMS", "get_form", "position_matrix", "REPORTED"]
+__all__ = ["ModelForm", "FORMS", "get_form", "position_matrix", "REPORTED", "MEANINGS", "display_unit"]
 
 #: Derived values every form reports, with units.
 REPORTED = {"a": "N", "b": "N", "EA": "N", "EI": "N m^2", "D_a": "m", "D_eff": "m", "beta": "-", "d": "m"}
+
+#: What each parameter of a form (``ModelForm.names``) and each reported value means (tables of the report).
+MEANINGS = {
+    "k1": "axial stiffness at rest, k(1) = EA(1)", "a": "slope of the axial law, dEA/dλ",
+    "b": "intercept of the axial law EA(λ) = a λ + b", "D_a": "bending diameter, EI(1) = D_a² EA(1)/8",
+    "D_eff": "effective pressure diameter, A = π D_eff²/4", "beta": "slope of the pressure area, A(λ) = A_eff (1 + β (λ − 1))",
+    "EA1": "axial stiffness at rest, EA(1)", "sA": "slope of the axial stiffness, dEA/dλ",
+    "cA": "curvature of the axial stiffness, ½ d²EA/dλ²", "EI1": "bending stiffness at rest, EI(1)",
+    "sI": "slope of the bending stiffness, dEI/dλ", "EA": "axial stiffness (at rest)", "EI": "bending stiffness (at rest)",
+    "d": "tendon routing distance from the axis",
+}
+
+
+#: How the tables show a parameter of each SI unit: unit → (scale, shown unit).
+DISPLAY_UNITS = {"m": (1e3, "mm"), "N m^2": (1.0, "N m²"), "-": (1.0, "–"), "N": (1.0, "N")}
+
+
+def display_unit(unit: str) -> tuple:
+    """(scale, unit) in which the report and the command line show a value given in the SI ``unit``."""
+    return DISPLAY_UNITS.get(unit, (1.0, unit))
 
 
 @dataclass(frozen=True)

@@ -83,6 +83,14 @@ def observations_from_states(states, gravity: bool = True) -> Observations:
                         states.markers_std, list(labels))
 
 
+def describe_geometry(geometry) -> str:
+    """What the FEM design is, in words: ``"straight tube"`` (zero convolution depth) or ``"8-convolution
+    bellows"``."""
+    if getattr(geometry, "is_straight", False):
+        return "straight tube"
+    return f"{geometry.n_convolutions}-convolution bellows"
+
+
 def fem_base_params(geometry, material, *, n_elements: int = 6, tension_max: float = 5.0,
                     pressure_max: float = 120e3, rod: Optional[dict] = None, name: str = "identified") -> ActuatorParams:
     """Reduced-model parameters for the FEM design: its length, tendon routing and tip offset, the wall's line
@@ -96,7 +104,7 @@ def fem_base_params(geometry, material, *, n_elements: int = 6, tension_max: flo
     D_eff = rod["D_eff"] if rod and rod.get("D_eff", 0) > 1e-4 else 0.02
     mass = (rod or {}).get("wall_mass_kg", g.wall_volume() * material.density)
     return ActuatorParams(
-        name=name, description=f"identified from the FEM of a {g.n_convolutions}-convolution bellows",
+        name=name, description=f"identified from the FEM of a {describe_geometry(g)}",
         length=g.length, n_elements=n_elements, stiffness=StiffnessLaw.constant(EA=EA, EI=EI), D_eff=D_eff,
         tendons=tuple(Tendon(distance=g.tendon_radius, angle=a) for a in g.tendon_angles),
         line_mass=mass / g.length, tip_mass=g.cap_mass, tool_offset=g.tip_offset, tension_max=tension_max,
@@ -327,7 +335,8 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
                    absolute_sigma=False, source="fem")
     _finalise_params(res, base)
     res.design, res.records = design, records
-    res.meta = {"mesh": str(mesh), "geometry": to_jsonable(vars(geometry)), "material": to_jsonable(vars(material)),
+    res.meta = {"mesh": str(mesh), "design": describe_geometry(geometry), "geometry": to_jsonable(vars(geometry)),
+                "material": to_jsonable(vars(material)),
                 "marker_s_m": marker_s, "failed_cases": failed}
     return res
 

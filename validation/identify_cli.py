@@ -22,18 +22,30 @@ from rich.table import Table
 from ancf.errors import InputError
 from ancf.export import to_jsonable
 from ancf.outputs import atomic_write_text, prepare_output_dir, prepare_output_file
+from ancf.textfmt import one_of
+from fem_reference.mesh import MESH_LEVELS
 
-DESIGN_HELP = "FEM design: a preset (paper, paper_stiff, paper_deep, straight_tube) or a design .toml file."
+from .calibrate import GEOMETRY_PARAMETERS, MATERIAL_PARAMETERS
+from .designs import PRESETS as DESIGN_PRESETS
+from .experiments import default_design
+from .forms import FORMS
+
+# every list of choices below is built from the code's own registry, so that --help cannot drift from it
+DESIGN_HELP = f"FEM design: a preset {one_of(DESIGN_PRESETS)} or a design .toml file."
 CACHE_HELP = "Folder of the on-disk FEM cache (re-runs and interrupted runs compute only what is missing)."
 WORKERS_HELP = "Parallel FEM processes (default: all cores)."
 SCHEDULER_HELP = "dask scheduler address (tcp://host:8786) to run the FEM cases on a cluster."
-FORMS_HELP = ("Model forms to compare, comma separated (default: all of paper, paper_area, separate, separate_area, "
-              "quadratic, constant).")
+FORMS_HELP = f"Model forms to compare, comma separated, from {one_of(FORMS)} (default: all)."
 DEFAULT_CACHE = pathlib.Path("bellows_out/fem_cache")
 QUICK_FORMS = ("paper", "separate")
+N_FEM_CASES = len(default_design().cases)
+QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)} and no stiffness-vs-tension study. The FEM solves of the "
+              f"design's {N_FEM_CASES} load cases still dominate: about 20 min on 2 cores with an empty --cache; a "
+              "re-run whose solves are cached takes seconds.")
+FREE_PARAMETERS = GEOMETRY_PARAMETERS + MATERIAL_PARAMETERS
 
 # options shared by several commands (typer reads these as defaults)
-MESH_OPT = typer.Option("coarse", help="FEM mesh level (coarse, medium, fine).")
+MESH_OPT = typer.Option("coarse", help=f"FEM mesh level {one_of(MESH_LEVELS)}.")
 FORMS_OPT = typer.Option(None, help=FORMS_HELP)
 FIT_D_OPT = typer.Option(False, help="Also fit the tendon routing distance d.")
 WORKERS_OPT = typer.Option(None, help=WORKERS_HELP)
@@ -47,7 +59,6 @@ console = Console(width=120)
 
 
 def _forms(text: Optional[str], quick: bool = False) -> tuple:
-    from .forms import FORMS
     if not text:
         return QUICK_FORMS if quick else FORMS
     names = tuple(x.strip() for x in text.split(",") if x.strip())
@@ -62,18 +73,15 @@ def _command_line() -> str:
 
 
 def _print_identification(res) -> None:
-    from .report import DISPLAY
-    t = Table(title=f"Identified parameters (form '{res.form}')")
-    for c in ("parameter", "value", "95 % CI", "unit"):
-        t.add_column(c, justify="left" if c in ("parameter", "unit") else "right")
-    for k, v in res.values.items():
-        scale, unit = DISPLAY.get(k, (1.0, ""))
-        lo, hi = res.ci95[k]
-        if v is None:
-            t.add_row(k, "not identifiable", "", unit)
-        else:
-            t.add_row(k, f"{v * scale:.5g}", f"{lo * scale:.5g} … {hi * scale:.5g}", unit)
-    console.print(t)
+    from .report import derived_rows, param_rows
+    for title, rows in ((f"Identified parameters of the form '{res.form}'", param_rows(res)),
+                        ("Derived values at rest (λ = 1)", derived_rows(res))):
+        t = Table(title=title)
+        for c in ("parameter", "value", "95 % CI", "unit"):
+            t.add_column(c, justify="left" if c in ("parameter", "unit") else "right")
+        for r in rows:
+            t.add_row(r["name"], *((r["value"], r["ci"]) if r["identifiable"] else ("not identifiable", "")), r["unit"])
+        console.print(t)
     f = Table(title="Model forms (tip error)")
     for c in ("form", "params", "train RMS [mm]", "held-out RMS [mm]", "held-out max [mm]", "not identifiable"):
         f.add_column(c, justify="left" if c in ("form", "not identifiable") else "right")
@@ -214,15 +222,14 @@ def validate_cmd(
     console.print(f"wrote {d / 'validation.json'}")
 
 
-REPORT_FILES = ("report.html", "actuator.toml", "fit.json", "validation.json", "stiffness.json")
+REPORT_FILES = ("report.html", "actuator.toml", "fit.json", "validation.json", "stiffness.json", "figures")
 
 
 def report_cmd(
         design: Optional[str] = typer.Option(None, help=DESIGN_HELP + " Default: paper (unless --measurements)."),
         measurements: Optional[pathlib.Path] = typer.Option(None, help="Measured static states instead of the FEM."),
         base: str = typer.Option("paper", help="With --measurements: the actuator as built (preset or .toml)."),
-        quick: bool = typer.Option(False, help="Only the paper and separate-laws forms, no stiffness-vs-tension "
-                                               "study (a few minutes on 2 cores)."),
+        quick: bool = typer.Option(False, help=QUICK_HELP),
         tension_max_n: Optional[float] = TMAX_OPT,
         pressure_max_kpa: Optional[float] = PMAX_OPT,
         mesh: str = MESH_OPT,
@@ -278,8 +285,7 @@ def calibrate_cmd(
         target_d_eff_mm: Optional[float] = typer.Option(None, help="Target pressure diameter D_eff [mm] (secant at "
                                                                    "--pressure-kpa)."),
         free: str = typer.Option("wall_thickness,root_radius,crest_radius",
-                                 help="Parameters to adjust, comma separated (wall_thickness, root_radius, "
-                                      "crest_radius, collar_length, mu)."),
+                                 help=f"Parameters to adjust, comma separated, from {one_of(FREE_PARAMETERS)}."),
         range_factor: float = typer.Option(1.6, help="Each free parameter stays within [start/f, start·f]."),
         pressure_kpa: float = typer.Option(60.0, help="Pressure of the secant D_eff measure [kPa]."),
         mesh: str = MESH_OPT,
@@ -291,7 +297,7 @@ def calibrate_cmd(
     """Fit an FEM design to target EA, EI, D_eff.
 
     Adjusts the chosen dimensions and writes a design .toml."""
-    from .calibrate import GEOMETRY_PARAMETERS, calibrate
+    from .calibrate import calibrate
     from .designs import design_to_toml, load_design
     target = {k: v for k, v in (("EA", target_ea_n), ("EI", target_ei_n_m2),
                                 ("D_eff", None if target_d_eff_mm is None else target_d_eff_mm * 1e-3)) if v is not None}
@@ -301,13 +307,14 @@ def calibrate_cmd(
         raise InputError(f"--range-factor must be > 1, got {range_factor}")
     if not (pressure_kpa > 0):
         raise InputError(f"--pressure-kpa must be > 0, got {pressure_kpa}")
+    names = [n.strip() for n in free.split(",") if n.strip()]
+    bad = [n for n in names if n not in FREE_PARAMETERS]
+    if bad or not names:
+        raise InputError(f"--free: cannot adjust {', '.join(bad) or '(none given)'}; choose from "
+                         f"{', '.join(FREE_PARAMETERS)}")
     path = prepare_output_file(out, force=force, suffixes=(".toml",))
     geo, mat = load_design(design)
-    names = [n.strip() for n in free.split(",") if n.strip()]
-    start = {n: getattr(geo, n) if n in GEOMETRY_PARAMETERS else getattr(mat, n, None) for n in names}
-    bad = [n for n, v in start.items() if v is None]
-    if bad:
-        raise InputError(f"--free: cannot adjust {', '.join(bad)}")
+    start = {n: getattr(geo, n) if n in GEOMETRY_PARAMETERS else getattr(mat, n) for n in names}
     bounds = {n: (v / range_factor, v * range_factor) for n, v in start.items()}
     res = calibrate(target, geo, mat, bounds, mesh=mesh, p_mid=pressure_kpa * 1e3, workers=workers, cache_dir=cache)
     atomic_write_text(path, f"# calibrated by {_command_line()}\n# measures: "

@@ -30,7 +30,7 @@ __all__ = ["PAPER", "G", "MODES", "StudyUnavailableError", "workspace", "workspa
            "hull_volume", "hull_distance", "stiffness_vs_tension", "element_convergence", "locked_drift",
            "hold_payload", "ik_time", "table1", "compliance_ablation", "loading", "run_all",
            "plot_workspace", "plot_stiffness", "print_workspace", "print_stiffness", "print_control_study",
-           "CONTROL_STUDIES", "CONTROL_FILES", "write_json"]
+           "CONTROL_STUDIES", "CONTROL_FILES", "study_files", "write_json"]
 
 
 class StudyUnavailableError(BellowsError, ImportError):
@@ -101,6 +101,14 @@ RIG_FILES = {"tracking": "trajectories.json", "feedforward": "feedforward_loadin
 CONTROL_FILES = {"table1": "table1.json", "ablation": "compliance_ablation.json", "loading": "loading.json"}
 
 
+def study_files(name: str) -> tuple:
+    """Every file the controller or rig-protocol study ``name`` writes into its output folder: its JSON and the
+    figure of the same stem (``control_studies`` writes ``<stem>.json`` and ``<stem>.png``).  Checked before
+    the study runs, so that an existing result is not replaced without ``--force``."""
+    json_name = {**CONTROL_FILES, **RIG_FILES}[name]
+    return json_name, json_name[:-len(".json")] + ".png"
+
+
 def run_all(out: Union[str, pathlib.Path] = "bellows_out/paper", *, samples: int = 10_000, seed: int = 0,
             workers: Optional[int] = None, scheduler=None, progress: bool = True, console=None,
             params=None, force: bool = False) -> dict:
@@ -112,7 +120,7 @@ def run_all(out: Union[str, pathlib.Path] = "bellows_out/paper", *, samples: int
     from .studies import stiffness as _st, workspace as _ws
 
     prm = resolve_params(params)
-    files = list(_ws.FILES) + list(_st.FILES) + list(CONTROL_FILES.values()) + ["summary.json"]
+    files = list(_ws.FILES) + list(_st.FILES) + [f for n in CONTROL_FILES for f in study_files(n)] + ["summary.json"]
     out = prepare_output_dir(out, files, force=force)
     results: dict[str, Any] = {}
     ws = workspace(samples=samples, seed=seed, workers=workers, scheduler=scheduler, out=out, progress=progress,

@@ -24,6 +24,9 @@ from rich.console import Console
 
 from ancf.errors import BellowsError
 from ancf.export import to_jsonable
+from ancf import presets as ancf_presets
+from ancf.outputs import prepare_output_dir
+from ancf.textfmt import one_of
 
 from . import paper
 from .runner import RunInterrupted
@@ -34,7 +37,7 @@ app = typer.Typer(help="Reproductions of the paper's studies (workspace, stiffne
 OUT_HELP = "Output folder for the JSON, figures (PNG, SVG) and data files."
 DEFAULT_OUT = pathlib.Path("bellows_out/paper")
 _DEFAULT_COMPARE = ("paper_unscaled", "paper_scaled", "paper_scaled_020", "paper_diameter")
-PRESET_HELP = "Actuator preset name (paper, ...) or a path to an actuator .toml file."
+PRESET_HELP = f"Actuator preset name {one_of(ancf_presets.NAMES)} or a path to an actuator .toml file."
 
 
 def _console(as_json: bool) -> Console:
@@ -144,12 +147,13 @@ def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressur
     con.print(f"wrote {out}/stiffness.json, stiffness.png, stiffness.svg")
 
 
-def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper") -> None:
+def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper", force: bool = False) -> None:
     con = _console(as_json)
     with _scheduler_errors(None):
         params = paper.resolve_params(preset)
+        out = prepare_output_dir(out, paper.study_files(name), force=force)     # before the study runs
         res = {**paper.CONTROL_STUDIES, **paper.RIG_STUDIES}[name](out=out, params=params)
-    path = paper.write_json(out / {**paper.CONTROL_FILES, **paper.RIG_FILES}[name], res)
+    path = paper.write_json(out / paper.study_files(name)[0], res)
     if as_json:
         _echo_json(res)
     else:
@@ -170,8 +174,9 @@ CONTROL_COMMANDS = {
 def _control_command(name: str, summary: str):
     def command(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
                 preset: str = typer.Option("paper", help=PRESET_HELP),
+                force: bool = typer.Option(False, "--force", help=FORCE_HELP),
                 as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-        _control(name, out, as_json, preset)
+        _control(name, out, as_json, preset, force)
     command.__doc__ = summary
     command.__name__ = name
     return command

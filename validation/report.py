@@ -26,15 +26,19 @@ from ancf.outputs import atomic_write_text, prepare_output_file
 
 from . import report_figures as figs
 from .compare import N_SHAPE_POINTS, ValidationResult
-from .forms import REPORTED
+from .forms import MEANINGS, REPORTED, display_unit
 from .identify import PARSIMONY, IdentificationResult
 
 __all__ = ["build_report", "write_report", "report_figures"]
 
 #: The paper's identified values (Sec. II-B), shown beside ours.
 PAPER_DIAMETERS_MM = {"D_a": 29.59, "D_eff": 26.05}
-DISPLAY = {"a": (1.0, "N"), "b": (1.0, "N"), "EA": (1.0, "N"), "EI": (1.0, "N m²"), "D_a": (1e3, "mm"),
-           "D_eff": (1e3, "mm"), "beta": (1.0, "–"), "d": (1e3, "mm")}
+#: reported value → (scale, unit) as shown (SI units from :data:`validation.forms.REPORTED`)
+DISPLAY = {k: display_unit(u) for k, u in REPORTED.items()}
+#: a form parameter → the closed-form rod estimate (``IdentificationResult.rod``) of the same quantity
+ROD_ESTIMATE = {"k1": "EA", "EA1": "EA", "EA": "EA", "EI1": "EI", "EI": "EI", "D_a": "D_a", "D_eff": "D_eff"}
+#: the two models of the validation, as the tables and figures name them
+FEM_NAME, REDUCED_NAME = "FEM", "reduced model"
 
 
 def _fmt(v, scale=1.0, digits=4) -> str:
@@ -66,16 +70,31 @@ def report_figures(ident: IdentificationResult, validation: Optional[ValidationR
     return out
 
 
-def _param_rows(ident: IdentificationResult) -> list[dict]:
-    rows = []
+def param_rows(ident: IdentificationResult) -> list[dict]:
+    """The chosen form's own parameters (the names of its fit and correlation matrix) with their units."""
+    f = ident.fit
     rod = ident.rod or {}
-    for k, v in ident.values.items():
-        scale, unit = DISPLAY.get(k, (1.0, REPORTED.get(k, "")))
-        lo, hi = ident.ci95.get(k, (None, None))
-        est = rod.get(k)
-        rows.append({"name": k, "value": _fmt(v, scale), "ci": f"{_fmt(lo, scale)} … {_fmt(hi, scale)}",
-                     "unit": unit, "identifiable": bool(ident.identifiable.get(k, False)) and v is not None,
+    rows = []
+    for k, unit, v in zip(f.form.names, f.form.units, f.theta):
+        scale, shown = display_unit(unit)
+        lo, hi = f.ci95.get(k, (None, None))
+        est = rod.get(ROD_ESTIMATE.get(k, ""))
+        rows.append({"name": k, "meaning": MEANINGS.get(k, ""), "value": _fmt(v, scale),
+                     "ci": f"{_fmt(lo, scale)} … {_fmt(hi, scale)}", "unit": shown,
+                     "identifiable": bool(f.identifiable.get(k, False)),
                      "estimate": "" if est is None else _fmt(est, scale)})
+    return rows
+
+
+def derived_rows(ident: IdentificationResult) -> list[dict]:
+    """The values every form reports (:data:`validation.forms.REPORTED`), derived from the chosen form at λ = 1."""
+    rows = []
+    for k, v in ident.values.items():
+        scale, unit = DISPLAY.get(k, (1.0, ""))
+        lo, hi = ident.ci95.get(k, (None, None))
+        rows.append({"name": k, "meaning": MEANINGS.get(k, ""), "value": _fmt(v, scale),
+                     "ci": f"{_fmt(lo, scale)} … {_fmt(hi, scale)}", "unit": unit,
+                     "identifiable": bool(ident.identifiable.get(k, False)) and v is not None})
     return rows
 
 
@@ -173,7 +192,8 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
                  "starting values and refitted the rest; the actuator file marks them.")
     if val is not None and val.ratio:
         d.append(f"Locked/constant-tension vertical stiffness ratio on the held-out states: FEM "
-                 f"{val.ratio['fem']['mean']:.2f} (max {val.ratio['fem']['max']:.2f}), ANCF {val.ratio['ancf']['mean']:.2f} "
+                 f"{val.ratio['fem']['mean']:.2f} (max {val.ratio['fem']['max']:.2f}), reduced model "
+                 f"{val.ratio['ancf']['mean']:.2f} "
                  f"(max {val.ratio['ancf']['max']:.2f}); the paper reports \"about twice\".")
     if val is not None and val.failures:
         d.append(f"{len(val.failures)} held-out state(s) could not be compared: "
@@ -218,7 +238,8 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
     if ident.source == "fem":
         mesh = (ident.meta or {}).get("mesh", "")
         name = ((ident.meta or {}).get("geometry") or {}).get("name", "")
-        source_text = (f"virtual experiments on the 3-D FEM of the bellows{(' ' + repr(name)) if name else ''} "
+        what = (ident.meta or {}).get("design") or "bellows"
+        source_text = (f"virtual experiments on the 3-D FEM of the {what}{(' ' + repr(name)) if name else ''} "
                        f"({mesh} mesh; {ident.train.n} training and {0 if ident.heldout is None else ident.heldout.n} "
                        "held-out load cases)")
     else:
@@ -231,7 +252,8 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "targets": {} if validation is None else {
             {"shape_pct": "shape error", "compliance_pct": "compliance error"}.get(k, k): t
             for k, t in validation.targets.items()},
-        "not_identifiable": ident.not_identifiable, "params_rows": _param_rows(ident),
+        "not_identifiable": ident.not_identifiable, "params_rows": param_rows(ident),
+        "derived_rows": derived_rows(ident), "fem_name": FEM_NAME, "reduced_name": REDUCED_NAME,
         "absolute_sigma": bool(ident.train.has_sigma), "toml_name": toml_name, "toml_text": ident.to_toml(),
         "n_train": ident.train.n, "n_heldout": 0 if ident.heldout is None else ident.heldout.n,
         "parsimony_pct": round(100 * (PARSIMONY - 1)), "form_rows": _form_rows(ident), "figures": b64,

@@ -16,7 +16,7 @@ __all__ = ["forms_figure", "correlation_figure", "residuals_figure", "shapes_fig
            "stiffness_figure"]
 
 FEM_STYLE = {"color": "0.15", "lw": 2.0, "label": "FEM"}
-ANCF_STYLE = {"color": "tab:red", "lw": 1.4, "ls": "--", "label": "ANCF"}
+ANCF_STYLE = {"color": "tab:red", "lw": 1.4, "ls": "--", "label": "reduced model"}
 
 
 def _plt():
@@ -93,7 +93,7 @@ def residuals_figure(train_labels, train_err, heldout_labels=None, heldout_err=N
 
 
 def shapes_figure(rows: list, max_states: int = 8) -> bytes:
-    """Centrelines of the held-out states, FEM vs ANCF, projected on the x–z and x–y planes [mm]."""
+    """Centrelines of the held-out states, FEM vs the reduced (ANCF) model, projected on the x–z and x–y planes [mm]."""
     plt = _plt()
     rows = rows[:max_states]
     n = len(rows)
@@ -163,7 +163,7 @@ def stiffness_figure(stiff: dict) -> bytes:
             ax.plot(T, 1e-3 * np.asarray(c[f"k_{mode}_fem_N_per_m"]), marker=mk, color="0.15",
                     label=f"FEM, {mode}")
             ax.plot(T, 1e-3 * np.asarray(c[f"k_{mode}_ancf_N_per_m"]), marker=mk, color="tab:red", ls="--",
-                    mfc="none", label=f"ANCF, {mode}")
+                    mfc="none", label=f"reduced model, {mode}")
         ax.set_title(name)
         ax.set_xlabel("T1 [N]")
         ax.grid(alpha=0.3)

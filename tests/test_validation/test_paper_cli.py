@@ -104,10 +104,12 @@ def test_wrappers_forward_to_control_studies(tmp_path, monkeypatch):
     fake.table1 = lambda out=None, params=None: {"upward": {"lacc_mm": 0.02},
                                                  "table": "config  LACC [mm]  paper\nupward  0.020  0.020"}
     res = runner.invoke(app, ["table1", "--out", str(tmp_path)])
+    assert res.exit_code == 2 and "--force" in res.output          # the first run's result is kept
+    res = runner.invoke(app, ["table1", "--out", str(tmp_path), "--force"])
     assert res.exit_code == 0 and "LACC [mm]" in res.output
     # a study that cannot take a preset is not run on the default one silently
     fake.table1 = lambda out=None: {}
-    res = runner.invoke(app, ["table1", "--preset", "paper_scaled", "--out", str(tmp_path)])
+    res = runner.invoke(app, ["table1", "--preset", "paper_scaled", "--out", str(tmp_path), "--force"])
     assert res.exit_code == 2 and "does not take a preset" in res.output
 
 

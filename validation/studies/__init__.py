@@ -8,6 +8,7 @@ module              study
 ``convergence``     Sec. V-A: tip error vs the number of elements n
 ``loads``           Sec. V-D/E: locked drift under a payload, holding a payload, IK time
 ``comparison``      every headline number for several presets beside the paper's
+``criteria``        the one "reproduces the paper" criterion of the comparison's table and figure
 ``hulls``           convex-hull volume and distance helpers
 ``states``          state diagnostics: stretch range, collapse of a stiffness law
 ``plots``/``tables`` figures and printed tables (no computation)

@@ -40,6 +40,7 @@ from .. import paper_numbers as PN
 from . import states
 from .common import resolve_params
 from .convergence import PAPER_CONVERGENCE, element_convergence
+from .criteria import within
 from .loads import hold_payload, ik_time, locked_drift
 from .stiffness import ratio_closed_form, series_stiffness_for_ratio, stiffness_vs_tension
 from .workspace import workspace
@@ -90,12 +91,9 @@ HEADLINES: dict[str, tuple] = {
 
 
 def verdict(key: str, value) -> Optional[bool]:
-    """True/False if ``value`` reproduces / misses the paper's headline ``key``; None if not judged."""
-    lo, hi = HEADLINES[key][3], HEADLINES[key][4]
-    if (lo is None and hi is None) or not isinstance(value, (int, float)) or isinstance(value, bool) \
-            or not np.isfinite(value):
-        return None
-    return bool((lo is None or value >= lo) and (hi is None or value <= hi))
+    """True/False if ``value`` reproduces / misses the paper's headline ``key``; None if not judged.  The
+    criterion is :func:`validation.studies.criteria.within`, the same that draws compare.png's bands."""
+    return within(value, HEADLINES[key][3], HEADLINES[key][4])
 
 
 def _guard(fn: Callable, *a, **kw):

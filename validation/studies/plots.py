@@ -9,6 +9,7 @@ import numpy as np
 
 from ..paper_numbers import WORKSPACE as PAPER_WORKSPACE
 from .common import pyplot as _pyplot, save_figure as _save_figure
+from .criteria import ratio_band, within
 
 
 def plot_workspace(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Path]:
@@ -84,37 +85,84 @@ def plot_stiffness(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Pat
     return _save_figure(fig, pathlib.Path(out), "stiffness")
 
 
-def plot_comparison(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Path]:
-    """Ours / paper for every numeric headline with a paper value, one marker per preset (log scale);
-    the shaded band is where the verdict counts a number as reproduced."""
-    plt = _pyplot()
+def comparison_limits(ratios, bands, floor: float = 1e-6, ceil: float = 1e6) -> tuple[float, float]:
+    """x limits of compare.png (log axis of ours / paper): whole decades around every positive finite ratio,
+    the finite band edges and 1, within [floor, ceil]; values outside are drawn as off-scale markers."""
+    vals = [min(max(v, floor), ceil) for v in list(ratios) + [e for b in bands for e in b] + [1.0]
+            if np.isfinite(v) and v > 0]
+    lo = 10.0 ** np.floor(np.log10(min(vals) / 1.5))
+    hi = 10.0 ** np.ceil(np.log10(max(vals) * 1.5))
+    return float(max(lo, floor)), float(min(hi, ceil))
+
+
+def comparison_layout(res: dict) -> dict:
+    """What compare.png shows, computed without drawing: ``keys`` (headlines, top to bottom), ``limits`` (x0, x1)
+    of the log axis of ours / paper, ``bands`` {key: (a, b)} — the interval of
+    :func:`~validation.studies.criteria.ratio_band`, clipped to the axis — and ``points``, one per preset and
+    headline: {preset (index), key, value, ratio, x (where drawn), edge (None, "left", "right": off scale),
+    reproduced (the verdict of :func:`~validation.studies.criteria.within`, the table's ✓/✗)}."""
     paper = res["paper"]
-    keys = [k for k, v in paper.items() if isinstance(v, (int, float)) and v
-            and any(isinstance(p["numbers"].get(k), (int, float)) for p in res["presets"])]
+    crit = {k: tuple(v) for k, v in res.get("criteria", {}).items()}
+    keys = [k for k, v in paper.items() if _number(v) and v
+            and any(_number(p["numbers"].get(k)) for p in res["presets"])]
+    full = {k: ratio_band(*crit[k], paper[k]) for k in keys if crit.get(k, (None, None)) != (None, None)}
+    points = [{"preset": j, "key": k, "value": p["numbers"][k], "ratio": p["numbers"][k] / paper[k],
+               "reproduced": within(p["numbers"][k], *crit.get(k, (None, None)))}
+              for j, p in enumerate(res["presets"]) for k in keys if _number(p["numbers"].get(k))]
+    x0, x1 = comparison_limits([q["ratio"] for q in points], full.values())
+    for q in points:
+        r = q["ratio"]
+        q["edge"] = None if x0 <= r <= x1 else ("right" if r > x1 else "left")
+        q["x"] = r if q["edge"] is None else (x0 * 1.15 if q["edge"] == "left" else x1 / 1.15)
+    bands = {k: (max(a, x0), min(b, x1)) for k, (a, b) in full.items() if max(a, x0) < min(b, x1)}
+    return {"keys": keys, "limits": (x0, x1), "bands": bands, "points": points}
+
+
+def plot_comparison(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Path]:
+    """Ours / paper for every numeric headline with a paper value, one marker per preset (log scale).
+
+    The green band is where :func:`validation.studies.criteria.within` — the criterion of the table's ✓ —
+    counts a number as reproduced; a filled marker is a reproduced value, a hollow one a missed value.  Ratios
+    off the axis (≤ 0, or beyond its limits) are drawn at the edge as ◀ / ▶ with their ratio written beside
+    them, never pinned silently (:func:`comparison_layout`)."""
+    plt = _pyplot()
+    lay = comparison_layout(res)
+    keys, (x0, x1) = lay["keys"], lay["limits"]
     fig, ax = plt.subplots(figsize=(9, 0.38 * len(keys) + 1.6))
-    y = np.arange(len(keys))[::-1]
+    y = dict(zip(keys, np.arange(len(keys))[::-1]))
+    for k, (a, b) in lay["bands"].items():
+        ax.fill_betweenx([y[k] - 0.4, y[k] + 0.4], a, b, color="tab:green", alpha=0.12, lw=0)
     markers = "osD^v<>ph"
-    for j, p in enumerate(res["presets"]):
-        vals = [p["numbers"].get(k) for k in keys]
-        r = np.array([v / paper[k] if isinstance(v, (int, float)) and np.isfinite(v) else np.nan
-                      for k, v in zip(keys, vals)], float)
-        ax.scatter(np.clip(r, 1e-3, 1e3), y + 0.12 * (j - (len(res["presets"]) - 1) / 2), marker=markers[j % 9],
-                   label=f"{p['preset']} ({p['reproduced']}/{p['judged']} reproduced)", zorder=3)
-    for i, k in enumerate(keys):
-        lo, hi = res.get("criteria", {}).get(k, [None, None])
-        if lo is not None or hi is not None:
-            a = (lo if lo is not None else 1e-3) / paper[k]
-            b = (hi if hi is not None else 1e3 * paper[k]) / paper[k]
-            ax.fill_betweenx([y[i] - 0.4, y[i] + 0.4], a, b, color="tab:green", alpha=0.12, lw=0)
+    n = len(res["presets"])
+    labelled = set()
+    for q in lay["points"]:
+        j = q["preset"]
+        p = res["presets"][j]
+        colour = f"C{j % 10}"
+        yq = y[q["key"]] + 0.12 * (j - (n - 1) / 2)
+        label = None if j in labelled else f"{p['preset']} ({p['reproduced']}/{p['judged']} reproduced)"
+        labelled.add(j)
+        marker = markers[j % 9] if q["edge"] is None else ("<" if q["edge"] == "left" else ">")
+        ax.scatter([q["x"]], [yq], marker=marker, color=colour, label=label, zorder=3,
+                   facecolors="none" if q["reproduced"] is False else colour)
+        if q["edge"] is not None:                   # off the axis: the arrow at the edge and the ratio beside it
+            left = q["edge"] == "left"
+            ax.annotate(f"{q['ratio']:.2g}× (off scale)", (q["x"], yq), xytext=(6 if left else -6, 0),
+                        textcoords="offset points", ha="left" if left else "right", va="center", fontsize=6,
+                        color=colour)
     ax.axvline(1.0, color="k", lw=0.8)
     ax.set_xscale("log")
-    ax.set_xlim(1e-3, 1e3)
-    ax.set_yticks(y, [res["labels"][k] for k in keys], fontsize=8)
-    ax.set_xlabel("ours / paper  (green: counted as reproduced)")
+    ax.set_xlim(x0, x1)
+    ax.set_yticks(list(y.values()), [res["labels"][k] for k in keys], fontsize=8)
+    ax.set_xlabel("ours / paper  (green: counted as reproduced; filled: reproduced, hollow: missed)")
     ax.grid(alpha=0.3, axis="x")
     ax.legend(fontsize=7, loc="lower right")
     s = res["settings"]
     ax.set_title(f"Headline numbers vs the paper (workspace: {s['samples_per_mode_per_seed']} samples per mode, "
-                 f"seeds {s['seeds']})", fontsize=9)
+                 f"seeds {', '.join(str(x) for x in s['seeds'])})", fontsize=9)
     fig.tight_layout()
     return _save_figure(fig, pathlib.Path(out), "compare")
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
