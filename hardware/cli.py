@@ -23,6 +23,8 @@ log_app = typer.Typer(help="Inspect run logs (HDF5) written by 'bellows control'
 
 
 def _status_printer(stream=None, every_s: float = 0.5):
+    """The live status: on a terminal one line redrawn after every sample; otherwise (a pipe, a file, CI)
+    a plain line per ``every_s`` seconds of rig time, flushed at once so that progress shows during the run."""
     stream = stream or sys.stderr
     tty = stream.isatty()
     last = [-math.inf]
@@ -37,6 +39,13 @@ def _status_printer(stream=None, every_s: float = 0.5):
         stream.write(("\r" + line) if tty else (line + "\n"))
         stream.flush()
     return status
+
+
+def _end_status_line() -> None:
+    """End the live status line (a terminal redraws one line with \\r; elsewhere every line is complete)."""
+    if sys.stderr.isatty():
+        sys.stderr.write("\n")
+    sys.stderr.flush()
 
 
 def control(
@@ -146,10 +155,9 @@ def control(
                          max_iterations=max_iterations, status=_status_printer(),
                          run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": load_profile})
     except RunAborted as exc:
-        sys.stderr.write("\n")
+        _end_status_line()
         raise RunAborted(f"{exc}") from None
-    sys.stderr.write("\n")
-    sys.stderr.flush()
+    _end_status_line()
     out = res.to_dict()
     out["wall_s"] = time.monotonic() - t0
     sm = res.summary

@@ -116,3 +116,26 @@ def test_a_run_refused_up_front_leaves_no_log(monkeypatch, capsys, tmp_path, arg
     err = capsys.readouterr().err.strip().splitlines()
     assert info.value.code == 2 and err[-1].startswith("error:") and message in err[-1]
     assert not log.exists()
+
+
+def test_progress_lines_arrive_during_the_run_when_stderr_is_a_pipe():
+    import os
+    import subprocess
+    import sys
+    import time
+    env = {**os.environ, "PYTHONPATH": os.getcwd()}
+    proc = subprocess.Popen([sys.executable, "-c", "from validation.cli import main; main()", "control", "--rig", "sim",
+                             "--target-mm", TARGET_MM, "--pressure-kpa", "60", "--duration-s", "3"],
+                            cwd=os.getcwd(), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    arrivals = []
+    try:
+        for line in proc.stderr:                                           # read as the lines come
+            if line.startswith("t ") and "tip error" in line:
+                arrivals.append(time.monotonic())
+        proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    end = time.monotonic()
+    assert proc.returncode == 0
+    assert len(arrivals) >= 5 and end - arrivals[0] > 1.5                 # real-time run: lines every ~0.5 s
