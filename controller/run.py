@@ -306,7 +306,7 @@ def _finish(rig, runlog, own_log, opened_here, result: RunResult, t_start, contr
             pass
         if summary_error is not None:
             runlog.event(now, "warning", summary_error)
-        elif hasattr(runlog, "summary"):
+        elif own_log:                     # a log passed in open may hold several runs: the result has it
             runlog.summary(result.summary.to_dict())
         if own_log:
             runlog.close(result.status, result.reason, t=now)
