@@ -37,13 +37,17 @@ from ancf.errors import BellowsError, InputError
 from .errors import check_finite, number
 
 from .base import Controller
+from .summary import RunSummary, summarise
 
 
 @dataclass
 class RunResult:
     """Outcome of :func:`run_on_rig` (SI).  ``status``: converged | not converged | held (duration runs) |
     fault | interrupted; ``errors``: measured ‖p_m − p_d‖ per sample [m]; ``true_errors``: the same from
-    the simulated truth (empty on hardware); ``log_path``: the run log or None."""
+    the simulated truth (empty on hardware); ``times``: the samples' rig time [s]; ``saturation``: per
+    sample, what was at a limit; ``summary``: the whole-run :class:`~controller.summary.RunSummary`
+    (settled error per load period, saturation time, faults; also written to the run log);
+    ``log_path``: the run log or None."""
     controller: str
     target: np.ndarray
     status: str = "running"
@@ -56,6 +60,9 @@ class RunResult:
     estimate: Optional[np.ndarray] = None
     duration: float = 0.0
     log_path: Optional[pathlib.Path] = None
+    times: list = field(default_factory=list)
+    saturation: list = field(default_factory=list)
+    summary: Optional[RunSummary] = None
 
     @property
     def converged(self) -> bool:
@@ -71,7 +78,8 @@ class RunResult:
                 "final_error_m": self.final_error, "errors_m": [float(e) for e in self.errors],
                 "true_errors_m": [float(e) for e in self.true_errors], "static_states": self.static_states,
                 "estimate_N": None if self.estimate is None else self.estimate.tolist(),
-                "duration_s": self.duration, "log": None if self.log_path is None else str(self.log_path)}
+                "duration_s": self.duration, "log": None if self.log_path is None else str(self.log_path),
+                "summary": None if self.summary is None else self.summary.to_dict()}
 
 
 def _describe_controller(ctrl: Controller) -> dict:
@@ -128,6 +136,16 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
     from hardware.runlog import RunLog
 
     result = RunResult(controller.name, pd)
+    # Everything that can be checked without moving is checked before the run log exists, so that a run
+    # refused up front (pressure beyond the limit, unreachable target, IK lengths beyond the travel, IK
+    # tensions beyond the limit) leaves no log behind to block the next try.
+    limits = getattr(rig, "limits", None)
+    if limits is not None:
+        limits.check_pressure_command(controller.pressure)
+    lengths = controller.start(pd, initial_load)            # first IK: raises if the target is not reachable
+    if limits is not None:
+        limits.check_lengths(lengths, None, rig.m)
+        limits.check_tensions(controller.state.tensions, what="expected")
     own_log = isinstance(log, (str, pathlib.Path))
     runlog = None
     if own_log:
@@ -145,12 +163,12 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
     simulated = bool(getattr(rig, "simulated", False))
     t_start = None
     was_converged = False
+    n_events = len(getattr(rig, "events", ()))
     try:
         if opened_here:
             rig.open()
         t_start = rig.clock.now()
         rig.set_pressure(controller.pressure)
-        lengths = controller.start(pd, initial_load)
         rig.command(lengths, expected_tensions=controller.state.tensions)
         rig.advance(None)
         k = 0
@@ -172,6 +190,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                 runlog.sample(**row)
             result.samples += 1
             result.errors.append(rep.error_norm)
+            result.times.append(float(t))
+            result.saturation.append(_saturated(rig, controller, readings, rep))
             result.estimate = np.asarray(rep.estimate, float).copy()
             if status is not None:
                 status({"t": t - t_start, "iteration": k, "error_m": rep.error_norm, "mode": rep.mode,
@@ -216,7 +236,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         where = f"; log: {result.log_path}" if result.log_path else ""
         exc = RunAborted(f"run interrupted by Ctrl-C after {result.iterations} corrections; rig made safe{where}")
         exc.log_path, exc.result = result.log_path, result
-        _finish(rig, runlog, own_log, opened_here, result, t_start)
+        _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
         raise exc from None
     except BellowsError as exc:
         result.status, result.reason = "fault", f"{type(exc).__name__}: {exc}"
@@ -224,25 +244,70 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         if not isinstance(exc, HardwareError):
             rig.event("error", result.reason)
         exc.log_path, exc.result = result.log_path, result
-        _finish(rig, runlog, own_log, opened_here, result, t_start)
+        _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
         raise
     except BaseException as exc:
         result.status, result.reason = "fault", f"{type(exc).__name__}: {exc}"
         rig.safe_stop(f"run stopped by an unexpected error: {result.reason}")
-        _finish(rig, runlog, own_log, opened_here, result, t_start)
+        _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
         raise
-    _finish(rig, runlog, own_log, opened_here, result, t_start)
+    _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
     return result
 
 
-def _finish(rig, runlog, own_log, opened_here, result: RunResult, t_start) -> None:
+def _saturated(rig, controller: Controller, readings: dict, rep) -> tuple:
+    """What was at a limit in this sample (see :mod:`controller.summary`): a tuple of reasons."""
+    reasons = []
+    P = controller.model.params
+    band = 0.01 * (P.tension_max - P.tension_min)
+    T_ik = None if controller.state is None else np.asarray(controller.state.tensions, float)
+    lim = getattr(rig, "limits", None)
+    T_meas = np.asarray(readings.get("tensions", ()), float)
+    if (T_ik is not None and np.any((T_ik <= P.tension_min + band) | (T_ik >= P.tension_max - band))) or \
+            (lim is not None and T_meas.size and np.any(T_meas[np.isfinite(T_meas)] >= 0.95 * lim.tension_max)):
+        reasons.append("tension")
+    pos = np.asarray(readings.get("positions", ()), float)
+    if lim is not None and pos.size:
+        edge = 0.01 * (lim.length_max - lim.length_min)
+        pos = pos[np.isfinite(pos)]
+        if np.any((pos <= lim.length_min + edge) | (pos >= lim.length_max - edge)):
+            reasons.append("travel")
+    if rep.command is not None and (rep.mode == "fallback" or rep.backtracks > 0
+                                    or any("clipped" in n for n in rep.notes)):
+        reasons.append("controller")
+    return tuple(reasons)
+
+
+def _summarise(rig, controller: Controller, result: RunResult, t_start, t_end, n_events: int) -> RunSummary:
+    changes = None
+    fn = getattr(rig, "load_changes", None)
+    if callable(fn) and t_start is not None:
+        changes = fn(t_start, t_end)
+    faults = [f"{t - (t_start or 0.0):.3f} s {k}: {m}" for t, k, m in list(getattr(rig, "events", ()))[n_events:]
+              if k in ("fault", "limit", "error")]
+    return summarise(result.times, result.errors, tolerance=controller.tolerance,
+                     t_start=t_end if t_start is None else t_start, t_end=t_end,
+                     true_errors=result.true_errors, saturation=result.saturation, load_changes=changes,
+                     faults=faults, corrections=result.iterations)
+
+
+def _finish(rig, runlog, own_log, opened_here, result: RunResult, t_start, controller, n_events) -> None:
     now = rig.clock.now()
     result.duration = 0.0 if t_start is None else now - t_start
+    summary_error = None
+    try:
+        result.summary = _summarise(rig, controller, result, t_start, now, n_events)
+    except Exception as exc:                         # noqa: BLE001 - the summary must not lose the log
+        summary_error = f"run summary failed: {type(exc).__name__}: {exc}"
     if runlog is not None:
         try:
             rig.listeners.remove(runlog.event)
         except ValueError:
             pass
+        if summary_error is not None:
+            runlog.event(now, "warning", summary_error)
+        elif own_log:                     # a log passed in open may hold several runs: the result has it
+            runlog.summary(result.summary.to_dict())
         if own_log:
             runlog.close(result.status, result.reason, t=now)
     if opened_here:

@@ -32,6 +32,8 @@ log_app = typer.Typer(help="Inspect run logs (HDF5) written by 'bellows control'
 
 
 def _status_printer(stream=None, every_s: float = 0.5):
+    """The live status: on a terminal one line redrawn after every sample; otherwise (a pipe, a file, CI)
+    a plain line per ``every_s`` seconds of rig time, flushed at once so that progress shows during the run."""
     stream = stream or sys.stderr
     tty = stream.isatty()
     last = [-math.inf]
@@ -46,6 +48,13 @@ def _status_printer(stream=None, every_s: float = 0.5):
         stream.write(("\r" + line) if tty else (line + "\n"))
         stream.flush()
     return status
+
+
+def _end_status_line() -> None:
+    """End the live status line (a terminal redraws one line with \\r; elsewhere every line is complete)."""
+    if sys.stderr.isatty():
+        sys.stderr.write("\n")
+    sys.stderr.flush()
 
 
 def control(
@@ -75,9 +84,18 @@ def control(
     force: bool = typer.Option(False, "--force", help="overwrite an existing run log"),
     json_out: bool = typer.Option(False, "--json", help="print the result as JSON"),
 ):
-    """Run a tip-position controller live on a rig (simulated or real) with a status line and a run log.
-    Exit status 0 when the run held or converged, 1 when --max-iterations ended without convergence, 2 on
-    an error (a fault, a limit, Ctrl-C: the rig is made safe first)."""
+    """Run a tip-position controller live on a rig (simulated or real) with a status line and a run log,
+    and end with a summary of the whole run: the settled tip error per load period (a load period is the
+    time between two load changes of the simulated rig's load profile, or the whole run when the load is
+    constant or unknown, as on hardware; settled = its second half; a period's settled error is the median
+    tip error there) with median and max over the periods, the saturation time, faults and corrections
+    (also in --json and in the run log's /summary).  The target, pressure and limits are checked before
+    the run log is created.
+
+    Exit status: a --duration-s (hold) run exits 0 when every judged load period settled below the
+    tolerance and 1 when one did not (a last period cut short by the end of the run is not judged); a
+    --max-iterations run exits 0 at convergence and 1 without; 2 on an error (a fault, a limit, Ctrl-C:
+    the rig is made safe first)."""
     import json
 
     from ancf import Model
@@ -149,18 +167,33 @@ def control(
                          max_iterations=max_iterations, status=_status_printer(),
                          run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": load_profile})
     except RunAborted as exc:
-        sys.stderr.write("\n")
+        _end_status_line()
         raise RunAborted(f"{exc}") from None
-    sys.stderr.write("\n")
+    _end_status_line()
     out = res.to_dict()
     out["wall_s"] = time.monotonic() - t0
+    sm = res.summary
+    missed = res.status == "held" and sm is not None and not sm.met
+    out["exit_status"] = 1 if (res.status == "not converged" or missed) else 0
     if json_out:
         typer.echo(json.dumps(out))
     else:
-        typer.echo(f"{res.status}: tip error {res.final_error * 1e3:.4f} mm after {res.iterations} corrections, "
-                   f"{res.duration:.2f} s rig time" + (f"; {res.reason}" if res.reason else "")
+        for line in (sm.lines() if sm is not None else []):
+            typer.echo(line)
+        tol = f"{ctrl.tolerance * 1e3:.3f} mm"
+        if res.status == "held" and sm is not None:
+            head = (f"held: all {len(sm.judged)} judged load periods settled below {tol}" if sm.met else
+                    f"held, but {len(sm.judged) - sm.periods_within_tolerance} of {len(sm.judged)} judged load "
+                    f"periods did not settle below {tol}" if sm.judged else
+                    "held, but no load period could be judged (run too short?)")
+            head += f" (settled tip error median {sm.settled_error_median * 1e3:.4f} mm, max " \
+                    f"{sm.settled_error_max * 1e3:.4f} mm); last sample {res.final_error * 1e3:.4f} mm"
+        else:
+            head = f"{res.status}: tip error {res.final_error * 1e3:.4f} mm"
+        typer.echo(head + f", {res.iterations} corrections, {res.duration:.2f} s rig time"
+                   + (f"; {res.reason}" if res.reason else "")
                    + (f"; run log {res.log_path}" if res.log_path else ""))
-    if res.status == "not converged":
+    if out["exit_status"]:
         raise typer.Exit(1)
 
 

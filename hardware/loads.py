@@ -10,7 +10,11 @@ continuous    0 → ``mass`` linearly over ``ramp_up`` s, back to 0 over ``ramp_
 cyclic        mass · ½ (1 − cos 2π f t) (Sec. V-E, 0.125 Hz)
 ============  ===========================================================================================
 
-Every profile is a pure function of t (deterministic for a seed), so a replay is reproducible.
+Every profile is a pure function of t (deterministic for a seed), so a replay is reproducible.  Each
+callable also has ``change_times(t0, t1)``: the times in (t0, t1) at which the load jumps to a new value
+(``stochastic``: every ``period``; ``step``: ``t_step``; none for ``none`` and for the continuously varying
+``continuous`` and ``cyclic``).  A control run's summary judges the settled tip error per period between
+these changes (:mod:`controller.summary`).
 """
 
 from __future__ import annotations
@@ -42,6 +46,26 @@ def load_profile(name: str, *, mass: float = 0.05, t_step: float = 1.0, period: 
     if name not in PROFILES:
         raise InputError(f"unknown load profile {name!r}; one of {', '.join(PROFILES)}")
     mass = _pos("mass", mass, allow_zero=True)
+    return _with_changes(name, _profile(name, mass, t_step, period, mass_range, lateral_std, ramp_up, ramp_down,
+                                        frequency, seed), t_step, period)
+
+
+def _with_changes(name, fn, t_step, period):
+    """Attach ``change_times(t0, t1)`` (the load jumps in (t0, t1) [s]) to the profile ``fn``."""
+    if name == "step":
+        fn.change_times = lambda t0, t1: [float(t_step)] if t0 < t_step < t1 else []
+    elif name == "stochastic":
+        def change_times(t0, t1):
+            k0 = max(int(math.floor(max(t0, 0.0) / period)) + 1, 1)
+            return [k * period for k in range(k0, int(math.ceil(t1 / period)) + 1) if t0 < k * period < t1]
+        fn.change_times = change_times
+    else:
+        fn.change_times = lambda t0, t1: []
+    fn.profile = name
+    return fn
+
+
+def _profile(name, mass, t_step, period, mass_range, lateral_std, ramp_up, ramp_down, frequency, seed):
     if name == "none":
         return lambda t: np.zeros(3)
     if name == "step":

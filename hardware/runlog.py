@@ -15,6 +15,13 @@ Layout (format ``bellows-run-log``, version 1; documented in docs/data-formats.m
 * ``/events`` — ``t`` [s], ``kind`` (open, pressure, limit, fault, stop, converged, end, ...), ``message``.
 * ``/static_states`` — converged equilibria in the :mod:`hardware.static_states` format, readable by
   :func:`hardware.static_states.read_static_states` (tip force NaN = unknown to the rig).
+* ``/summary`` — the whole-run summary, written when the run ends (empty if the writer was killed):
+  ``result`` (one JSON string: settled tip error per load period with median and max over the periods,
+  saturation time, faults, corrections, whether the tolerance was met — :mod:`controller.summary`) and
+  ``periods/`` (one row per load period: ``start``, ``end`` [s], ``settled_samples``, ``settled_error``,
+  ``settled_max_error``, ``true_settled_error``, ``true_settled_max_error`` [m], ``judged``,
+  ``within_tolerance`` (1/0, NaN = not judged)).  The group's ``definition`` attribute says what
+  "settled" means.  Logs written before the summary existed have no ``/summary``.
 
 Why it survives a crash: every dataset is chunked and resizable and *created when the log is opened*;
 then ``swmr_mode`` is switched on (no group or attribute can be created after that) and each append is
@@ -41,6 +48,18 @@ from . import static_states as ss
 FORMAT = "bellows-run-log"
 FORMAT_VERSION = 1
 SUFFIXES = (".h5", ".hdf5")
+SUMMARY_DEFINITION = (
+    "load period = time between two load changes (simulated load profile), or the whole run when the load is "
+    "constant, continuous or unknown (hardware); settled part = its second half; settled tip error = median of "
+    "the measured tip error over the settled part; the last period, cut short by the end of the run, is judged "
+    "only if it is the only one or lasted at least half as long as the longest earlier period; met = every "
+    "judged period below the tolerance (and at least one judged)")
+PERIOD_FIELDS = {"start": "s", "end": "s", "settled_samples": "1", "settled_error": "m", "settled_max_error": "m",
+                 "true_settled_error": "m", "true_settled_max_error": "m", "judged": "1", "within_tolerance": "1"}
+_PERIOD_KEYS = {"start": "start_s", "end": "end_s", "settled_samples": "settled_samples",
+                "settled_error": "settled_error_m", "settled_max_error": "settled_max_error_m",
+                "true_settled_error": "true_settled_error_m", "true_settled_max_error": "true_settled_max_error_m",
+                "judged": "judged", "within_tolerance": "within_tolerance"}
 
 
 def _sample_fields(m: int) -> dict:
@@ -122,6 +141,16 @@ class RunLog:
             ds.attrs["units"] = ss._DATASETS[name]
             self.static[name] = ds
         self.static_label = s.create_dataset("label", shape=(0,), maxshape=(None,), chunks=(64,), dtype=sdt)
+        g = f.create_group("summary")                 # filled when the run ends (SWMR: created now)
+        g.attrs["description"] = "whole-run summary written when the run ended (empty: the writer did not finish)"
+        g.attrs["definition"] = SUMMARY_DEFINITION
+        self.summary_result = g.create_dataset("result", shape=(0,), maxshape=(1,), chunks=(1,), dtype=sdt)
+        pg = g.create_group("periods")
+        self.summary_periods = {}
+        for name, unit in PERIOD_FIELDS.items():
+            ds = pg.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(64,), dtype="f8")
+            ds.attrs["units"] = unit
+            self.summary_periods[name] = ds
         f.swmr_mode = True
         f.flush()
         self.rows = 0
@@ -174,6 +203,23 @@ class RunLog:
         self._append(self.static_label, str(label))
         self.f.flush()
 
+    def summary(self, summary: dict) -> None:
+        """Write the whole-run summary (a :meth:`controller.summary.RunSummary.to_dict`) to ``/summary``:
+        the JSON in ``result`` and one row per load period in ``periods/``.  Written once."""
+        if self.summary_result.shape[0]:
+            raise InputError("run log: the run summary is already written")
+        try:
+            text = json.dumps(to_jsonable(summary))
+            rows = [[float("nan") if p.get(_PERIOD_KEYS[k]) is None else float(p[_PERIOD_KEYS[k]])
+                     for k in PERIOD_FIELDS] for p in summary.get("periods", [])]
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise InputError(f"run log: the run summary must be a JSON-friendly dict with periods ({exc})") from None
+        for row in rows:
+            for name, v in zip(PERIOD_FIELDS, row):
+                self._append(self.summary_periods[name], v)
+        self._append(self.summary_result, text)
+        self.f.flush()
+
     def close(self, status: str = "completed", reason: str = "", t: float = float("nan")) -> None:
         if self.closed:
             return
@@ -197,10 +243,11 @@ class RunLog:
 # ============================================================================================ reading
 class RunData:
     """A run log read back: ``attrs`` (dict, JSON attributes decoded), ``samples`` {name: array},
-    ``units`` {name: unit}, ``events`` [(t, kind, message)], ``path``."""
+    ``units`` {name: unit}, ``events`` [(t, kind, message)], ``summary`` (dict or None), ``path``."""
 
-    def __init__(self, path, attrs, samples, units, events):
+    def __init__(self, path, attrs, samples, units, events, summary=None):
         self.path, self.attrs, self.samples, self.units, self.events = path, attrs, samples, units, events
+        self.summary = summary        # the whole-run summary (dict) or None (killed writer, older log)
 
     @property
     def rows(self) -> int:
@@ -249,7 +296,16 @@ def read_run_log(path) -> RunData:
         ne = min(ds.shape[0] for ds in e.values())
         dec = lambda x: x.decode() if isinstance(x, bytes) else str(x)
         events = [(float(t), dec(k), dec(m)) for t, k, m in zip(e["t"][:ne], e["kind"][:ne], e["message"][:ne])]
-    return RunData(p, attrs, samples, units, events)
+        summ = None
+        if "summary" in f and "result" in f["summary"]:
+            r = f["summary"]["result"]
+            r.refresh()
+            if r.shape[0]:
+                try:
+                    summ = json.loads(dec(r[0]))
+                except ValueError:
+                    raise ConfigError(f"{p}: /summary/result is not valid JSON") from None
+    return RunData(p, attrs, samples, units, events, summ)
 
 
 def summary(path) -> str:
@@ -278,6 +334,18 @@ def summary(path) -> str:
         lines.append(f"  static states: {st.n_states}")
     except (ConfigError, InputError):
         lines.append("  static states: 0")
+    sm = d.summary
+    if sm:
+        f = lambda x: "—" if x is None else f"{x * 1e3:.4f}"          # noqa: E731
+        lines.append(f"  load periods: {len(sm['periods'])}, {sm['periods_judged']} judged, "
+                     f"{sm['periods_within_tolerance']} within the tolerance {sm['tolerance_m'] * 1e3:.4f} mm "
+                     f"(settled = second half of each period)")
+        lines.append(f"  settled tip error [mm]: median {f(sm['settled_error_median_m'])}, max "
+                     f"{f(sm['settled_error_max_m'])} over the judged periods")
+        lines.append(f"  saturation time {sm['saturation_time_s']:.2f} s; faults {len(sm['faults'])}; "
+                     f"corrections {sm['corrections']}")
+    else:
+        lines.append("  summary: none (the writer did not finish, or an older log)")
     lines.append(f"  events: {len(d.events)}")
     for t, k, m in d.events[-8:]:
         lines.append(f"    {t:9.3f} s  {k:9s} {m}")

@@ -427,8 +427,16 @@ class SimulatedRig(Rig):
             self._plant.load_fn = load
         else:
             F = check_finite("load", load, (3,))
-            self._plant.load_fn = lambda t, F=F: F
+            fn = lambda t, F=F: F                                          # noqa: E731
+            fn.change_times = lambda t0, t1: []
+            self._plant.load_fn = fn
         self._plant.load(0.0)
+
+    def load_changes(self, t0: float, t1: float) -> Optional[list]:
+        """Times in (t0, t1) [s] at which the hidden load jumps (the load profile's ``change_times``; [] for
+        a constant load), or None when the load is a callable that does not say (unknown)."""
+        ct = getattr(self._plant.load_fn, "change_times", None)
+        return None if ct is None else [float(t) for t in ct(t0, t1)]
 
     def load(self, t: Optional[float] = None) -> np.ndarray:
         """True tip load at time t [s] (default: now) [N]."""

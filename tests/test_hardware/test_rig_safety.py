@@ -54,13 +54,21 @@ def test_limits_reject_invalid_limits():
 
 
 def test_measured_tension_beyond_limit_stops_the_run(paper_model, target, tmp_path):
-    rig = SimulatedRig(paper_model, load=(0, 0, -0.4), limits=SafetyLimits.around(0.16, tension_max=2.0))
+    # the IK expects 2.2 N at most (within 2.5 N); the hidden 0.4 N load makes the measured tension exceed it
+    rig = SimulatedRig(paper_model, load=(0, 0, -0.4), limits=SafetyLimits.around(0.16, tension_max=2.5))
     with pytest.raises(LimitError, match="measured tension") as info:
         run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "run.h5")
     assert info.value.log_path == tmp_path / "run.h5"
     d = read_run_log(tmp_path / "run.h5")
     assert d.ended.startswith("fault") and "measured tension" in d.ended
     assert any(k == "stop" for _, k, _ in d.events)
+
+
+def test_expected_tension_beyond_limit_is_refused_before_the_log(paper_model, target, tmp_path):
+    rig = SimulatedRig(paper_model, limits=SafetyLimits.around(0.16, tension_max=2.0))
+    with pytest.raises(LimitError, match="expected tension"):
+        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "run.h5")
+    assert not (tmp_path / "run.h5").exists() and rig.lengths is None          # no log, nothing commanded
 
 
 @pytest.mark.parametrize("fault,exc,at", [("tracking_lost", TrackingLost, 0.0), ("invalid_pose", TrackingLost, 0.0),
