@@ -34,12 +34,10 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-SETTLED_DEFINITION = (
-    "load period = time between two load changes (simulated load profile), or the whole run when the load is "
-    "constant, continuous or unknown (hardware); settled part = its second half; settled tip error = median of "
-    "the measured tip error over the settled part; the last period, cut short by the end of the run, is judged "
-    "only if it is the only one or lasted at least half as long as the longest earlier period; met = every "
-    "judged period below the tolerance (and at least one judged)")
+from hardware.runlog import SUMMARY_DEFINITION
+
+# one definition, stored with every run log's summary (controller → hardware is the allowed import direction)
+SETTLED_DEFINITION = SUMMARY_DEFINITION
 
 SATURATION_REASONS = ("tension", "travel", "controller")
 

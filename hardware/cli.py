@@ -165,6 +165,8 @@ def control(
     try:
         res = run_on_rig(ctrl, the_rig, target, log=log, force=force, duration=duration,
                          max_iterations=max_iterations, status=_status_printer(),
+                         # the simulated experiment knows the load it applies: its static states record it
+                         applied_load=the_rig.load if simulated else None,
                          run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": load_profile})
     except RunAborted as exc:
         _end_status_line()

@@ -2,9 +2,10 @@
 
 The commands are read from the documents' fenced code blocks (so the test follows the docs; nothing is
 copied here): backslash continuations are joined, ``# comments`` and optional ``[...]`` parts dropped,
-``pip install … && bellows …`` keeps its ``bellows`` part.  Each document's commands run in its own
-temporary folder, in the order the document shows them (``bellows log show run.h5`` reads the log the
-``control`` line above it wrote), each as a subprocess: exit status 0 and no traceback.
+``pip install … && bellows …`` keeps its ``bellows`` part.  Each command runs as a subprocess in a fresh
+temporary folder holding the input files it names, made by the documented command that writes them
+(``bellows log show run.h5`` gets the log of the documented ``control … --log run.h5``): exit status 0 and
+no traceback.
 
 What the test changes, and only this (docs/README.md says so too):
 
@@ -24,6 +25,7 @@ from __future__ import annotations
 import pathlib
 import re
 import shlex
+import shutil
 import subprocess
 import sys
 
@@ -47,11 +49,10 @@ HARDWARE = re.compile(r"--rig\s+\S+\.toml")
 
 
 def _design_example() -> str:
-    """The design-file example of validation/designs.py's docstring (the format's documentation)."""
-    import validation.designs as designs
-    doc = designs.__doc__
-    block = doc.split("::", 1)[1].split("\n\n", 2)
-    return "\n".join(line[4:] for line in "\n\n".join(block[:2]).splitlines() if line.startswith("    ") or not line)
+    """The design-file example of docs/data-formats.md (the format's documentation: the `paper` design)."""
+    text = (ROOT / "docs" / "data-formats.md").read_text()
+    section = text.split("## FEM bellows designs", 1)[1]
+    return re.search(r"```toml\n(.*?)```", section, re.S).group(1)
 
 
 FILES = {"my_bellows.toml": _design_example}
@@ -107,21 +108,61 @@ def _env(cwd: pathlib.Path) -> dict:
     return env
 
 
-@pytest.fixture(scope="module")
-def workdirs(tmp_path_factory):
-    """One folder per document; the commands before a command (in document order) have run in it."""
-    state: dict[str, tuple[pathlib.Path, int]] = {}
+OUTPUT_OPTIONS = ("--out", "--log", "--csv", "--vtu")
 
-    def get(doc: str, upto: int) -> pathlib.Path:
-        if doc not in state:
-            d = tmp_path_factory.mktemp(doc.replace(".", "_"))
-            for name, make in FILES.items():
-                (d / name).write_text(make())
-            state[doc] = (d, 0)
-        d, done = state[doc]
-        state[doc] = (d, max(done, upto + 1))
-        return d
-    return get
+
+def outputs_of(cmd: str) -> list[str]:
+    """The files/folders a command writes (values of its output options)."""
+    argv = shlex.split(cmd)
+    return [argv[i + 1] for i, a in enumerate(argv[:-1]) if a in OUTPUT_OPTIONS]
+
+
+def inputs_of(cmd: str) -> list[str]:
+    """Arguments that name input files (a .h5/.toml/.csv path, or a file inside a folder) — not outputs."""
+    argv = shlex.split(cmd)
+    outs = set(outputs_of(cmd))
+    return [a for a in argv[1:] if not a.startswith("-") and a not in outs and re.search(r"\.(h5|toml|csv)$", a)]
+
+
+def producers() -> dict[str, str]:
+    """Which documented command writes each file or folder the docs name (the first one shown)."""
+    out: dict[str, str] = {}
+    for path in DOCS:
+        for cmd in doc_commands(path):
+            for o in outputs_of(cmd):
+                out.setdefault(o.rstrip("/"), cmd)
+    return out
+
+
+@pytest.fixture(scope="module")
+def artifacts(tmp_path_factory):
+    """``provide(name, dest)``: puts the input file ``name`` into folder ``dest`` — from FILES, or made once by
+    the documented command that writes it (run in a folder of its own, its own inputs provided the same way)."""
+    made: dict[str, pathlib.Path] = {}
+    writers = producers()
+
+    def provide(name: str, dest: pathlib.Path) -> None:
+        target = dest / name
+        if target.exists():
+            return
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if name in FILES:
+            target.write_text(FILES[name]())
+            return
+        top = name.split("/", 1)[0] if "/" in name else name
+        if top not in writers:
+            return                                   # not made by any command: the command itself will say so
+        if top not in made:
+            d = tmp_path_factory.mktemp("made")
+            cmd = writers[top]
+            for need in inputs_of(cmd):
+                provide(need, d)
+            res = run_bellows(cmd, d)
+            assert res.returncode == 0, f"making {top} with {cmd!r} failed:\n{res.stdout[-2000:]}\n{res.stderr[-2000:]}"
+            made[top] = d / top
+        src = made[top] if top == name else made[top] / name.split("/", 1)[1]
+        shutil.copy2(src, target) if src.is_file() else shutil.copytree(src, target)
+    return provide
 
 
 def test_the_docs_show_commands():
@@ -135,8 +176,11 @@ def test_the_docs_show_commands():
 
 
 @pytest.mark.parametrize("doc, index, cmd", CASES)
-def test_doc_command_runs(workdirs, doc, index, cmd):
-    cwd = workdirs(doc, index)
+def test_doc_command_runs(artifacts, tmp_path, doc, index, cmd):
+    """Each command in a fresh folder holding only the inputs it names."""
+    cwd = tmp_path
+    for name in inputs_of(cmd):
+        artifacts(name, cwd)
     res = run_bellows(cmd, cwd)
     assert res.returncode == 0, f"{shortened(cmd)}\nexit {res.returncode}\n{res.stdout[-3000:]}\n{res.stderr[-3000:]}"
     assert "Traceback" not in res.stderr + res.stdout

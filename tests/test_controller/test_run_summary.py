@@ -64,8 +64,3 @@ def test_saturation_time_counts_until_the_next_sample():
                   saturation=[(), ("tension",), ("tension", "controller"), ("travel",)])
     assert s.saturated_samples == 3 and s.saturation_time == pytest.approx(0.5 + 1.0 + 0.5)
     assert s.saturation == pytest.approx({"tension": 1.5, "travel": 0.5, "controller": 1.0})
-
-
-def test_the_definition_matches_the_run_log():
-    from hardware.runlog import SUMMARY_DEFINITION
-    assert SUMMARY_DEFINITION == SETTLED_DEFINITION
