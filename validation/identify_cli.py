@@ -17,6 +17,7 @@ from typing import Optional
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from ancf.errors import InputError
@@ -78,13 +79,13 @@ def _print_identification(res) -> None:
                         ("Derived values at rest (λ = 1)", derived_rows(res))):
         t = Table(title=title)
         for c in ("parameter", "value", "95 % CI", "unit"):
-            t.add_column(c, justify="left" if c in ("parameter", "unit") else "right")
+            t.add_column(escape(c), justify="left" if c in ("parameter", "unit") else "right")
         for r in rows:
             t.add_row(r["name"], *((r["value"], r["ci"]) if r["identifiable"] else ("not identifiable", "")), r["unit"])
         console.print(t)
     f = Table(title="Model forms (tip error)")
     for c in ("form", "params", "train RMS [mm]", "held-out RMS [mm]", "held-out max [mm]", "not identifiable"):
-        f.add_column(c, justify="left" if c in ("form", "not identifiable") else "right")
+        f.add_column(escape(c), justify="left" if c in ("form", "not identifiable") else "right")   # "[mm]" is no markup
     for r in res.comparison:
         if "failed" in r:
             f.add_row(r["form"], str(r["n_params"]), "failed", r["failed"], "", "")
