@@ -303,7 +303,7 @@ def control_table(control: dict, presets: Sequence[str] = README_PRESETS) -> lis
         [f"cyclic max error at a loop period of {per} s, LACC exact", "3.573 mm at ≈ 0.5 s",
          *[band(c, "max_error_mm") for c in P]],
         [f"the same, eq. (15) compliance", "", *[band(c, "compare_max_error_mm") for c in P]],
-        ["one LACC step (IK + compliance), median (measured)", "(MATLAB IK 2.95 s)",
+        ["LACC compute per step in the loading study, median (measured)", "(MATLAB IK 2.95 s)",
          *[f"{num(c['loading']['compute_ms_median'], 2)} ms" for c in P]],
         ["open-loop tracking, mismatched rig, 0 kPa: RMSE circle / rose / SJTU", "< 2.5 % of L",
          *[tracking(c) for c in P]],

@@ -260,6 +260,10 @@ def test_prose_numbers_agree_with_the_data(data):
     assert f"({n['paper_scaled']['stiffness_ratio_closed_form']:.2f} for a straight" in readme
     assert f"k_s ≈ {round(n['paper_scaled']['series_stiffness_for_ratio_2_N_per_m'], -1):.0f} N/m" in readme
     assert f"EA = k(λ) ≈ {n['paper_unscaled']['EA1_N']:.0f} N" in readme
+    assert f"EA = k(λ)·0.16 m ≈ {n['paper_scaled']['EA1_N']:.0f} N" in readme
+    m = re.search(r"`paper_diameter`,\s+gives ≈ 2, with a \+(\d+) % workspace", readme)
+    assert m and round(n["paper_diameter"]["workspace_increase_percent"], -2) == float(m.group(1))
+    assert comparison.verdict("stiffness_ratio", n["paper_diameter"]["stiffness_ratio"])
     readings = (ROOT / "docs/paper-readings.md").read_text()
     m = re.search(r"reports them: ([\d.]+) % of the TD samples for `paper_scaled`, ([\d.]+) % for\s+`paper_scaled_020`",
                   readings)
