@@ -274,6 +274,10 @@ def test_prose_numbers_agree_with_the_data(data):
     assert m
     assert abs(float(m.group(1)) - n["paper_scaled"]["series_stiffness_for_ratio_2_N_per_m"]) < 10
     assert abs(float(m.group(2).replace(" ", "")) - n["paper_unscaled"]["series_stiffness_for_ratio_2_N_per_m"]) < 10
+    m = re.search(r"measured (\d+) min (\d+) s\s+on (\d{4}-\d\d-\d\d)", readings)
+    assert m, "the run-time sentence of docs/paper-readings.md changed; update this test"
+    prov = compare["provenance"]
+    assert (int(m.group(1)) * 60 + int(m.group(2)), m.group(3)) == (round(prov["wall_s_measured"]), prov["date"])
     judged = {p: f"{v['reproduced']} of {v['judged']}" for p, v in
               ((e["preset"], e) for e in compare["presets"])}
     m = re.search(r"The length-scaled readings reproduce (\d+)–(\d+) of (\d+) judged numbers, the unscaled\s+reading (\d+)",
