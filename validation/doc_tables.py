@@ -284,9 +284,11 @@ def control_table(control: dict, presets: Sequence[str] = README_PRESETS) -> lis
         return cell
 
     per = " / ".join(f"{t:g}" for t in periods)
-    comp = P[0]["table1"]["compare"]
+    t1 = P[0]["table1"]
+    comp = t1["compare"]
+    lo, hi = (num(m * 1e3, 2) for m in t1["mass_range_kg"])
     rows = [
-        ["Table I: drawn tip load up / horiz. / down (seed 0)", "20–60 g (stochastic)",
+        [f"Table I: tip load up / horiz. / down (seed {t1['seed']}, mass drawn from {lo}–{hi} g)", "stochastic",
          *[joined([c["table1"]["configurations"][k]["load_mass_g"] for k in TABLE1], unit="g") for c in P]],
         [f"Table I: LACC with the paper's eq. (15) compliance (`{comp}`), after 5 iterations", "0.020 / 0.028 / 0.006 mm",
          *[joined([c["table1"]["configurations"][k]["compare_mm"] for k in TABLE1], 2, unit="mm") for c in P]],
@@ -302,7 +304,7 @@ def control_table(control: dict, presets: Sequence[str] = README_PRESETS) -> lis
                                                                for c in P]],
         [f"cyclic max error at a loop period of {per} s, LACC exact", "3.573 mm at ≈ 0.5 s",
          *[band(c, "max_error_mm") for c in P]],
-        [f"the same, eq. (15) compliance", "", *[band(c, "compare_max_error_mm") for c in P]],
+        ["the same, eq. (15) compliance", "", *[band(c, "compare_max_error_mm") for c in P]],
         ["LACC compute per step in the loading study, median (measured)", "(MATLAB IK 2.95 s)",
          *[f"{num(c['loading']['compute_ms_median'], 2)} ms" for c in P]],
         ["open-loop tracking, mismatched rig, 0 kPa: RMSE circle / rose / SJTU", "< 2.5 % of L",
@@ -400,7 +402,7 @@ def _trim_control(folder: pathlib.Path) -> tuple[str, dict]:
         out["table1"] = {"configurations": {c: {k: t1[c][k] for k in ("load_mass_g", "vfcc_mm", "lacc_mm",
                                                                        "compare_mm")} for c in TABLE1},
                          "compliance": t1["settings"]["compliance"], "compare": t1["settings"]["compare"],
-                         "seed": t1["settings"]["seed"]}
+                         "seed": t1["settings"]["seed"], "mass_range_kg": t1["settings"]["mass_range_kg"]}
     if ab is not None:
         out["ablation"] = {"ik_faster_percent": ab["ik_faster_percent"],
                            "methods": {m: {k: v[k] for k in ("mean_iterations", "converged_fraction")}

@@ -167,6 +167,7 @@ def test_committed_control_numbers_are_current(data, recomputed):
             for k in ("load_mass_g", "vfcc_mm", "compare_mm"):
                 assert t1[cfg][k] == pytest.approx(c["table1"]["configurations"][cfg][k], rel=1e-6), (p, cfg, k)
         assert t1["settings"]["compare"] == c["table1"]["compare"] == "ik"
+        assert list(t1["settings"]["mass_range_kg"]) == c["table1"]["mass_range_kg"]
         assert ab["ik_faster_percent"] == pytest.approx(c["ablation"]["ik_faster_percent"], rel=1e-9)
         for m, v in c["ablation"]["methods"].items():
             assert ab["methods"][m]["mean_iterations"] == pytest.approx(v["mean_iterations"], rel=1e-9)
