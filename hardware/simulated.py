@@ -171,10 +171,12 @@ class _Plant:
         except ConvergenceError:
             try:
                 return self.model.fk_locked(l_act, self.pressure, F)
-            except ConvergenceError as exc:
-                from controller.errors import ControllerError
-                raise ControllerError(f"simulated rig: locked FK failed at lengths {l_act.tolist()} m, load "
-                                      f"{F.tolist()} N: {exc}") from exc
+            except ConvergenceError as exc:   # the plant itself failed: say where, keep the solver's record
+                raise ConvergenceError(f"simulated rig: locked FK failed at lengths "
+                                       f"{', '.join(f'{x * 1e3:.3f}' for x in l_act)} mm, tip load "
+                                       f"({', '.join(f'{x:.4g}' for x in F)}) N: {exc}", solver=exc.solver,
+                                       iterations=exc.iterations, residual_norm=exc.residual_norm,
+                                       tolerance=exc.tolerance, history=exc.history) from exc
         finally:
             self.solves += 1
 

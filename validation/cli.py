@@ -15,7 +15,7 @@ from ancf import cli as ancf_cli
 from ancf import clitools
 from fem_reference.cli import app as fem_app
 from hardware import cli as rig_cli
-from validation import identify_cli
+from validation import control_cli, identify_cli
 from validation.paper_cli import app as paper_app
 
 app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM reference, compliance control.",
@@ -26,7 +26,7 @@ ancf_cli.register(app)                                       # demo | fk | ik | 
 app.add_typer(paper_app, name="paper", help="Reproduce the paper's studies, beside the paper's numbers.")
 identify_cli.register(app)                                   # identify | validate | report | calibrate
 app.add_typer(fem_app, name="fem", help="3-D hyperelastic FEM reference of the bellows.")
-app.command("control")(rig_cli.control)                      # control runs on a rig
+app.command("control")(control_cli.control)                  # a controller on a rig (above both)
 app.add_typer(rig_cli.log_app, name="log", help="Inspect run logs: show | export.")
 
 

@@ -15,7 +15,7 @@ from ancf.compliance import METHODS
 from ancf.cli import LOCKED_METHODS
 from fem_reference.mesh import MESH_LEVELS
 from fem_reference.model import LINEAR_SOLVERS
-from hardware.cli import CONTROLLERS
+from validation.control_cli import CONTROLLERS
 from hardware.loads import PROFILES
 from validation.calibrate import GEOMETRY_PARAMETERS, MATERIAL_PARAMETERS
 from validation.cli import app, main

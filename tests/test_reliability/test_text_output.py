@@ -82,7 +82,7 @@ def test_demo_notes_print_no_repr(capsys, tmp_path):
 
 
 def test_control_status_and_header_print_no_repr(capsys):
-    from hardware.cli import _status_printer
+    from validation.control_cli import _status_printer
     buf = io.StringIO()
     _status_printer(buf, every_s=0.0)({"t": 1.0, "iteration": 2, "error_m": 1e-4, "mode": "lacc",
                                        "estimate_N": np.array([0.1, -0.2, 0.3]), "pressure_Pa": 30e3})
