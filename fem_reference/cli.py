@@ -17,6 +17,8 @@ error prints one ``error:`` line and exits with status 2.
 from __future__ import annotations
 
 import json
+import sys
+import time
 from enum import Enum
 from pathlib import Path
 
@@ -144,14 +146,21 @@ def solve(
     with console.status(f"building {mesh.value} mesh and assembler ..."):
         model = BellowsModel(_geometry(preset), mat, mesh.value, linear_solver=solver)
     console.print(f"[bold]{model.n_dofs}[/] reduced DOFs, {model.bmesh.n_elements} Hex2 elements")
+    plain = not console.is_terminal      # a log file or a pipe: one plain line per load step, as it happens
+
+    def line(d) -> str:
+        return f"step {d['step']}: {d['iterations']} it, |r| {d['residuals'][-1]:.1e}"
     with Progress(TextColumn("load"), BarColumn(), TextColumn("λ = {task.completed:.3f}"),
                   TextColumn("{task.fields[info]}"), TimeElapsedColumn(), console=console,
-                  transient=False) as prog:
+                  transient=False, disable=plain) as prog:
         task = prog.add_task("solve", total=1.0, info="")
+        t_start = time.perf_counter()
 
         def cb(d):
-            prog.update(task, completed=d["lam"],
-                        info=f"step {d['step']}: {d['iterations']} it, |r| {d['residuals'][-1]:.1e}")
+            if plain:
+                print(f"load λ = {d['lam']:.3f}, {line(d)}, {time.perf_counter() - t_start:.0f} s",
+                      file=sys.stderr, flush=True)
+            prog.update(task, completed=d["lam"], info=line(d))
 
         res = model.solve(tensions=T, pressure=pressure_kpa * 1e3, tip_force=F, gravity=gravity,
                           locked_lengths=locked, progress=cb, check_limits=not no_limits,

@@ -32,6 +32,7 @@ import numpy as np
 
 from ancf.errors import BellowsError, ConfigError, InputError
 
+from .fem_sweep import fem_fingerprint
 from .runner import ResultCache, run_tasks, source_fingerprint
 
 __all__ = ["CalibrationResult", "calibrate", "rod_measures", "GEOMETRY_PARAMETERS", "MATERIAL_PARAMETERS"]
@@ -120,7 +121,8 @@ def calibrate(target: dict, geometry, material, free: dict, *, mesh: str = "coar
     hi = np.log([free[n][1] for n in names])
     start = [getattr(geometry, n) if n in GEOMETRY_PARAMETERS else getattr(material, n) for n in names]
     x = np.clip(np.log(start), lo, hi)
-    cache = None if cache_dir is None else ResultCache(cache_dir, "calib-" + source_fingerprint("fem_reference"))
+    cache = None if cache_dir is None else ResultCache(cache_dir, "calib-" + fem_fingerprint()
+                                                       + source_fingerprint(files=("validation.calibrate",)))
     history: list = []
 
     def evaluate(xs: list) -> list:

@@ -4,8 +4,9 @@
 :func:`validation.runner.run_tasks` — local processes by default, a dask cluster with ``scheduler`` — with
 a progress bar.  Each case is cached (with ``cache_dir``) under a hash of everything that determines its
 result: the geometry, the material, the mesh level, the load case, what is asked (compliance or not) and
-a fingerprint of the ``fem_reference`` sources; so a re-run computes only what changed and an
-interrupted sweep resumes where it stopped.
+a fingerprint of the code that computes it (:func:`fem_fingerprint`: the ``fem_reference`` sources but its
+presentation modules, and this module and :mod:`validation.experiments`, which build the records); so a
+re-run computes only what changed and an interrupted sweep resumes where it stopped.
 
 A worker builds its :class:`fem_reference.BellowsModel` once per (geometry, material, mesh) and keeps it
 for the following cases.  The result of one case is a small :class:`FemRecord` (tip pose, centreline,
@@ -31,6 +32,17 @@ from ancf.errors import BellowsError, ConfigError, InputError
 
 from .experiments import LoadCase
 from .runner import ResultCache, RunInterrupted, run_tasks, source_fingerprint
+
+#: fem_reference modules that cannot change a cached result (command line, rendering, text formatting, the
+#: closed-form verification problems): editing them keeps the cache
+FEM_PRESENTATION = ("cli.py", "render.py", "_textfmt.py", "verification.py")
+
+
+def fem_fingerprint() -> str:
+    """Cache version of FEM results: a hash of every module that computes them (see the module docstring)."""
+    return "fem-" + source_fingerprint("fem_reference", exclude=FEM_PRESENTATION,
+                                       files=("validation.fem_sweep", "validation.experiments"))
+
 
 __all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "fem_model", "solve_task", "plan_chains", "locked_compliance"]
 
@@ -278,7 +290,7 @@ def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, wor
               "compliance": [bool(want(cases[i])) for i in ch]} for ch in chains]
     cache = None
     if cache_dir is not None:
-        cache = ResultCache(cache_dir, version="fem-" + source_fingerprint("fem_reference"))
+        cache = ResultCache(cache_dir, version=fem_fingerprint())
 
     def key_inputs(task):
         return {**task["spec"].key(), "cases": task["cases"], "compliance": task["compliance"],
@@ -303,7 +315,7 @@ def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, wor
 
 def run_rod(spec: FemSpec, *, cache_dir=None) -> dict:
     """:func:`rod_estimate` of ``spec`` in this process (cached like the load cases)."""
-    cache = None if cache_dir is None else ResultCache(cache_dir, version="fem-" + source_fingerprint("fem_reference"))
+    cache = None if cache_dir is None else ResultCache(cache_dir, version=fem_fingerprint())
     task = {"kind": "rod", "spec": spec}
     return run_tasks(solve_task, [task], workers=1, progress=False, cache=cache,
                      key_inputs=lambda t: {**t["spec"].key(), "kind": "rod"}).results[0]

@@ -111,17 +111,26 @@ def task_key(inputs: Any, version: str = "") -> str:
     return hashlib.sha256(blob.encode()).hexdigest()
 
 
-def source_fingerprint(*packages: str) -> str:
-    """A short hash of the Python sources of the named packages (e.g. ``"fem_reference"``): cached results
-    are recomputed when the code that produced them changes."""
+def source_fingerprint(*packages: str, exclude: Sequence[str] = (), files: Sequence[str] = ()) -> str:
+    """A short hash of the Python sources of the named packages (e.g. ``"fem_reference"``) and of further
+    modules (``files``: dotted names, e.g. ``"validation.fem_sweep"``): cached results are recomputed when the
+    code that produced them changes.  ``exclude``: file names (relative to a package, e.g. ``"cli.py"``) that
+    cannot change a result (presentation only)."""
     import importlib
     h = hashlib.sha256()
     for name in packages:
         mod = importlib.import_module(name)
         root = pathlib.Path(mod.__file__).parent
         for path in sorted(root.rglob("*.py")):
-            h.update(str(path.relative_to(root)).encode())
+            rel = str(path.relative_to(root))
+            if rel in exclude:
+                continue
+            h.update(rel.encode())
             h.update(path.read_bytes())
+    for name in files:
+        path = pathlib.Path(importlib.import_module(name).__file__)
+        h.update(name.encode())
+        h.update(path.read_bytes())
     return h.hexdigest()[:16]
 
 

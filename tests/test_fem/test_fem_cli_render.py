@@ -19,6 +19,9 @@ def test_cli_solve_json_and_files(tmp_path):
     assert d["tensions_N"] == [0.2, 0.0, 0.0]
     assert (tmp_path / "result.vtu").exists()
     assert json.loads((tmp_path / "result.json").read_text())["pressure_Pa"] == 0.0
+    # not a terminal: progress as plain lines, one per load step (never only at the end, never a bar)
+    steps = [ln for ln in r.stderr.splitlines() if ln.startswith("load λ = ")]
+    assert len(steps) == d["load_steps"] and steps[-1].startswith("load λ = 1.000"), r.stderr
 
 
 def test_cli_rejects_bad_input(capsys):

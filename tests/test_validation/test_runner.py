@@ -153,3 +153,26 @@ def test_run_tasks_prints_plain_progress_to_stderr_when_piped(tmp_path):
     assert res.returncode == 0, res.stderr
     assert res.stdout.strip() == "results [0, 1, 4]"               # stdout stays clean for data
     assert "squares: 3/3 (100 %)" in res.stderr and "\x1b[" not in res.stderr
+
+
+def test_source_fingerprint_follows_computing_code_only(tmp_path, monkeypatch):
+    """Editing a presentation module keeps cached results; editing computing code (or an extra module) does not."""
+    from validation.runner import source_fingerprint
+    pkg = tmp_path / "fpkg_demo"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "model.py").write_text("K = 1\n")
+    (pkg / "cli.py").write_text("HELP = 'a'\n")
+    (tmp_path / "fextra_demo.py").write_text("X = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+    def fp():
+        return source_fingerprint("fpkg_demo", exclude=("cli.py",), files=("fextra_demo",))
+    a = fp()
+    (pkg / "cli.py").write_text("HELP = 'b'\n")
+    assert fp() == a
+    (pkg / "model.py").write_text("K = 2\n")
+    b = fp()
+    assert b != a
+    (tmp_path / "fextra_demo.py").write_text("X = 2\n")
+    assert fp() != b
