@@ -29,7 +29,7 @@ from ancf import clitools
 from ancf.errors import InputError
 from ancf.outputs import atomic_write_text, prepare_output_dir
 
-from ._textfmt import one_of, vector
+from ancf.textfmt import one_of, vector
 from .mesh import MESH_LEVELS
 from .model import LINEAR_SOLVERS
 

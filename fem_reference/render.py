@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._textfmt import number, vector
+from ancf.textfmt import number, vector
 
 __all__ = ["render_result", "result_title", "to_pyvista"]
 

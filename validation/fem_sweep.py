@@ -35,7 +35,7 @@ from .runner import ResultCache, RunInterrupted, run_tasks, source_fingerprint
 
 #: fem_reference modules that cannot change a cached result (command line, rendering, text formatting, the
 #: closed-form verification problems): editing them keeps the cache
-FEM_PRESENTATION = ("cli.py", "render.py", "_textfmt.py", "verification.py")
+FEM_PRESENTATION = ("cli.py", "render.py", "verification.py")
 
 
 def fem_fingerprint() -> str:
