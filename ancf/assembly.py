@@ -177,8 +177,9 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
                 a[c] = Nk[1, 0] * q[off + c] + Nk[1, 1] * q[off + 3 + c] + Nk[1, 2] * q[off + 6 + c] + Nk[1, 3] * q[off + 9 + c]
                 b[c] = Nk[2, 0] * q[off + c] + Nk[2, 1] * q[off + 3 + c] + Nk[2, 2] * q[off + 6 + c] + Nk[2, 3] * q[off + 9 + c]
             sc = wq[k]
-            if point_status(a, b, E, d, co, so)[0] != OK:
-                # inadmissible state (module docstring); line searches back off on inf
+            if slope_status(a, E)[0] != OK:
+                # inadmissible state (module docstring); line searches back off on inf.  The tendon rule
+                # is checked below on the densities the tendon kernels compute anyway (point_status's rule)
                 return np.inf, G, H, lc, Jl, arc, Jarc
             g9[:] = 0.0
             if want_H:
@@ -195,13 +196,20 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
                     _scatter(off, Nk, ga, zero9, Jarc, H, False)
             for i in range(m):
                 if T[i] == 0.0 and need_lengths < 2:
+                    # a slack tendon: no force, but its path must be admissible too (the rule does not
+                    # depend on the loads, and its length is a result)
+                    wi = tendon_length_density(a, b, E, d[i], co[i], so[i])
+                    if not (wi >= TENDON_MIN):
+                        return np.inf, G, H, lc, Jl, arc, Jarc
                     if need_lengths == 1:
-                        lc[i] += sc * tendon_length_density(a, b, E, d[i], co[i], so[i])
+                        lc[i] += sc * wi
                     continue
                 gl[:] = 0.0
-                li = add_tendon(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H)
-                lc[i] += li
-                energy += T[i] * li
+                wi = add_tendon(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H)
+                if not (wi >= TENDON_MIN):
+                    return np.inf, G, H, lc, Jl, arc, Jarc
+                lc[i] += sc * wi
+                energy += T[i] * sc * wi
                 if need_lengths == 2:
                     _scatter(off, Nk, gl, zero9, Jl[i], H, False)
             _scatter(off, Nk, g9, H9, G, H, want_H)

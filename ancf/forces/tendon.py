@@ -136,7 +136,8 @@ def tendon_length_density(a, b, E, d, co, so):
 @njit(cache=True)
 def add_tendon(a, b, E, d, co, so, T, scale, g, H, gl, want_H):
     """Add T × scale × (gradient, Hessian) of the length density into the (a, b) blocks (3:9) of g, H and
-    scale × gradient into gl (9,), the tendon's own length gradient.  Returns scale × density.
+    scale × gradient into gl (9,), the tendon's own length gradient.  Returns the density w itself (NaN
+    outside the domain; the caller applies the admissibility rule to it).
     The Hessian kernel runs only when ``want_H`` and T ≠ 0."""
     if want_H and T != 0.0:
         w, gw, Hw = tendon_density(a, b, E, d, co, so)
@@ -148,4 +149,4 @@ def add_tendon(a, b, E, d, co, so, T, scale, g, H, gl, want_H):
     for i in range(6):
         gl[3 + i] += scale * gw[i]
         g[3 + i] += T * scale * gw[i]
-    return scale * w
+    return w
