@@ -322,9 +322,13 @@ class Model:
     def dQ_dp(self, q) -> np.ndarray:
         """∂Q/∂p = −∂V/∂q (ndof,) [m²], V = ∫ A(λ) λ dx the chamber volume."""
         zero3 = np.zeros(3)
-        _, Q, *_ = assemble(self._q(q), self.n, self._N, self._wq, np.zeros(1),
+        q = self._q(q)
+        E, Q, *_ = assemble(q, self.n, self._N, self._wq, np.zeros(1),
                             np.zeros(1), self._vc, zero3, self._E, self._d, self._co, self._so, np.zeros(self.m),
                             0.0, zero3, False, 0)
+        if not np.isfinite(E):           # the assembly stopped at an inadmissible point: Q is partial
+            raise CollapsedStateError(f"state is outside the model's domain: {self.inadmissibility(q)}",
+                                      solver="dQ_dp", stretch=float(self._stretches(q).min()))
         return Q
 
     def dQ_dF(self, q) -> np.ndarray:

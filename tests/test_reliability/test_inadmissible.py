@@ -197,3 +197,12 @@ def test_ik_and_locked_from_any_q0_are_verified_or_a_bellows_error(q0):
         assert np.linalg.norm(M.reduce_vec(M.residual(eq.q, eq.tensions, 0.0, (0, 0, 0)))) < 10 * M.default_tol
     except BellowsError as exc:
         event(type(exc).__name__)
+
+
+def test_every_public_evaluation_names_an_inadmissible_state():
+    """No partial vector from an assembly that stopped early: evaluate-based accessors and dQ_dp raise."""
+    q = _clamped_zero(M)
+    for call in (M.residual, M.tangent, M.dQ_dT, M.dQ_dp, M.tendon_lengths, M.tendon_jacobian):
+        with pytest.raises(CollapsedStateError, match="points back along the base axis"):
+            call(q)
+    assert np.all(np.isfinite(M.dQ_dp(M.q_ref)))
