@@ -357,21 +357,36 @@ class Model:
         """∂p_end/∂q (3, ndof)."""
         return kin.tip_position_jacobian(self._q_tip(q), self.params.tool_offset)
 
+    def _q_tip_frame(self, q) -> np.ndarray:
+        """q with a tip slope on which the Rodrigues frame is defined (the assembly's slope rules)."""
+        q = self._q_tip(q)
+        code, v = _asm.slope_status(q[-3:], self._E)
+        if code != _asm.OK:
+            what = (f"stretch {v:.3g} < {_asm.STRETCH_MIN:g}" if code == _asm.COLLAPSED else
+                    f"1 + t·e1 = {v:.3g} < {_asm.FRAME_MIN:g}: it points back along the base axis")
+            raise InputError(f"q's tip slope is outside the model's domain ({what}); the tip frame is undefined")
+        return q
+
     def tip_rotation(self, q) -> np.ndarray:
         """Tip orientation R (3, 3), Rodrigues rotation of the base axis onto the tip tangent."""
-        return kin.tip_rotation(self._q_tip(q), self._e1)
+        return kin.tip_rotation(self._q_tip_frame(q), self._e1)
 
     def tip_angular_jacobian(self, q) -> np.ndarray:
         """J_ω (3, ndof): δR = [J_ω δq]× R."""
-        return kin.tip_angular_jacobian(self._q_tip(q), self._e1)
+        return kin.tip_angular_jacobian(self._q_tip_frame(q), self._e1)
 
     def centreline(self, q, per_element: int = 10) -> np.ndarray:
         """Points along the centreline (m, 3) [m]."""
         return kin.interpolate(self._q(q), self.n, self.params.length, self._per_element(per_element))
 
     def tendon_paths(self, q, per_element: int = 10) -> np.ndarray:
-        """Tendon routing points r + d R(t) o, array (m_tendons, points, 3) [m]."""
+        """Tendon routing points r + d R(t) o, array (m_tendons, points, 3) [m].  CollapsedStateError for a
+        state outside the model's domain (:meth:`inadmissibility`)."""
         q, per_element = self._q(q), self._per_element(per_element)
+        why = self.inadmissibility(q)
+        if why is not None:
+            raise CollapsedStateError(f"state is outside the model's domain: {why}", solver="tendon_paths",
+                                      stretch=float(self._stretches(q).min()))
         r = kin.interpolate(q, self.n, self.params.length, per_element, 0)
         a = kin.interpolate(q, self.n, self.params.length, per_element, 1)
         out = np.empty((self.m, len(r), 3))

@@ -206,3 +206,14 @@ def test_every_public_evaluation_names_an_inadmissible_state():
         with pytest.raises(CollapsedStateError, match="points back along the base axis"):
             call(q)
     assert np.all(np.isfinite(M.dQ_dp(M.q_ref)))
+
+
+def test_tip_frame_and_tendon_paths_refuse_an_undefined_frame():
+    q = M.q_ref.copy()
+    q[-3:] = -M._E[:, 0]                          # tip slope along −e1: Rodrigues divides by 1 + c = 0
+    for call in (M.tip_rotation, M.tip_angular_jacobian):
+        with pytest.raises(InputError, match="points back along the base axis"):
+            call(q)
+    with pytest.raises(CollapsedStateError):
+        M.tendon_paths(q)
+    assert np.all(np.isfinite(M.tip_rotation(M.q_ref))) and np.all(np.isfinite(M.tendon_paths(M.q_ref)))
