@@ -217,3 +217,37 @@ def test_tip_frame_and_tendon_paths_refuse_an_undefined_frame():
     with pytest.raises(CollapsedStateError):
         M.tendon_paths(q)
     assert np.all(np.isfinite(M.tip_rotation(M.q_ref))) and np.all(np.isfinite(M.tendon_paths(M.q_ref)))
+
+
+# The exact state of the issue: a line-search trial state of 'report --quick' (fit of the 'paper' form,
+# trial law EA = 596.3 λ − 380.1 N, EI = −0.02886 λ + 0.04529 λ² N m², equal tensions 5 N, no gravity):
+# the first element folds back (node 2 at x = −9 mm), its slope at quadrature points 2–4 is −e1 plus
+# ~1e-16 transverse round-off, so 1 + t·e1 rounds to exactly 0 in the tendon kernel's 1/(1 + c).
+ISSUE_Q = np.array([
+    0.0, 0.0, 0.0,
+    1.0, 0.0, 0.0,
+    -0.009167304455308944, 2.6625402377430262e-18, -1.212915626397985e-18,
+    0.8852721446321039, -8.774710277588424e-17, -7.020535639003335e-17,
+    0.023138358958833618, -1.493057328509053e-18, -3.1888208734375577e-18,
+    0.8639575197411937, -1.6332438817877858e-16, -1.112089477584164e-16,
+    0.054382393074767256, -7.82618844952036e-18, -6.953918086136471e-18,
+    0.8600483429090411, -2.3777102843803325e-16, -1.6451872401865592e-16,
+    0.08431548422243963, -1.6361643140134582e-17, -1.238063518051372e-17,
+    0.8593276239567736, -3.042668144871951e-16, -2.0718639403065233e-16,
+    0.11201504174498565, -2.693096741231303e-17, -1.9221438176103594e-17,
+    0.8591875074054477, -3.9422514405218045e-16, -2.5737306904163223e-16,
+    0.13673988181006497, -3.895823711481743e-17, -2.7213681018668532e-17,
+    0.8591638780996499, -4.603998919485677e-16, -3.1415506228233805e-16,
+])
+
+
+@pytest.mark.parametrize("need", [0, 1, 2])
+def test_issue_state_from_report_quick_is_inadmissible(need):
+    ea = np.array([-380.0594650617952, 596.3196477827864])
+    ei = np.array([0.0, -0.028862711009693114, 0.04528607558966618])
+    out = assemble(ISSUE_Q, M.n, M._N, M._wq, ea, ei, np.zeros(1), np.zeros(3), M._E, M._d, M._co, M._so,
+                   np.full(3, 5.0), 0.0, np.zeros(3), True, need)
+    assert out[0] == np.inf
+    code, e, k, i, v = _status(M, ISSUE_Q)
+    assert (code, e, k) == (assembly.REVERSED, 0, 1) and v == 0.0
+    assert "element 1, quadrature point 2 points back along the base axis" in M.inadmissibility(ISSUE_Q)
