@@ -10,6 +10,25 @@ Kronecker structure [s_j I]_j, so B never needs to be formed: with N[k, α, j] =
 
 Q(q) = ∂Π/∂q is paper eq. (1) with the signs of the potential
 Π = U_axial + U_bend + Σ T_i l_c,i − p ∫ A(λ) λ dx − m' ∫ g·r dx − F · p_end.
+
+Admissible states (the model's domain).  The densities divide by |r_x|, by 1 + t·e1 (the Rodrigues section
+frame of :mod:`ancf.forces.tendon` and of the tip rotation, singular for a section pointing back along −e1)
+and by the tendon length density |r_c,x| (zero where the tendon path folds: the local curvature radius
+equals the tendon distance d on the tendon's side).  Near those points the model has no meaning — a
+collapsed section, a frame that flips under an infinitesimal change of the tangent, a tendon path that
+reverses — so a state is *inadmissible*, and :func:`assemble` returns an infinite energy for it (the line
+searches of :mod:`ancf.solvers` then step back; nothing is divided by zero), when
+
+* q contains NaN or inf (code ``NONFINITE``);
+* |r_x| < ``STRETCH_MIN`` = 0.2 at a quadrature point or at the tip slope (``COLLAPSED``);
+* 1 + t·e1 < ``FRAME_MIN`` = 0.01 at a quadrature point or at the tip slope, t = r_x/|r_x| (``REVERSED``:
+  the section has turned more than ≈172° from the base axis);
+* a tendon's length density |r_c,x| < ``TENDON_MIN`` = 0.2 at a quadrature point (``FOLDED``), whether the
+  tendon is taut or slack (the rule does not depend on the loads).
+
+The thresholds leave a wide margin around the operating range (paper preset at T = 5 N, 0–120 kPa: bends
+up to 90°, 1 + t·e1 ≥ 1.02, |r_c,x| ≥ 0.65).  :func:`state_status` applies the same rules and says which
+one fails and where (:class:`ancf.Model` turns that into a typed error for a user-given state).
 """
 
 import numpy as np
@@ -21,6 +40,62 @@ from .forces.gravity import add_gravity
 from .forces.pressure import add_pressure, add_stretch_length
 from .forces.tendon import add_tendon, tendon_length_density
 from .forces.tip_load import add_tip_load
+
+#: Admissibility thresholds and status codes (module docstring).
+STRETCH_MIN = 0.2
+FRAME_MIN = 0.01
+TENDON_MIN = 0.2
+OK, NONFINITE, COLLAPSED, REVERSED, FOLDED = 0, 1, 2, 3, 4
+
+
+@njit(cache=True)
+def slope_status(a, E):
+    """(code, value) of the stretch and frame rules for one slope a = r_x: ``COLLAPSED`` with |a|,
+    ``REVERSED`` with 1 + t·e1, or ``OK``.  NaN fails every comparison, so it is never admissible."""
+    s = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
+    if not (s >= STRETCH_MIN * STRETCH_MIN):
+        return COLLAPSED, np.sqrt(s)
+    c1 = 1.0 + (E[0, 0] * a[0] + E[1, 0] * a[1] + E[2, 0] * a[2]) / np.sqrt(s)
+    if not (c1 >= FRAME_MIN):
+        return REVERSED, c1
+    return OK, 0.0
+
+
+@njit(cache=True)
+def point_status(a, b, E, d, co, so):
+    """(code, tendon index or −1, value) of every admissibility rule at one quadrature point."""
+    code, v = slope_status(a, E)
+    if code != OK:
+        return code, -1, v
+    for i in range(d.size):
+        w = tendon_length_density(a, b, E, d[i], co[i], so[i])
+        if not (w >= TENDON_MIN):
+            return FOLDED, i, w
+    return OK, -1, 0.0
+
+
+@njit(cache=True)
+def state_status(q, n_el, N, E, d, co, so):
+    """First admissibility rule q violates: (code, element (n_el for the tip slope), quadrature point,
+    tendon, value); code ``OK`` (0) when q is admissible.  The rules of the module docstring."""
+    for j in range(q.size):
+        if not np.isfinite(q[j]):
+            return NONFINITE, j // 6, -1, -1, q[j]
+    nq = N.shape[0]
+    a = np.empty(3)
+    b = np.empty(3)
+    for e in range(n_el):
+        off = 6 * e
+        for k in range(nq):
+            Nk = N[k]
+            for c in range(3):
+                a[c] = Nk[1, 0] * q[off + c] + Nk[1, 1] * q[off + 3 + c] + Nk[1, 2] * q[off + 6 + c] + Nk[1, 3] * q[off + 9 + c]
+                b[c] = Nk[2, 0] * q[off + c] + Nk[2, 1] * q[off + 3 + c] + Nk[2, 2] * q[off + 6 + c] + Nk[2, 3] * q[off + 9 + c]
+            code, i, v = point_status(a, b, E, d, co, so)
+            if code != OK:
+                return code, e, k, i, v
+    code, v = slope_status(q[q.size - 3:], E)
+    return code, n_el, -1, -1, v
 
 
 @njit(cache=True)
@@ -70,6 +145,9 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
     """
     ndof = q.size
     m = d.size
+    for j in range(ndof):
+        if not np.isfinite(q[j]):
+            return np.inf, np.zeros(ndof), np.zeros((1, 1)), np.zeros(m), np.zeros((m, ndof)), 0.0, np.zeros(ndof)
     G = np.zeros(ndof)
     H = np.zeros((ndof, ndof)) if want_H else np.zeros((1, 1))
     lc = np.zeros(m)
@@ -99,8 +177,9 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
                 a[c] = Nk[1, 0] * q[off + c] + Nk[1, 1] * q[off + 3 + c] + Nk[1, 2] * q[off + 6 + c] + Nk[1, 3] * q[off + 9 + c]
                 b[c] = Nk[2, 0] * q[off + c] + Nk[2, 1] * q[off + 3 + c] + Nk[2, 2] * q[off + 6 + c] + Nk[2, 3] * q[off + 9 + c]
             sc = wq[k]
-            if a[0] * a[0] + a[1] * a[1] + a[2] * a[2] < 0.04:
-                # inadmissible state (|r_x| < 0.2: a collapsed section); line searches back off on inf
+            if slope_status(a, E)[0] != OK:
+                # inadmissible state (module docstring); line searches back off on inf.  The tendon rule
+                # is checked below on the densities the tendon kernels compute anyway (point_status's rule)
                 return np.inf, G, H, lc, Jl, arc, Jarc
             g9[:] = 0.0
             if want_H:
@@ -117,21 +196,28 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
                     _scatter(off, Nk, ga, zero9, Jarc, H, False)
             for i in range(m):
                 if T[i] == 0.0 and need_lengths < 2:
+                    # a slack tendon: no force, but its path must be admissible too (the rule does not
+                    # depend on the loads, and its length is a result)
+                    wi = tendon_length_density(a, b, E, d[i], co[i], so[i])
+                    if not (wi >= TENDON_MIN):
+                        return np.inf, G, H, lc, Jl, arc, Jarc
                     if need_lengths == 1:
-                        lc[i] += sc * tendon_length_density(a, b, E, d[i], co[i], so[i])
+                        lc[i] += sc * wi
                     continue
                 gl[:] = 0.0
-                li = add_tendon(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H)
-                lc[i] += li
-                energy += T[i] * li
+                wi = add_tendon(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H)
+                if not (wi >= TENDON_MIN):
+                    return np.inf, G, H, lc, Jl, arc, Jarc
+                lc[i] += sc * wi
+                energy += T[i] * sc * wi
                 if need_lengths == 2:
                     _scatter(off, Nk, gl, zero9, Jl[i], H, False)
             _scatter(off, Nk, g9, H9, G, H, want_H)
     if want_H:
         _mirror(H)
-    nq_ = q.size
-    if q[nq_ - 3] ** 2 + q[nq_ - 2] ** 2 + q[nq_ - 1] ** 2 < 0.04:
-        # the tip slope is not a quadrature point: the same admissibility rule (the tip load divides by |a|)
+    if slope_status(q[ndof - 3:], E)[0] != OK:
+        # the tip slope is not a quadrature point: the same rules (the tip load divides by |a|, the tip
+        # rotation by 1 + t·e1)
         return np.inf, G, H, lc, Jl, arc, Jarc
     energy += add_tip_load(q, h, F, G, H, want_H)
     return energy, G, H, lc, Jl, arc, Jarc

@@ -33,6 +33,7 @@ import numpy as np
 import scipy.optimize as so
 
 from . import kinematics as kin
+from . import assembly as _asm
 from .assembly import assemble
 from .errors import (
     CollapsedStateError,
@@ -251,8 +252,9 @@ class Model:
         ``lengths``: True — tendon lengths, arc length and their gradients; ``"values"`` — the lengths
         without gradients (``J_l``, ``J_arc`` zero); False — none of them (``lengths`` zero too; faster
         inside Newton loops).  Every argument is checked (shape, real numbers, finite) before the compiled
-        assembly runs; a state with a collapsed section (|r_x| < 0.2 somewhere) raises
-        :class:`~ancf.errors.CollapsedStateError` instead of returning an infinite energy."""
+        assembly runs; a state outside the model's domain (:mod:`ancf.assembly`: a collapsed section
+        |r_x| < 0.2, a section turned back towards −e1, a folded tendon path) raises
+        :class:`~ancf.errors.CollapsedStateError` naming the rule instead of returning an infinite energy."""
         q = self._q(q)
         T = np.zeros(self.m) if tensions is None else check_finite("tensions", tensions, (self.m,))
         pr = float(check_finite("pressure", pressure, ()))
@@ -262,10 +264,11 @@ class Model:
             raise InputError(f"lengths must be True, False or 'values', got {lengths!r}")
         ev = self._evaluate(q, T, pr, F, bool(hessian), gs, lengths)
         if not np.isfinite(ev.energy):
-            lam = self.stretches(q)
+            why = self.inadmissibility(q)
+            lam = self._stretches(q)
             raise CollapsedStateError(
-                f"state has a collapsed section: stretch |r_x| = {lam.min():.3g} (< 0.2) at a quadrature "
-                "point; the model is not defined there", solver="evaluate", stretch=float(lam.min()))
+                f"state is outside the model's domain: {why or 'the potential is not finite at these loads'}; "
+                "the model is not defined there", solver="evaluate", stretch=float(lam.min()))
         return ev
 
     def _evaluate(self, q, tensions=None, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
@@ -319,9 +322,13 @@ class Model:
     def dQ_dp(self, q) -> np.ndarray:
         """∂Q/∂p = −∂V/∂q (ndof,) [m²], V = ∫ A(λ) λ dx the chamber volume."""
         zero3 = np.zeros(3)
-        _, Q, *_ = assemble(self._q(q), self.n, self._N, self._wq, np.zeros(1),
+        q = self._q(q)
+        E, Q, *_ = assemble(q, self.n, self._N, self._wq, np.zeros(1),
                             np.zeros(1), self._vc, zero3, self._E, self._d, self._co, self._so, np.zeros(self.m),
                             0.0, zero3, False, 0)
+        if not np.isfinite(E):           # the assembly stopped at an inadmissible point: Q is partial
+            raise CollapsedStateError(f"state is outside the model's domain: {self.inadmissibility(q)}",
+                                      solver="dQ_dp", stretch=float(self._stretches(q).min()))
         return Q
 
     def dQ_dF(self, q) -> np.ndarray:
@@ -350,21 +357,36 @@ class Model:
         """∂p_end/∂q (3, ndof)."""
         return kin.tip_position_jacobian(self._q_tip(q), self.params.tool_offset)
 
+    def _q_tip_frame(self, q) -> np.ndarray:
+        """q with a tip slope on which the Rodrigues frame is defined (the assembly's slope rules)."""
+        q = self._q_tip(q)
+        code, v = _asm.slope_status(q[-3:], self._E)
+        if code != _asm.OK:
+            what = (f"stretch {v:.3g} < {_asm.STRETCH_MIN:g}" if code == _asm.COLLAPSED else
+                    f"1 + t·e1 = {v:.3g} < {_asm.FRAME_MIN:g}: it points back along the base axis")
+            raise InputError(f"q's tip slope is outside the model's domain ({what}); the tip frame is undefined")
+        return q
+
     def tip_rotation(self, q) -> np.ndarray:
         """Tip orientation R (3, 3), Rodrigues rotation of the base axis onto the tip tangent."""
-        return kin.tip_rotation(self._q_tip(q), self._e1)
+        return kin.tip_rotation(self._q_tip_frame(q), self._e1)
 
     def tip_angular_jacobian(self, q) -> np.ndarray:
         """J_ω (3, ndof): δR = [J_ω δq]× R."""
-        return kin.tip_angular_jacobian(self._q_tip(q), self._e1)
+        return kin.tip_angular_jacobian(self._q_tip_frame(q), self._e1)
 
     def centreline(self, q, per_element: int = 10) -> np.ndarray:
         """Points along the centreline (m, 3) [m]."""
         return kin.interpolate(self._q(q), self.n, self.params.length, self._per_element(per_element))
 
     def tendon_paths(self, q, per_element: int = 10) -> np.ndarray:
-        """Tendon routing points r + d R(t) o, array (m_tendons, points, 3) [m]."""
+        """Tendon routing points r + d R(t) o, array (m_tendons, points, 3) [m].  CollapsedStateError for a
+        state outside the model's domain (:meth:`inadmissibility`)."""
         q, per_element = self._q(q), self._per_element(per_element)
+        why = self.inadmissibility(q)
+        if why is not None:
+            raise CollapsedStateError(f"state is outside the model's domain: {why}", solver="tendon_paths",
+                                      stretch=float(self._stretches(q).min()))
         r = kin.interpolate(q, self.n, self.params.length, per_element, 0)
         a = kin.interpolate(q, self.n, self.params.length, per_element, 1)
         out = np.empty((self.m, len(r), 3))
@@ -426,11 +448,46 @@ class Model:
             f"Hessian {what}has a negative eigenvalue), not a usable state; perturb the start (q0), apply the "
             f"load in steps from a stable state, or lower the load", solver=solver, min_eigenvalue=lam_min)
 
+    def inadmissibility(self, q) -> Optional[str]:
+        """None when the full coordinates ``q`` (ndof,) are in the model's domain, else a text naming the
+        first admissibility rule they violate and where (rules: :mod:`ancf.assembly`)."""
+        q = self._q(q)
+        code, e, k, i, v = _asm.state_status(q, self.n, self._N, self._E, self._d, self._co, self._so)
+        if code == _asm.OK:
+            return None
+        where = "the tip slope" if e == self.n else f"element {e + 1}, quadrature point {k + 1}"
+        if code == _asm.NONFINITE:
+            return f"a coordinate of node {e + 1} is {v}"
+        if code == _asm.COLLAPSED:
+            return (f"collapsed section at {where}: stretch |r_x| = {v:.3g} < {_asm.STRETCH_MIN:g} "
+                    "(zero or degenerate slope)")
+        if code == _asm.REVERSED:
+            return (f"section at {where} points back along the base axis: 1 + t·e1 = {v:.3g} < "
+                    f"{_asm.FRAME_MIN:g} (turned more than {np.degrees(np.arccos(_asm.FRAME_MIN - 1)):.0f}°; "
+                    "the section frame is singular there)")
+        return (f"tendon {i + 1}'s path folds at {where}: length density |r_c,x| = {v:.3g} < "
+                f"{_asm.TENDON_MIN:g} (local curvature radius close to the tendon distance)")
+
     def _initial_z(self, q0) -> np.ndarray:
+        """Free coordinates of a user-given start q0, or of the straight reference for None.
+
+        q0 must be a finite (ndof,) vector whose state — with the base node clamped as the solvers use
+        it — is admissible (:mod:`ancf.assembly`); otherwise :class:`~ancf.errors.InputError` names the
+        problem before any solver runs.  An inadmissible start is refused, not repaired: a silent
+        fall-back to the reference would hide a wrong warm start (another model's vector, a zeroed buffer)."""
         if q0 is None:
             return self._to_free(self.q_ref)
+        q0 = check_finite("q0", q0)
+        if q0.ndim == 1 and q0.size != self.ndof:
+            raise InputError(f"q0 has {q0.size} coordinates; this model ({self.n} elements) has "
+                             f"{self.ndof}: pass an equilibrium of this model (eq.q) or None")
         q0 = check_finite("q0", q0, (self.ndof,))
-        return self._to_free(q0)
+        z0 = self._to_free(q0)
+        why = self.inadmissibility(self._to_full(z0))
+        if why is not None:
+            raise InputError(f"q0 is not an admissible starting state: {why}; pass an equilibrium of this "
+                             "model (eq.q) or None for the straight reference")
+        return z0
 
     # ----------------------------------------------------------------------------- FK
     def fk(self, tensions=(0.0, 0.0, 0.0), pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0),
@@ -438,7 +495,9 @@ class Model:
            check_stability: bool = True) -> Equilibrium:
         """Forward kinetostatics (T [N], p [Pa], F_e [N]) → equilibrium (paper Sec. III-A).
 
-        ``q0`` (ndof,) warm-starts; default: the straight reference.  Converged when the free
+        ``q0`` (ndof,) warm-starts; default: the straight reference.  An inadmissible q0 (wrong size,
+        NaN/inf, a zero or reversed slope, a folded tendon path; :meth:`inadmissibility`) raises
+        InputError before any solve.  Converged when the free
         generalized-force residual ‖Q‖₂ < ``tol`` [N, N m] (default ``model.default_tol``: 1e-9 N + 1e-13 EA
         plus a round-off term that grows with the element count, see ``Model.__init__``).  Raises ConvergenceError otherwise, UnstableEquilibriumError if the state
         found is a saddle (``check_stability=False`` returns it with ``stable=False`` instead),

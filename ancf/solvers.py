@@ -7,6 +7,11 @@
 
 Both raise :class:`ancf.errors.ConvergenceError` with the residual history on failure: a non-converged
 state is never returned as a result.
+
+Inadmissible states (:mod:`ancf.assembly`) come back as an infinite/NaN energy or residual and no
+derivatives.  A trial step into one is rejected like any non-decreasing step (the line search halves it);
+an inadmissible *starting* point raises ConvergenceError at once (callers check user-given starts first and
+raise InputError).  Only finite matrices and vectors reach the compiled Cholesky kernel.
 """
 
 from __future__ import annotations
@@ -66,6 +71,12 @@ def _chol_solve(H: np.ndarray, g: np.ndarray, shift: float = 0.0):
     return x if ok else None
 
 
+def _finite_state(E, g, H) -> bool:
+    """A usable point of :func:`minimize_newton`: finite energy, gradient and (when given) Hessian."""
+    return (g is not None and np.isfinite(E) and bool(np.all(np.isfinite(g)))
+            and (H is None or bool(np.all(np.isfinite(H)))))
+
+
 def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
                     name: str = "fk") -> tuple[np.ndarray, SolveInfo]:
     """Minimise a smooth potential with Newton steps.
@@ -75,6 +86,10 @@ def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int 
     """
     x = np.array(x0, float)
     E, g, H = fun(x, True)
+    if not _finite_state(E, g, H):
+        raise ConvergenceError("the starting state is inadmissible (potential or its derivatives not finite)",
+                               solver=name, iterations=0, residual_norm=float("inf"), tolerance=tol,
+                               history=[float("inf")])
     hist = [float(np.linalg.norm(g))]
     mu = 0.0
     for it in range(max_iter):
@@ -98,7 +113,7 @@ def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int 
         for _ in range(30):
             xn = x + alpha * dx
             En, gn_, Hn = fun(xn, True)
-            if np.isfinite(En) and (En <= E + 1e-4 * alpha * slope or
+            if _finite_state(En, gn_, Hn) and (En <= E + 1e-4 * alpha * slope or
                                     (abs(En - E) <= 1e-14 * max(1.0, abs(E)) and
                                      np.linalg.norm(gn_) < hist[-1])):
                 accepted = True
@@ -111,6 +126,13 @@ def minimize_newton(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int 
         hist.append(float(np.linalg.norm(g)))
     raise ConvergenceError("Newton on the equilibrium did not converge", solver=name,
                            iterations=len(hist) - 1, residual_norm=hist[-1], tolerance=tol, history=hist)
+
+
+def _root_norm(w, F, J) -> float:
+    """‖W F‖₂ of a trial point of :func:`solve_root`; inf when F or J is missing or not finite."""
+    if J is None or not (np.all(np.isfinite(F)) and np.all(np.isfinite(J))):
+        return float("inf")
+    return float(np.linalg.norm(w * F))
 
 
 def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60, name: str = "ik",
@@ -126,6 +148,9 @@ def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
     w = np.ones(len(x)) if weights is None else np.asarray(weights, float)
     F, J = fun(x)
     r = float(np.linalg.norm(w * F)) if np.all(np.isfinite(F)) else np.inf
+    if not np.isfinite(r) or J is None or not np.all(np.isfinite(J)):
+        raise ConvergenceError("the starting state is inadmissible (residual or Jacobian not finite)",
+                               solver=name, iterations=0, residual_norm=r, tolerance=tol, history=[r])
     hist = [r]
     lm = 1e-2                                     # paper: LM damping factor 0.01 (relative here)
     for it in range(max_iter):
@@ -139,7 +164,7 @@ def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
             alpha = 1.0
             for _ in range(12):
                 Fn, Jn = fun(x + alpha * dx)
-                rn = float(np.linalg.norm(w * Fn)) if np.all(np.isfinite(Fn)) else np.inf
+                rn = _root_norm(w, Fn, Jn)
                 if rn < (1 - 1e-4 * alpha) * r:
                     step_ok = True
                     break
@@ -157,7 +182,7 @@ def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
                     lm *= 10
                     continue
                 Fn, Jn = fun(x + dx)
-                rn = float(np.linalg.norm(w * Fn)) if np.all(np.isfinite(Fn)) else np.inf
+                rn = _root_norm(w, Fn, Jn)
                 if rn < r:
                     lm = max(lm / 10, 1e-12)
                     step_ok = True

@@ -24,6 +24,15 @@ Identifiability: a parameter is *not identifiable* when the data do not determin
 (rank deficiency; e.g. D_eff without any pressure state), or (2) its 95 % CI is wider than its value
 (|half-width| > |value|).  Such a parameter is held at its initial value, the others are refitted without
 it, and it is reported as not identifiable, never as a number.
+
+Infeasible trial parameters.  A trial θ of the optimiser for which some state has no verified equilibrium
+(:class:`~ancf.errors.ConvergenceError`, :class:`~ancf.errors.UnstableEquilibriumError`,
+:class:`~ancf.errors.CollapsedStateError`, or parameters the model refuses: ``InputError``/``ConfigError``)
+is *infeasible*: the residual function answers it with non-finite residuals, which scipy's trust-region
+reflective method rejects, shrinking the trust region to a quarter of the step (scipy/optimize/_lsq/trf.py:
+``if not np.all(np.isfinite(f_new)): Delta = 0.25 * step_h_norm; continue``).  The warm starts are only
+updated from a θ whose states all solved.  At the initial θ the same failure is an error (scipy needs finite
+residuals there), re-raised with its type.
 """
 
 from __future__ import annotations
@@ -37,7 +46,13 @@ import scipy.optimize as so
 import scipy.stats as st
 
 from ancf import ActuatorParams, Model
-from ancf.errors import CollapsedStateError, ConvergenceError, InputError
+from ancf.errors import (
+    CollapsedStateError,
+    ConfigError,
+    ConvergenceError,
+    InputError,
+    UnstableEquilibriumError,
+)
 
 from .forms import ModelForm, distance_column, position_matrix
 
@@ -45,8 +60,13 @@ __all__ = ["Observations", "FitResult", "fit", "predict"]
 
 RANK_TOL = 1e-7
 NULL_SHARE = 0.01
-#: Weighted residual returned for a trial step whose equilibria cannot be solved (the step is rejected).
-REJECTED_RESIDUAL = 1e6
+#: Weighted residual returned for a trial step whose equilibria cannot be solved: non-finite, so scipy's trf
+#: rejects the step and shrinks its trust region (module docstring).
+REJECTED_RESIDUAL = np.inf
+#: Failures of a trial θ that make it infeasible (the step is rejected) rather than end the fit.
+INFEASIBLE = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError, InputError, ConfigError)
+#: Failures of one state's FK that a cold start from the straight reference may avoid.
+_RETRY = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError)
 #: Signed parameters (slopes, intercepts) for which zero is a meaningful value: rule (2) of the module
 #: docstring (CI wider than the value) does not apply to them.
 SIGNED = frozenset({"a", "b", "beta", "sA", "sI"})
@@ -131,7 +151,8 @@ class FitResult:
     ci95 {name: (lo, hi)}; identifiable {name: bool}; correlation (n, n); values / values_ci95 /
     values_identifiable: the same for the derived, reported values; residuals (N, 3 + 3k) [m]
     (prediction − observation); params: the ActuatorParams at θ; rms_tip [m]; rss (weighted);
-    dof; s2 (variance scale used); singular_values (of the column-scaled Jacobian); nfev.
+    dof; s2 (variance scale used); singular_values (of the column-scaled Jacobian); nfev; rejected: trial
+    parameter vectors answered as infeasible (module docstring), summed over the refit.
     """
     form: ModelForm
     theta: np.ndarray
@@ -151,6 +172,7 @@ class FitResult:
     singular_values: np.ndarray
     nfev: int
     message: str = ""
+    rejected: int = 0
 
     @property
     def names(self) -> tuple:
@@ -170,6 +192,7 @@ class _Evaluator:
         self._cache_theta = None
         self._cache = None
         self.nfev = 0
+        self.rejected = 0          # trial θ answered as infeasible
 
     def _models(self, theta):
         params = self.form.to_params(theta, self.base)
@@ -189,6 +212,7 @@ class _Evaluator:
         S = None if k == 0 else position_matrix(params.n_elements, params.length, obs.marker_s)
         pred = np.zeros((obs.n, 3 + 3 * k))
         J = np.zeros((obs.n, 3 + 3 * k, form.n)) if jacobian else None
+        q_new = list(self.q)          # committed only when every state solved (warm starts of a feasible θ)
         for i in range(obs.n):
             model = m_g if obs.gravity[i] else m_0
             T, p, F = obs.tensions[i], obs.pressure[i], obs.tip_force[i]
@@ -197,14 +221,19 @@ class _Evaluator:
                 try:
                     eq = model.fk(T, p, F, q0=q0, check_limits=False)
                     break
-                except ConvergenceError as exc:
+                except _RETRY as exc:
                     err = exc
             if eq is None:
-                raise ConvergenceError(f"FK of state '{obs.labels[i]}' failed for {form.name} parameters "
-                                       f"{dict(zip(form.names, np.round(theta, 6)))}: {err}", solver="fit",
-                                       iterations=err.iterations, residual_norm=err.residual_norm,
-                                       tolerance=err.tolerance, history=err.history) from None
-            self.q[i] = eq.q
+                where = (f"FK of state '{obs.labels[i]}' failed for {form.name} parameters "
+                         f"{dict(zip(form.names, np.round(theta, 6)))}: {err}")
+                if isinstance(err, ConvergenceError):
+                    raise ConvergenceError(where, solver="fit", iterations=err.iterations,
+                                           residual_norm=err.residual_norm, tolerance=err.tolerance,
+                                           history=err.history) from None
+                if isinstance(err, UnstableEquilibriumError):
+                    raise UnstableEquilibriumError(where, solver="fit", min_eigenvalue=err.min_eigenvalue) from None
+                raise CollapsedStateError(where, solver="fit", stretch=err.stretch) from None
+            q_new[i] = eq.q
             pred[i, :3] = eq.tip
             if k:
                 pred[i, 3:] = S @ eq.q
@@ -219,6 +248,7 @@ class _Evaluator:
                 J[i, :3] = Jp @ dz
                 if k:
                     J[i, 3:] = model.reduce_vec(S) @ dz
+        self.q = q_new
         self._cache_theta, self._cache = theta.copy(), (params, pred, J)
         return self._cache
 
@@ -267,13 +297,14 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     first = [True]
 
     def fun(x):
-        # a trial step whose equilibria cannot be solved (a law that loses its stiffness, a stalled load
-        # path) is answered with a huge residual: the trust region rejects it and shrinks
+        # an infeasible trial θ (module docstring) is answered with non-finite residuals: trf rejects the
+        # step and shrinks the trust region; at the initial θ the failure is re-raised with its type
         try:
             _, pred, _ = ev.evaluate(full(x), jacobian=False)
-        except (ConvergenceError, CollapsedStateError, InputError):
+        except INFEASIBLE:
             if first[0]:
                 raise
+            ev.rejected += 1
             return np.full(y.size, REJECTED_RESIDUAL)
         first[0] = False
         return (pred.ravel() - y) * w
@@ -322,6 +353,7 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         newly = [nm for nm, bad in zip(form.names, (~ident | wide) & free) if bad]
         out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
                   max_nfev=max_nfev, _refit=False)
+        out.rejected += ev.rejected
         for nm in newly:
             out.identifiable[nm] = False
             out.ci95[nm] = (float("nan"), float("nan"))
@@ -338,7 +370,7 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     values = {k: (v if vid[k] else None) for k, v in form.derived(theta).items()}
     return FitResult(form, theta, cov, ci, ident_map, corr, values, vci, vid, r, params,
                      float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, dof, s2, sv, ev.nfev,
-                     str(res.message))
+                     str(res.message), ev.rejected)
 
 
 def _derived_identifiability(form, theta, cov, ident: dict, q: float):

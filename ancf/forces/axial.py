@@ -49,6 +49,8 @@ def add_stretch_function(a, f0, f1, f2, scale, g, H):
     """Add ``scale`` × (gradient, Hessian) of w = f(|a|) (with f, f', f'' given) into the a-block
     (indices 3:6) of the 9-vector g and 9×9 H; return scale × f."""
     lam = np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    if not (lam > 0.0):
+        return np.nan        # undefined (|a| = 0; the assembly never gets here: ancf.assembly, admissible states)
     for i in range(3):
         ti = a[i] / lam
         g[3 + i] += scale * f1 * ti

@@ -28,6 +28,8 @@ def add_bending(a, b, ei, scale, g, H):
     s = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
     bb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2]
     ab = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    if not (s > 0.0):
+        return np.nan        # undefined (|a| = 0; the assembly never gets here: ancf.assembly, admissible states)
     lam = np.sqrt(s)
     E, E1, E2 = polyval(ei, lam)
     phi = 0.5 * E * s ** -3

@@ -14,6 +14,7 @@ of a curved closed tube (a tip follower force would wrongly bend a curved actuat
 ∂Q/∂p = −∂V/∂q (:meth:`ancf.Model.dQ_dp`).
 """
 
+import numpy as np
 from numba import njit
 
 from .axial import add_stretch_function
@@ -45,6 +46,8 @@ def add_pressure(a, pa, scale, g, H):
 def add_stretch_length(a, scale, g):
     """Add ∂|a|/∂a × scale into g (the arc-length gradient); returns scale·|a|."""
     lam = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]) ** 0.5
+    if not (lam > 0.0):
+        return np.nan        # undefined (|a| = 0; the assembly never gets here: ancf.assembly, admissible states)
     for i in range(3):
         g[3 + i] += scale * a[i] / lam
     return scale * lam

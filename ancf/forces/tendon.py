@@ -16,6 +16,14 @@ w = |u|, n = u/|u|:
 
 The generated code works in the actuator frame (e1 = base axis, e2 = reference direction, e3 = e1 × e2);
 with E = [e1 e2 e3], a_loc = Eᵀ a and the derivatives rotate back blockwise (g = E g_loc, H = E H_loc Eᵀ).
+
+Domain.  The kernels divide by |a|, by 1 + c (c = t·e1, the Rodrigues frame; singular for a section that
+points back along −e1) and by w = |u| (zero where the tendon path folds, the local curvature radius equal to
+d on the tendon's side).  :func:`ancf.assembly.assemble` never calls them outside its admissible set
+(|a| ≥ 0.2, 1 + c ≥ 0.01, w ≥ 0.2; see :mod:`ancf.assembly`), where all three are bounded away from zero.
+As a second line of defence each kernel checks |a| > 0, 1 + c > 0 and w > 0 itself and returns NaN (value
+and derivatives) otherwise: never a division by zero (numba raises ZeroDivisionError for a scalar one) and
+never a finite number for an undefined state.
 """
 
 import numpy as np
@@ -36,15 +44,29 @@ def _to_frame(a, b, E):
 
 
 @njit(cache=True)
+def _frame_defined(al):
+    """True when the generated code's divisors |a|² and 1 + a0/|a| (computed exactly as it does) are > 0."""
+    x6 = al[0] ** 2 + al[1] ** 2 + al[2] ** 2
+    if not (x6 > 0.0):
+        return False
+    return al[0] * (1.0 / np.sqrt(x6)) + 1.0 > 0.0
+
+
+@njit(cache=True)
 def tendon_density(a, b, E, d, co, so):
     """Length density |r_c,x| of one tendon, its gradient (6,) and Hessian (6, 6) w.r.t. (a, b) = (r_x, r_xx),
-    all in the world frame.  E (3, 3): actuator frame as columns."""
+    all in the world frame.  E (3, 3): actuator frame as columns.  NaN outside the domain (module
+    docstring)."""
     al, bl = _to_frame(a, b, E)
+    if not _frame_defined(al):
+        return np.nan, np.full(6, np.nan), np.full((6, 6), np.nan)
     u = np.empty(3)
     Ju = np.empty((3, 6))
     Hu = np.zeros((3, 6, 6))
     tendon_u(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u, Ju, Hu)
     w = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    if not (w > 0.0):
+        return np.nan, np.full(6, np.nan), np.full((6, 6), np.nan)
     n = u / w
     gl = np.empty(6)
     for i in range(6):
@@ -79,12 +101,17 @@ def tendon_density(a, b, E, d, co, so):
 
 @njit(cache=True)
 def tendon_length_gradient(a, b, E, d, co, so):
-    """Length density |r_c,x| and its gradient (6,) w.r.t. (a, b), world frame (no second derivatives)."""
+    """Length density |r_c,x| and its gradient (6,) w.r.t. (a, b), world frame (no second derivatives).
+    NaN outside the domain (module docstring)."""
     al, bl = _to_frame(a, b, E)
+    if not _frame_defined(al):
+        return np.nan, np.full(6, np.nan)
     u = np.empty(3)
     Ju = np.empty((3, 6))
     tendon_uJ(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u, Ju)
     w = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    if not (w > 0.0):
+        return np.nan, np.full(6, np.nan)
     g = np.empty(6)
     for I in range(2):
         gl0 = (Ju[0, 3 * I] * u[0] + Ju[1, 3 * I] * u[1] + Ju[2, 3 * I] * u[2]) / w
@@ -97,8 +124,10 @@ def tendon_length_gradient(a, b, E, d, co, so):
 
 @njit(cache=True)
 def tendon_length_density(a, b, E, d, co, so):
-    """Length density |r_c,x| only (no derivatives)."""
+    """Length density |r_c,x| only (no derivatives); NaN where the frame is undefined (module docstring)."""
     al, bl = _to_frame(a, b, E)
+    if not _frame_defined(al):
+        return np.nan
     u = np.empty(3)
     tendon_u_value(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u)
     return np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
@@ -107,7 +136,8 @@ def tendon_length_density(a, b, E, d, co, so):
 @njit(cache=True)
 def add_tendon(a, b, E, d, co, so, T, scale, g, H, gl, want_H):
     """Add T × scale × (gradient, Hessian) of the length density into the (a, b) blocks (3:9) of g, H and
-    scale × gradient into gl (9,), the tendon's own length gradient.  Returns scale × density.
+    scale × gradient into gl (9,), the tendon's own length gradient.  Returns the density w itself (NaN
+    outside the domain; the caller applies the admissibility rule to it).
     The Hessian kernel runs only when ``want_H`` and T ≠ 0."""
     if want_H and T != 0.0:
         w, gw, Hw = tendon_density(a, b, E, d, co, so)
@@ -119,4 +149,4 @@ def add_tendon(a, b, E, d, co, so, T, scale, g, H, gl, want_H):
     for i in range(6):
         gl[3 + i] += scale * gw[i]
         g[3 + i] += T * scale * gw[i]
-    return scale * w
+    return w

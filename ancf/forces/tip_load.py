@@ -18,6 +18,8 @@ def add_tip_load(q, h, F, G, H, want_H):
     r = q[n - 6:n - 3]
     a = q[n - 3:]
     lam = np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    if not (lam > 0.0):
+        return np.nan        # undefined (|a| = 0; the assembly never gets here: ancf.assembly, admissible states)
     t = a / lam
     Ft = F[0] * t[0] + F[1] * t[1] + F[2] * t[2]
     PF = F - Ft * t

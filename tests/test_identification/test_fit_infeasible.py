@@ -1,0 +1,99 @@
+"""Infeasible trial parameters in the fit (validation/fit.py, module docstring): a trial θ whose equilibria
+cannot be solved is rejected by the optimiser (non-finite residuals → scipy's trf shrinks its trust region),
+the fit finishes and reports it; a failure at the initial θ stays a typed error."""
+
+import numpy as np
+import pytest
+import scipy.optimize as so
+
+from ancf import Model, presets
+from ancf.errors import CollapsedStateError, ConvergenceError, UnstableEquilibriumError
+from validation import fit as fitmod
+from validation.experiments import default_design
+from validation.fit import Observations, fit, predict
+from validation.forms import get_form
+
+BASE = presets.paper().replace(line_mass=0.0, tip_mass=0.0, gravity=(0.0, 0.0, 0.0))
+TRUE = [767.2, 0.0839, 0.02605]          # form "constant": EA, EI, D_eff
+
+
+def _obs(theta):
+    form = get_form("constant")
+    cases = list(default_design().training[::4])
+    obs = Observations([c.tensions for c in cases], [c.pressure for c in cases], [c.tip_force for c in cases],
+                       [False] * len(cases), np.zeros((len(cases), 3)), labels=[c.label for c in cases])
+    obs.tip = predict(form.to_params(np.array(theta, float), BASE), obs)[:, :3]
+    return form, obs
+
+
+def test_scipy_trf_rejects_non_finite_trial_residuals():
+    """The property the fit relies on: least_squares(method='trf') takes a non-finite residual vector of a
+    trial step as a rejected step and still converges.  Residual atan(x − 1) from x = 4: the Gauss–Newton
+    step overshoots to x ≈ −27, where the residual is inf (x < 0.5)."""
+    calls = {"inf": 0}
+
+    def fun(x):
+        if x[0] < 0.5:
+            calls["inf"] += 1
+            return np.full(1, np.inf)
+        return np.arctan(x - 1.0)
+
+    def jac(x):
+        return np.array([[1.0 / (1.0 + (x[0] - 1.0) ** 2)]])
+
+    res = so.least_squares(fun, [4.0], jac=jac, method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12)
+    assert calls["inf"] >= 1
+    assert res.x[0] == pytest.approx(1.0, abs=1e-8)
+    with pytest.raises(ValueError, match="not finite in the initial point"):
+        so.least_squares(fun, [0.0], jac=jac, method="trf")
+
+
+@pytest.mark.parametrize("error", [
+    ConvergenceError("stub", solver="fk", iterations=3, residual_norm=1.0, tolerance=1e-9),
+    UnstableEquilibriumError("stub", solver="fk", min_eigenvalue=-1.0),
+    CollapsedStateError("stub", solver="fk", stretch=0.1),
+])
+def test_failing_trial_solve_is_rejected_and_the_fit_finishes(monkeypatch, error):
+    """Model.fk raises (warm and cold) at the first trial θ away from the start: the fit still recovers the
+    true parameters, counts the rejected trial, and the warm starts were not taken from the failed θ."""
+    form, obs = _obs(TRUE)
+    theta0 = np.array(TRUE) * np.array([1.15, 0.85, 1.05])
+    state = {"theta": None, "failed": 0, "trial": False}
+    real_eval, real_fk = fitmod._Evaluator.evaluate, Model.fk
+
+    def evaluate(self, theta, jacobian=True):
+        theta = np.asarray(theta, float)
+        state["trial"] = (state["failed"] == 0 and not jacobian
+                          and not np.allclose(theta, np.clip(theta0, form.lower, form.upper)))
+        q_before = [None if q is None else q.copy() for q in self.q]
+        try:
+            return real_eval(self, theta, jacobian)
+        except type(error):
+            # warm starts untouched by the failed θ
+            assert all((a is None and b is None) or np.array_equal(a, b) for a, b in zip(q_before, self.q))
+            raise
+
+    def fk(self, *args, **kwargs):
+        if state["trial"]:
+            state["failed"] += 1
+            raise error
+        return real_fk(self, *args, **kwargs)
+
+    monkeypatch.setattr(fitmod._Evaluator, "evaluate", evaluate)
+    monkeypatch.setattr(Model, "fk", fk)
+    res = fit(form, obs, BASE, theta0, max_nfev=60)
+    assert state["failed"] == 2              # warm start, then the cold retry, both failed
+    assert res.rejected == 1
+    np.testing.assert_allclose(res.theta, TRUE, rtol=1e-6)
+    assert res.rms_tip < 1e-9
+
+
+def test_failure_at_the_initial_parameters_stays_a_typed_error(monkeypatch):
+    form, obs = _obs(TRUE)
+
+    def fk(self, *args, **kwargs):
+        raise UnstableEquilibriumError("stub", solver="fk", min_eigenvalue=-2.0)
+
+    monkeypatch.setattr(Model, "fk", fk)
+    with pytest.raises(UnstableEquilibriumError, match="FK of state .* failed for constant parameters"):
+        fit(form, obs, BASE, TRUE, max_nfev=10)
