@@ -81,8 +81,9 @@ def control(
     force: bool = typer.Option(False, "--force", help="overwrite an existing run log"),
     json_out: bool = typer.Option(False, "--json", help="print the result as JSON"),
 ):
-    """Run a tip-position controller live on a rig (simulated or real) with a status line and a run log,
-    and end with a summary of the whole run: the settled tip error per load period (a load period is the
+    """Run a tip-position controller live on a rig (simulated or real).
+
+    A status line while it runs, a run log, and at the end a summary of the whole run: the settled tip error per load period (a load period is the
     time between two load changes of the simulated rig's load profile, or the whole run when the load is
     constant or unknown, as on hardware; settled = its second half; a period's settled error is the median
     tip error there) with median and max over the periods, the saturation time, faults and corrections
