@@ -47,6 +47,7 @@ from .errors import (
 )
 from .params import ActuatorParams
 from .solvers import SolveInfo, minimize_newton, solve_root
+from .textfmt import vector
 
 
 @dataclass
@@ -564,8 +565,8 @@ class Model:
                 ds /= 3
                 if ds < 1e-5:
                     raise ConvergenceError(
-                        f"load stepping stalled at load factor {s:.4f} of (T={T.tolist()} N, p={pr:g} Pa, "
-                        f"F={F.tolist()} N); the direct Newton solve ended at residual {first.residual_norm:.3e}",
+                        f"load stepping stalled at load factor {s:.4f} of (T = {vector(T, 'N', 1.0, 4)}, "
+                        f"p = {pr / 1e3:g} kPa, F = {vector(F, 'N', 1.0, 4)}); the direct Newton solve ended at residual {first.residual_norm:.3e}",
                         solver="fk", iterations=total_it, residual_norm=exc.residual_norm, tolerance=tol,
                         history=hist + exc.history) from None
                 continue
@@ -709,11 +710,11 @@ class Model:
                         for i in range(self.m) if T[i] <= lo[i] + 1e-9 or T[i] >= hi[i] - 1e-9]
         near = self._tip(q)
         raise InfeasibleTargetError(
-            f"IK target {np.round(pd * 1e3, 3).tolist()} mm is not reachable with tensions in "
+            f"IK target {vector(pd, 'mm', 1e3, 3)} is not reachable with tensions in "
             f"[{p.tension_min:g}, {p.tension_max:g}] N at p = {pr / 1e3:g} kPa: violated "
             f"{'; '.join(violated) or 'no bound (solver stalled)'}; nearest reachable tip "
-            f"{np.round(near * 1e3, 3).tolist()} mm ({err * 1e3:.3f} mm away) with tensions "
-            f"{np.round(T, 4).tolist()} N", target=pd, nearest=near, tensions=T, violated=violated)
+            f"{vector(near, 'mm', 1e3, 3)} ({err * 1e3:.3f} mm away) with tensions "
+            f"{vector(T, 'N', 1.0, 4)}", target=pd, nearest=near, tensions=T, violated=violated)
 
     # ----------------------------------------------------------------------------- locked FK
     def rest_lengths(self, eq: Equilibrium) -> np.ndarray:
@@ -738,7 +739,7 @@ class Model:
         tol_length = check_scalar("tol_length", tol_length, low=1e-15, high=1e-3, unit="m")
         l0 = check_finite("tendon_lengths", tendon_lengths, (self.m,))
         if np.any(l0 <= 0) or np.any(l0 > 3 * self.params.length):
-            raise InputError(f"tendon_lengths {np.round(l0 * 1e3, 3).tolist()} mm must be positive and below "
+            raise InputError(f"tendon_lengths {vector(l0, 'mm', 1e3, 3)} must be positive and below "
                              f"3 × the actuator length ({3e3 * self.params.length:g} mm)")
         if method not in ("active_set", "gamma"):
             raise InputError(f"fk_locked method must be 'active_set' or 'gamma', got {method!r}")

@@ -108,3 +108,15 @@ def test_compare_figure_title_prints_no_repr(monkeypatch, tmp_path):
                         "judged": 1}]}
     plots.plot_comparison(res, tmp_path)
     assert titles and all(REPR.search(t) is None for t in titles), titles
+
+
+@pytest.mark.parametrize("call", [
+    lambda m: m.ik(target=(0.158, 0.0, 0.012), pressure=30e3),                         # unreachable target
+    lambda m: m.fk_locked(tendon_lengths=(-0.1, 0.16, 0.16)),                           # impossible lengths
+])
+def test_error_messages_print_no_repr(call):
+    from ancf.errors import BellowsError
+    with pytest.raises(BellowsError) as info:
+        call(Model(presets.paper()))
+    assert_no_repr(str(info.value))
+    assert " mm" in str(info.value)
