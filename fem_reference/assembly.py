@@ -84,7 +84,17 @@ class CsrPattern:
     def matrix(self, element_values: np.ndarray) -> sp.csr_matrix:
         """CSR matrix from element matrices ``(n_el, n_loc, n_loc)`` (same order as ``ldofs``)."""
         data = np.bincount(self.scatter, weights=element_values.ravel(), minlength=self.nnz)
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+        return self.csr(data)
+
+    def csr(self, data: np.ndarray) -> sp.csr_matrix:
+        """CSR matrix with this pattern and the values ``data`` (nnz,).  Every matrix made here shares the
+        same index arrays (already in scipy's index dtype, so not copied): same-pattern sums can work on
+        ``.data`` directly."""
+        idx = getattr(self, "_scipy_index", None)
+        if idx is None:
+            K = sp.csr_matrix((np.zeros(self.nnz), self.indices, self.indptr), shape=(self.n, self.n))
+            idx = self._scipy_index = (K.indices, K.indptr)
+        return sp.csr_matrix((data, idx[0], idx[1]), shape=(self.n, self.n))
 
     def submap(self, ldofs: np.ndarray) -> np.ndarray:
         """Scatter map of another set of element blocks whose entries lie inside this pattern."""
@@ -192,8 +202,7 @@ class HexAssembler:
                 return f, None, -1.0 if not np.isfinite(jmin) else min(jmin, 0.0)
             K = None
             if tangent:
-                n = 3 * self.n_nodes
-                K = sp.csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
+                K = self.pattern.csr(data)
             return f, K, jmin
         return self._assemble_numpy(U, tangent)
 
@@ -300,7 +309,7 @@ class PressureAssembler:
             f, data = self._compiled(U, p, tangent)
             if not tangent:
                 return f, None
-            return f, sp.csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(f.size, f.size))
+            return f, self.pattern.csr(data)
         ue = U[:, self.edofs]
         F = np.einsum("iae,aJeq->iJeq", ue, self.dphi)
         F[0, 0] += 1.0
@@ -324,5 +333,5 @@ class PressureAssembler:
             K = sp.coo_matrix((Ke.ravel(), (rows, cols)), shape=(f.size, f.size)).tocsr()
         else:
             data = np.bincount(self.submap, weights=Ke.ravel(), minlength=self.pattern.nnz)
-            K = sp.csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(f.size, f.size))
+            K = self.pattern.csr(data)
         return f, K
