@@ -14,7 +14,7 @@ reference path (``HexAssembler(kernel="numpy")``), which is kept and against whi
 
 Per Gauss point: ``H[i, J, k, b] = Σ_L A_iJkL ∂_L N_b dx`` (729 × 3 multiply-adds), then
 ``K[a, i, k, b] += Σ_J ∂_J N_a H[i, J, k, b]`` for ``b >= a`` only; the element matrix is symmetric
-(``A_iJkL = A_kLiJ``: hyperelastic), so the lower triangle is written by mirroring.  No temporary of size
+(``A_iJkL = A_kLiJ``: hyperelastic), so the lower triangle is filled by mirroring before the scatter.  No temporary of size
 ``A × points × elements`` is formed (the numpy path builds ``(chunk, 81, 243)`` arrays), and the
 kernel uses no BLAS, so it does not start OpenBLAS threads that compete with PARDISO's threads and
 other jobs on a small machine (that contention made the numpy path up to ~25× slower inside a solve;
@@ -220,15 +220,20 @@ def _hex_kernel(U, edofs, dphi, dx, mode, mu, kappa, c01, tangent, emap, f, data
             for i in range(3):
                 f[n3 + i] += fe[a, i]
         if tangent:
+            # lower triangle by symmetry, then one pass in the scatter map's row-major order: the writes of
+            # a row stay in one CSR row (1.5x faster than mirroring each entry into another row; measured)
+            for a in range(1, 27):
+                for i in range(3):
+                    for k in range(3):
+                        for b in range(a):
+                            Ke[a, i, k, b] = Ke[b, k, i, a]
             # emap[e, 3 a + i, 27 k + b]: position of K[(a, i), (b, k)] in the CSR data
             for a in range(27):
                 for i in range(3):
+                    r = 3 * a + i
                     for k in range(3):
-                        for b in range(a, 27):
-                            v = Ke[a, i, k, b]
-                            data[emap[e, 3 * a + i, 27 * k + b]] += v
-                            if b > a:
-                                data[emap[e, 3 * b + k, 27 * i + a]] += v
+                        for b in range(27):
+                            data[emap[e, r, 27 * k + b]] += Ke[a, i, k, b]
     return True, jmin
 
 

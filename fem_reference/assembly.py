@@ -11,10 +11,18 @@ Volume terms (27-point Gauss on each Hex2, ``dphi[a, J, e, q] = ∂N_a/∂X_J``,
     f^{int}_{a i} = \sum_q P_{iJ}\,\partial_J N_a\, dx, \qquad
     K_{a i, b k} = \sum_q \partial_J N_a\, A_{iJkL}\, \partial_L N_b\, dx.
 
-The element matrices are formed with one batched matrix product per chunk of elements
-(``(27 × 81) @ (81 × 243)`` per element) and summed into a fixed CSR pattern through a
-precomputed scatter map (``np.bincount``), so repeated assemblies never sort indices again.
-This is the kernel of ``docs/fem.md`` §1 (≈50× faster than ``BilinearForm`` for Hex2 vectors).
+Two implementations with the same formulation and quadrature (``kernel=``):
+
+- ``"numba"`` (default): a compiled element loop (:mod:`fem_reference._kernels`) with the material law
+  inline at each Gauss point and the symmetric element matrix added straight into the CSR data array
+  through the precomputed scatter map; no BLAS, no large temporaries.
+- ``"numpy"`` (reference): the element matrices are formed with one batched matrix product per chunk
+  of elements (``(27 × 81) @ (81 × 243)`` per element) and summed into the fixed CSR pattern through the
+  scatter map (``np.bincount``).  This is the kernel of ``docs/fem.md`` §1 (≈50× faster than
+  ``BilinearForm`` for Hex2 vectors); its threaded BLAS product is slowed badly by thread contention
+  on a small shared machine (``docs/fem.md`` "Where the time goes").
+
+Either way the pattern is fixed, so repeated assemblies never sort indices again.
 
 Follower pressure on the deformed inner surface (Nanson, :math:`n\,da = J F^{-T} N\,dA`); the
 solid's outward normal ``N`` on the inner surface points into the cavity, the pressure pushes along
