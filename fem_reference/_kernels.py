@@ -245,7 +245,8 @@ class HexKernel:
     edofs : (27, ne) int — element nodes
     dphi : (ne, nq, 3, 27) float64 — ``∂N_a/∂X_J`` at the Gauss points [1/m]
     dx : (ne, nq) float64 — quadrature weight × |det DF| [m³]
-    emap : (ne, 81, 81) int — position in the CSR data of ``K[(a, i), (b, k)]``, stored at ``[e, 3a+i, 27k+b]``
+    emap : (ne, 81, 81) int32 or int64 — position in the CSR data of ``K[(a, i), (b, k)]``, stored at
+        ``[e, 3a+i, 27k+b]``
     nnz : int — length of the CSR data array
     n_nodes : int
     material : fem_reference.material.Material
@@ -257,7 +258,9 @@ class HexKernel:
         self.edofs = np.ascontiguousarray(edofs, dtype=np.int64)
         self.dphi = np.ascontiguousarray(dphi, dtype=np.float64)
         self.dx = np.ascontiguousarray(dx, dtype=np.float64)
-        self.emap = np.ascontiguousarray(emap, dtype=np.int64)
+        # the scatter map is the largest array (ne × 6561 entries): keep CsrPattern's int32 map, do not copy it
+        emap = np.asarray(emap)
+        self.emap = np.ascontiguousarray(emap, dtype=emap.dtype if emap.dtype in (np.int32, np.int64) else np.int64)
         if material.formulation not in MATERIAL_CODES:
             raise ValueError(f"no compiled kernel for the formulation {material.formulation!r}")
         self.mode = MATERIAL_CODES[material.formulation]
