@@ -5,8 +5,14 @@ Usage::
 
     python benchmarks/bench_fem.py                       # coarse mesh, all load cases, solver table
     python benchmarks/bench_fem.py --levels coarse reference --repeat 3 --json bench_fem.json
+    python benchmarks/bench_fem.py --compare-kernels --repeat 5   # numpy vs numba assembly, interleaved
 
-Prints medians over ``--repeat`` runs and ratios to the fastest solver.
+Prints medians over ``--repeat`` runs and ratios to the fastest solver.  ``--compare-kernels`` times the
+numpy reference assembly (``HexAssembler(kernel="numpy")``) against the compiled kernel (``"numba"``,
+the default) in one process, alternating old/new on every repetition: the tangent assembly alone, the
+reduced residual + tangent (``BellowsModel.evaluate``), and one full coarse solve of the ``fem solve``
+case (30 kPa, T = (2, 0, 0) N, gravity), with medians, ratios and the tip-position difference.
+Run it once more with ``OPENBLAS_NUM_THREADS=1`` to see the numpy path without BLAS thread contention.
 """
 
 from __future__ import annotations
@@ -132,6 +138,65 @@ def bench_solvers(model, res, repeat: int, all_solvers: bool = False) -> dict:
     return rows
 
 
+KERNEL_CASE = dict(pressure=30e3, tensions=(2.0, 0.0, 0.0), gravity=True)  # `fem solve --pressure-kpa 30 --tensions-n 2,0,0`
+
+
+def bench_kernels(level: str, repeat: int) -> dict:
+    """numpy vs numba assembly, interleaved in one process (see the module docstring)."""
+    from fem_reference.mesh import build_mesh
+
+    geo, mat = presets.paper_bellows(), presets.paper_material()
+    bm = build_mesh(geo, level)
+    models = {k: BellowsModel(geo, mat, bm, assembly_kernel=k) for k in ("numpy", "numba")}
+    t0 = time.perf_counter()
+    models["numba"].asm.assemble(models["numba"].zero_state().U)  # compile, or load numba's cache
+    t_jit = time.perf_counter() - t0
+    ref = models["numba"].solve(**KERNEL_CASE)
+    st, lc = ref.state, ref.loadcase
+    print(f"\n== assembly kernels, mesh {level}: {bm.n_elements} Hex2, {models['numba'].n_dofs} reduced DOFs; "
+          f"numba kernel ready in {t_jit:.2f} s; {repeat} interleaved repetitions")
+    timers = {
+        "hyperelastic f + K (HexAssembler)": lambda m: m.asm.assemble(st.U),
+        "hyperelastic f only": lambda m: m.asm.assemble(st.U, tangent=False),
+        "reduced r + K (evaluate)": lambda m: m.evaluate(st, lc, tangent=True),
+    }
+    out = dict(level=level, n_elements=bm.n_elements, n_dofs=models["numba"].n_dofs, jit_s=t_jit, rows={})
+    print(f"{'':<36} {'numpy/s':>9} {'numba/s':>9} {'ratio':>7}")
+    for name, fn in timers.items():
+        t = {"numpy": [], "numba": []}
+        for _ in range(repeat):
+            for k in ("numpy", "numba"):
+                t0 = time.perf_counter()
+                fn(models[k])
+                t[k].append(time.perf_counter() - t0)
+        med = {k: statistics.median(v) for k, v in t.items()}
+        out["rows"][name] = dict(**{f"{k}_s": v for k, v in med.items()}, ratio=med["numpy"] / med["numba"])
+        print(f"{name:<36} {med['numpy']:9.3f} {med['numba']:9.3f} {med['numpy'] / med['numba']:7.1f}")
+    f1, K1, _ = models["numpy"].asm.assemble(st.U)
+    f2, K2, _ = models["numba"].asm.assemble(st.U)
+    out["max_rel_diff_f"] = float(np.abs(f2 - f1).max() / np.abs(f1).max())
+    out["max_rel_diff_K"] = float(abs(K2 - K1).max() / abs(K1).max())
+    runs = {"numpy": [], "numba": []}
+    tips = {}
+    for _ in range(max(1, repeat // 2)):
+        for k in ("numpy", "numba"):
+            res = models[k].solve(**KERNEL_CASE)
+            runs[k].append(res.stats)
+            tips[k] = res.tip_position
+    print(f"full solve ({KERNEL_CASE}), {len(runs['numba'])} interleaved run(s):")
+    print(f"{'':<36} {'numpy/s':>9} {'numba/s':>9} {'ratio':>7}")
+    for key in ("t_total", "t_assembly", "t_linear"):
+        med = {k: statistics.median(getattr(s_, key) for s_ in v) for k, v in runs.items()}
+        out["rows"][f"solve {key}"] = dict(**{f"{k}_s": v for k, v in med.items()}, ratio=med["numpy"] / med["numba"])
+        print(f"{'solve ' + key:<36} {med['numpy']:9.3f} {med['numba']:9.3f} {med['numpy'] / med['numba']:7.1f}")
+    its = {k: [s_.n_iterations for s_ in v] for k, v in runs.items()}
+    dtip = float(np.abs(tips["numpy"] - tips["numba"]).max())
+    out.update(iterations=its, tip_diff_m=dtip, tip_m=tips["numba"].tolist())
+    print(f"Newton iterations {its}; tip {np.round(tips['numba'] * 1e3, 6)} mm; |Δtip| = {dtip:.1e} m; "
+          f"max rel. diff f {out['max_rel_diff_f']:.1e}, K {out['max_rel_diff_K']:.1e}")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--levels", nargs="+", default=["coarse"], choices=["coarse", "medium", "reference"])
@@ -139,8 +204,15 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--json", type=Path, default=None)
     ap.add_argument("--all-solvers", action="store_true", help="also SuperLU partial pivoting on big meshes")
+    ap.add_argument("--compare-kernels", action="store_true",
+                    help="only the numpy-vs-numba assembly comparison (interleaved), on each level")
     a = ap.parse_args(argv)
     report = dict(python=sys.version.split()[0], machine=platform.machine(), levels=[])
+    if a.compare_kernels:
+        report["kernels"] = [bench_kernels(level, a.repeat) for level in a.levels]
+        if a.json:
+            a.json.write_text(json.dumps(report, indent=2))
+        return report
     for level in a.levels:
         rep = 1 if level == "reference" else a.repeat
         out, model, res = bench_cases(level, rep, a.cases)

@@ -11,10 +11,18 @@ Volume terms (27-point Gauss on each Hex2, ``dphi[a, J, e, q] = ∂N_a/∂X_J``,
     f^{int}_{a i} = \sum_q P_{iJ}\,\partial_J N_a\, dx, \qquad
     K_{a i, b k} = \sum_q \partial_J N_a\, A_{iJkL}\, \partial_L N_b\, dx.
 
-The element matrices are formed with one batched matrix product per chunk of elements
-(``(27 × 81) @ (81 × 243)`` per element) and summed into a fixed CSR pattern through a
-precomputed scatter map (``np.bincount``), so repeated assemblies never sort indices again.
-This is the kernel of ``docs/fem.md`` §1 (≈50× faster than ``BilinearForm`` for Hex2 vectors).
+Two implementations with the same formulation and quadrature (``kernel=``):
+
+- ``"numba"`` (default): a compiled element loop (:mod:`fem_reference._kernels`) with the material law
+  inline at each Gauss point and the symmetric element matrix added straight into the CSR data array
+  through the precomputed scatter map; no BLAS, no large temporaries.
+- ``"numpy"`` (reference): the element matrices are formed with one batched matrix product per chunk
+  of elements (``(27 × 81) @ (81 × 243)`` per element) and summed into the fixed CSR pattern through the
+  scatter map (``np.bincount``).  This is the kernel of ``docs/fem.md`` §1 (≈50× faster than
+  ``BilinearForm`` for Hex2 vectors); its threaded BLAS product is slowed badly by thread contention
+  on a small shared machine (``docs/fem.md`` "Where the time goes").
+
+Either way the pattern is fixed, so repeated assemblies never sort indices again.
 
 Follower pressure on the deformed inner surface (Nanson, :math:`n\,da = J F^{-T} N\,dA`); the
 solid's outward normal ``N`` on the inner surface points into the cavity, the pressure pushes along
@@ -38,9 +46,15 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ancf.errors import ConfigError
+
 from .material import Material, _inv_det
 
-__all__ = ["CsrPattern", "HexAssembler", "PressureAssembler", "gravity_load"]
+__all__ = ["KERNELS", "CsrPattern", "HexAssembler", "PressureAssembler", "gravity_load"]
+
+#: Implementations of :meth:`HexAssembler.assemble`: ``"numba"`` (compiled element loop of
+#: :mod:`fem_reference._kernels`, the default) and ``"numpy"`` (the vectorised reference it is tested against).
+KERNELS = ("numba", "numpy")
 
 
 class CsrPattern:
@@ -78,7 +92,17 @@ class CsrPattern:
     def matrix(self, element_values: np.ndarray) -> sp.csr_matrix:
         """CSR matrix from element matrices ``(n_el, n_loc, n_loc)`` (same order as ``ldofs``)."""
         data = np.bincount(self.scatter, weights=element_values.ravel(), minlength=self.nnz)
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+        return self.csr(data)
+
+    def csr(self, data: np.ndarray) -> sp.csr_matrix:
+        """CSR matrix with this pattern and the values ``data`` (nnz,).  Every matrix made here shares the
+        same index arrays (already in scipy's index dtype, so not copied): same-pattern sums can work on
+        ``.data`` directly."""
+        idx = getattr(self, "_scipy_index", None)
+        if idx is None:
+            K = sp.csr_matrix((np.zeros(self.nnz), self.indices, self.indptr), shape=(self.n, self.n))
+            idx = self._scipy_index = (K.indices, K.indptr)
+        return sp.csr_matrix((data, idx[0], idx[1]), shape=(self.n, self.n))
 
     def submap(self, ldofs: np.ndarray) -> np.ndarray:
         """Scatter map of another set of element blocks whose entries lie inside this pattern."""
@@ -105,12 +129,18 @@ class HexAssembler:
     mesh : skfem.MeshHex2
     material : Material
     chunk : int
-        Elements per vectorised batch (memory ≈ chunk × 1.2 MB).
+        Elements per vectorised batch of the numpy path (memory ≈ chunk × 1.2 MB).
+    kernel : {"numba", "numpy"}
+        ``"numba"``: compiled per-element force and symmetric tangent written straight into the CSR data
+        (:mod:`fem_reference._kernels`); ``"numpy"``: the vectorised reference (batched BLAS products).
+        Same formulation and quadrature; results agree to round-off (tested).
     """
 
-    def __init__(self, mesh, material: Material, chunk: int = 128):
+    def __init__(self, mesh, material: Material, chunk: int = 128, kernel: str = "numba"):
         from skfem import CellBasis, ElementHex2
 
+        if kernel not in KERNELS:
+            raise ConfigError(f"unknown assembly kernel {kernel!r}; choose one of {KERNELS}")
         self.material = material
         self.basis = CellBasis(mesh, ElementHex2(), intorder=4)
         b = self.basis
@@ -126,6 +156,15 @@ class HexAssembler:
         cols = (3 * self.edofs[None, :, :] + np.arange(3)[:, None, None]).reshape(81, -1)
         self.pattern = CsrPattern(self.ldofs, 3 * self.n_nodes, col_ldofs=cols)
         self.chunk = int(chunk)
+        self.kernel = kernel
+        self._compiled = None
+        if kernel == "numba":
+            from ._kernels import HexKernel
+
+            # the compiled kernel's layouts: dphi[e, q, J, a]; scatter map [e, (a, i), (k, b)] (same order)
+            self._compiled = HexKernel(self.edofs, self.dphi.transpose(2, 3, 1, 0), self.dx,
+                                       self.pattern.scatter.reshape(self.ne, 81, 81), self.pattern.nnz,
+                                       self.n_nodes, material)
 
     def deformation_gradient(self, U: np.ndarray, sl=slice(None)) -> np.ndarray:
         """``F`` at the Gauss points of elements ``sl``, shape ``(3, 3, ne, nq)``."""
@@ -165,6 +204,18 @@ class HexAssembler:
         K : scipy.sparse.csr_matrix (3 n_nodes, 3 n_nodes) [N/m] or None
         jmin : float — smallest det F; if ``<= 0`` the outputs are not meaningful.
         """
+        if self._compiled is not None:
+            ok, jmin, f, data = self._compiled(U, tangent)
+            if not ok:
+                return f, None, -1.0 if not np.isfinite(jmin) else min(jmin, 0.0)
+            K = None
+            if tangent:
+                K = self.pattern.csr(data)
+            return f, K, jmin
+        return self._assemble_numpy(U, tangent)
+
+    def _assemble_numpy(self, U: np.ndarray, tangent: bool = True):
+        """The numpy reference implementation of :meth:`assemble` (``kernel="numpy"``)."""
         ne, nq = self.ne, self.nq
         f = np.zeros(3 * self.n_nodes)
         Kvals = np.empty((ne, 81, 81)) if tangent else None
@@ -211,9 +262,12 @@ class PressureAssembler:
         Boundary facets loaded by the pressure; their skfem outward normal must point into the cavity.
     pattern : CsrPattern
         Volume pattern (the facet blocks are a subset of it).
+    kernel : {"numba", "numpy"}
+        Compiled facet loop (:mod:`fem_reference._kernels`; needs ``pattern`` for the tangent) or the
+        vectorised numpy reference; same results to round-off (tested).
     """
 
-    def __init__(self, mesh, facets: np.ndarray, pattern: CsrPattern | None = None):
+    def __init__(self, mesh, facets: np.ndarray, pattern: CsrPattern | None = None, kernel: str = "numba"):
         from skfem import ElementHex2, FacetBasis
 
         # skfem maps the facet quadrature points back to the element by a Newton iteration with an
@@ -234,6 +288,17 @@ class PressureAssembler:
         self.ldofs = _vector_ldofs(self.edofs)
         self.pattern = pattern
         self.submap = pattern.submap(self.ldofs) if pattern is not None else None
+        if kernel not in KERNELS:
+            raise ConfigError(f"unknown assembly kernel {kernel!r}; choose one of {KERNELS}")
+        self.kernel = kernel
+        self._compiled = None
+        if kernel == "numba" and pattern is not None:
+            from ._kernels import PressureKernel
+
+            nf = self.edofs.shape[1]
+            self._compiled = PressureKernel(self.edofs, self.phi.transpose(1, 2, 0), self.dphi.transpose(2, 3, 1, 0),
+                                            self.N.transpose(1, 2, 0), self.dA, self.submap.reshape(nf, 81, 81),
+                                            pattern.nnz, self.n_nodes)
 
     def assemble(self, U: np.ndarray, p: float, tangent: bool = True):
         """External pressure force and its derivative.
@@ -248,6 +313,11 @@ class PressureAssembler:
         f_p : ndarray (3 n_nodes,) [N] — external nodal force (add to f_ext)
         K_p : csr_matrix or None [N/m] — ``∂f_p/∂u`` (subtract from the Newton matrix)
         """
+        if self._compiled is not None:
+            f, data = self._compiled(U, p, tangent)
+            if not tangent:
+                return f, None
+            return f, self.pattern.csr(data)
         ue = U[:, self.edofs]
         F = np.einsum("iae,aJeq->iJeq", ue, self.dphi)
         F[0, 0] += 1.0
@@ -271,5 +341,5 @@ class PressureAssembler:
             K = sp.coo_matrix((Ke.ravel(), (rows, cols)), shape=(f.size, f.size)).tocsr()
         else:
             data = np.bincount(self.submap, weights=Ke.ravel(), minlength=self.pattern.nnz)
-            K = sp.csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(f.size, f.size))
+            K = self.pattern.csr(data)
         return f, K

@@ -24,6 +24,10 @@ Newton (``BellowsModel._newton`` in :mod:`fem_reference.model`): full Newton on 
 
 from __future__ import annotations
 
+import glob
+import os
+import sys
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,11 +39,41 @@ from ancf.errors import ConfigError
 __all__ = ["NewtonStats", "StepFailed", "available_solvers", "factorize"]
 
 
+@contextmanager
+def _mkl_rt_hint():
+    """Within the block, ``PYPARDISO_MKL_RT`` names the mkl wheel's ``sys.prefix/lib/libmkl_rt*`` if there is one.
+
+    Importing pypardiso creates a solver, and each ``PyPardisoSolver()`` looks for MKL's runtime by a
+    recursive glob of ``sys.prefix/lib*`` (0.5–1.2 s measured on this machine, more than a coarse
+    factorisation) unless that variable names it.  A variable set by the user is left alone; without a
+    library in the usual place pypardiso searches as before.
+    """
+    if "PYPARDISO_MKL_RT" in os.environ:
+        yield
+        return
+    cands = sorted(glob.glob(os.path.join(sys.prefix, "lib", "libmkl_rt.so*"))
+                   + glob.glob(os.path.join(sys.prefix, "lib", "libmkl_rt*.dylib")), key=len)
+    if cands:
+        os.environ["PYPARDISO_MKL_RT"] = cands[0]
+    try:
+        yield
+    finally:
+        if cands:
+            os.environ.pop("PYPARDISO_MKL_RT", None)
+
+
+def _import_pypardiso():
+    """``import pypardiso`` (see :func:`_mkl_rt_hint`)."""
+    with _mkl_rt_hint():
+        import pypardiso
+    return pypardiso
+
+
 def available_solvers() -> list[str]:
     """Names accepted by :func:`factorize` that work in this environment."""
     out = ["splu"]
     try:
-        import pypardiso  # noqa: F401
+        _import_pypardiso()
 
         out.insert(0, "pardiso")
     except Exception:  # pragma: no cover
@@ -76,15 +110,15 @@ _PARDISO_SOLVER = None
 def _pardiso_instance():
     """One shared ``PyPardisoSolver(mtype=11)`` per process.
 
-    Creating a ``PyPardisoSolver`` globs the file system for the MKL library (0.5–0.8 s measured), more
-    than a whole factorisation of the test meshes.  Sharing is safe: ``solve`` re-factorises if it
+    Creating a ``PyPardisoSolver`` globs the file system for the MKL library (0.5–0.8 s measured; avoided
+    where :func:`_mkl_rt_hint` finds it), more than a whole factorisation of the test meshes.  Sharing is safe: ``solve`` re-factorises if it
     is handed a matrix other than the one last factorised (pypardiso compares a hash).
     """
     global _PARDISO_SOLVER
     if _PARDISO_SOLVER is None:
-        import pypardiso
-
-        _PARDISO_SOLVER = pypardiso.PyPardisoSolver(mtype=11)
+        pypardiso = _import_pypardiso()
+        with _mkl_rt_hint():
+            _PARDISO_SOLVER = pypardiso.PyPardisoSolver(mtype=11)
     return _PARDISO_SOLVER
 
 
