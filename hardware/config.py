@@ -64,6 +64,7 @@ A complete file (every key documented in docs/rig.md)::
     offset_mm = [0.0, 0.0, 0.0]      # p_actuator = rotation · p_tracker + offset
     rotation = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]   # tracker (y up) → actuator axes; default identity
     max_error_mm = 2.0               # larger mean marker error: invalid pose
+    natnet_version = "3.0"           # the stream's NatNet version ("3.0" … "4.0" one layout; "4.1"+ byte counts)
 """
 
 from __future__ import annotations
@@ -111,7 +112,8 @@ FORCE = {"backend": STR, "port": STR, "baudrate": INT, "channel": INT, "scale": 
          "offset": "force"}
 PRESSURE = {"backend": STR, "port": STR, "baudrate": INT}
 TRACKER = {"backend": STR, "address": STR, "port": INT, "rigid_body_id": INT, "offset": "length",
-           "rotation": MATRIX3, "multicast_group": STR, "timeout": "time", "max_error": "length"}
+           "rotation": MATRIX3, "multicast_group": STR, "timeout": "time", "max_error": "length",
+           "natnet_version": STR}
 #: CAN bitrates [bit/s] (CiA 301 bit timing table; the EPOS4 supports all of them)
 CAN_BITRATES = (10_000, 20_000, 50_000, 125_000, 250_000, 500_000, 800_000, 1_000_000)
 #: accepted encoder scale of a drive [counts per mm of tendon]: a resolution of 0.1 mm … 1 nm
@@ -380,6 +382,12 @@ class RigConfig:
         rb = self.tracker.get("rigid_body_id", 1)
         if rb < 0:
             bad(f"tracker.rigid_body_id = {rb}: must be >= 0")
+        if "natnet_version" in self.tracker:
+            from .tracking import natnet_version
+            try:
+                natnet_version(self.tracker["natnet_version"])
+            except RigConfigError as exc:
+                bad(f"tracker.natnet_version: {exc}")
 
     # --------------------------------------------------------------------------------------- derived
     def actuator_params(self, which: str = "actuator"):
@@ -442,7 +450,8 @@ def build_rig(cfg: RigConfig, **sim_overrides):
     tracker = NatNetTracker(address=t.get("address", "0.0.0.0"), port=t.get("port", 1511),
                             rigid_body_id=t.get("rigid_body_id", 1), offset=t.get("offset", (0.0, 0.0, 0.0)),
                             rotation=t.get("rotation"), multicast_group=t.get("multicast_group"),
-                            timeout=t.get("timeout", limits.sensor_timeout), max_error=t.get("max_error", 2e-3))
+                            timeout=t.get("timeout", limits.sensor_timeout), max_error=t.get("max_error", 2e-3),
+                            natnet_version=t.get("natnet_version", "3.0"))
     return Rig(drives, forces, pressure, tracker, limits=limits, on_fault_pressure=cfg.on_fault_pressure,
                settle_time=cfg.settle_time, speed=cfg.speed, name=cfg.name, config=cfg.to_dict(),
                params=cfg.actuator_params())

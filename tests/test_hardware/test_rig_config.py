@@ -92,6 +92,8 @@ BAD = {
     "absurdly many counts": (_set("drives.0.counts_per_mm", 1e9), ["drives[0].counts_per_mm", "10…1e+06"]),
     "counts per metre written for per mm": (_rename("drives.2", "counts_per_mm", "counts_per_m"),
                                             ["drives[2].counts_per_m", "10…1e+06"]),
+    "NatNet 2.x stream": (_set("tracker.natnet_version", "2.9"), ["tracker.natnet_version", "3.0 or later"]),
+    "NatNet version not a number": (_set("tracker.natnet_version", "four"), ["tracker.natnet_version"]),
     "travel beyond the 32-bit position range": (_both(_set("drives.0.counts_per_mm", 1e6),
                                                       _set("drives.0.zero_length_mm", -3000)),
                                                 ["drives[0].counts_per_mm", "drives[0].zero_length_mm", "32-bit"]),
@@ -121,7 +123,9 @@ def test_rig_file_conflicts_are_config_errors_naming_the_keys(tmp_path, case):
     _both(_set("force_sensors.2.channel", 1), _set("force_sensors.2.port", "/dev/ttyACM2")),  # another board
     _both(*[_set(f"drives.{i}.counts_per_mm", c) for i, c in enumerate((10, 1e6, 2000))]),      # range ends
     _set("tracker.port", 65535),
-], ids=["node id on another bus", "channel on another board", "counts at the range ends", "tracker port 65535"])
+    _set("tracker.natnet_version", "4.1"),
+], ids=["node id on another bus", "channel on another board", "counts at the range ends", "tracker port 65535",
+        "NatNet 4.1"])
 def test_plausible_variants_load(tmp_path, edit):
     data = copy.deepcopy(documented_rig())
     edit(data)
