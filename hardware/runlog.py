@@ -26,8 +26,13 @@ Layout (format ``bellows-run-log``, version 1; documented in docs/data-formats.m
 Why it survives a crash: every dataset is chunked and resizable and *created when the log is opened*;
 then ``swmr_mode`` is switched on (no group or attribute can be created after that) and each append is
 resize + write + ``flush``.  HDF5 guarantees that a file written in SWMR mode stays valid if the writer
-dies (even by SIGKILL); a reader opens it with ``swmr=True`` while the run goes on.  The end of a run
-is an ``end`` event (attributes cannot change any more).
+dies (even by SIGKILL).  Numeric datasets are filled with NaN, so a row resized but never written reads
+NaN.  The end of a run is an ``end`` event (attributes cannot change any more).
+
+Reading: a finished log is opened without SWMR (HDF5 then refuses a truncated file at once); only a file a
+writer holds — a run going on, or a writer that was killed — is opened with ``swmr=True``, after its
+recorded end of file was checked against its size and with a bounded number of metadata read attempts
+(:func:`hardware.static_states.open_hdf5`), so a damaged log is a ConfigError, never a hang.
 """
 
 from __future__ import annotations

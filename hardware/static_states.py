@@ -262,9 +262,41 @@ def open_hdf5(path) -> "h5py.File":  # noqa: F821
         raise ConfigError(f"{path}: truncated HDF5 file ({size} of {eof} bytes): the file was cut short (an "
                           f"interrupted copy or a full disk?); copy it again from where it was written")
     try:
-        return h5py.File(path, "r", libver="latest", swmr=True)
+        return _swmr_open(path)
     except OSError as exc:
         raise ConfigError(f"{path}: not a readable HDF5 file ({exc})") from None
+
+
+#: metadata read attempts of a SWMR reader.  HDF5's default (100, with a delay doubling from 1 µs up to an
+#: hour) makes a reader of a damaged file block for hours inside one read; 20 attempts are about 2 s at
+#: most — ample for a read racing the writer's flush.
+SWMR_READ_ATTEMPTS = 20
+
+
+def _swmr_open(path: pathlib.Path):
+    """``h5py.File(path, "r", libver="latest", swmr=True)`` with at most :data:`SWMR_READ_ATTEMPTS` metadata
+    read attempts (set through the HDF5 library h5py loaded — h5py does not expose the property; where that
+    library cannot be found the HDF5 default applies)."""
+    import ctypes
+    import re
+    import h5py
+    fn = None
+    try:
+        with open("/proc/self/maps") as fh:                 # the libhdf5 h5py is linked with (Linux)
+            libs = sorted(set(re.findall(r"(/\S*/libhdf5(?:-[0-9a-f]+)?\.so[.\d]*)\s*$", fh.read(), flags=re.M)))
+        if libs:
+            fn = ctypes.CDLL(libs[0]).H5Pset_metadata_read_attempts
+            fn.argtypes, fn.restype = [ctypes.c_int64, ctypes.c_uint], ctypes.c_int
+    except (OSError, AttributeError):
+        fn = None
+    if fn is None:
+        return h5py.File(path, "r", libver="latest", swmr=True)
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5py.h5f.LIBVER_LATEST, h5py.h5f.LIBVER_LATEST)
+    if fn(fapl.id, SWMR_READ_ATTEMPTS) < 0:
+        return h5py.File(path, "r", libver="latest", swmr=True)
+    fid = h5py.h5f.open(str(path).encode(), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, fapl=fapl)
+    return h5py.File(fid)
 
 
 #: the per-state datasets that must be finite in a finished row (a torn row reads NaN: the fill value)

@@ -89,6 +89,40 @@ def test_truncated_log_is_a_typed_error_not_a_hang(logs, tmp_path, which, fracti
     assert r.stdout.startswith("ancf.errors.ConfigError:") and "truncated" in r.stdout, r.stdout
 
 
+@pytest.mark.parametrize("which", ["finished", "killed"])
+def test_corrupt_log_is_a_typed_error_not_a_hang(logs, tmp_path, which):
+    """2 KiB overwritten at several places: every read returns (the log, or a ConfigError) — a killed
+    writer's log is read with SWMR, whose default metadata retries would block for hours."""
+    data = logs[which].read_bytes()
+    paths = []
+    for k, frac in enumerate((0.3, 0.5, 0.7, 0.8, 0.9, 0.95)):
+        bad = bytearray(data)
+        at = int(len(bad) * frac)
+        bad[at:at + 2048] = b"\xff" * 2048
+        paths.append(tmp_path / f"corrupt{k}.h5")
+        paths[-1].write_bytes(bytes(bad))
+    code = textwrap.dedent(f"""
+        from ancf.errors import ConfigError
+        from hardware.runlog import summary
+        from hardware.static_states import read_static_states
+        for p in {[str(p) for p in paths]!r}:
+            for call in (summary, read_static_states):
+                try:
+                    call(p)
+                    print("OK")
+                except ConfigError as exc:
+                    print("ConfigError")
+    """)
+    try:
+        r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                           capture_output=True, text=True, timeout=2 * TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        pytest.fail("reading a corrupt log hangs")
+    assert r.returncode == 0, r.stderr[-2000:]                           # no untyped exception
+    out = r.stdout.split()
+    assert len(out) == 12 and set(out) <= {"OK", "ConfigError"} and "ConfigError" in out, out
+
+
 def test_killed_writer_log_is_still_readable(logs):
     d = read_run_log(logs["killed"])
     assert d.rows == 40 and d.ended is None
