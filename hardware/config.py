@@ -64,6 +64,7 @@ A complete file (every key documented in docs/rig.md)::
     offset_mm = [0.0, 0.0, 0.0]      # p_actuator = rotation · p_tracker + offset
     rotation = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]   # tracker (y up) → actuator axes; default identity
     max_error_mm = 2.0               # larger mean marker error: invalid pose
+    natnet_version = "3.0"           # the stream's NatNet version ("3.0" … "4.0" one layout; "4.1"+ byte counts)
 """
 
 from __future__ import annotations
@@ -111,7 +112,14 @@ FORCE = {"backend": STR, "port": STR, "baudrate": INT, "channel": INT, "scale": 
          "offset": "force"}
 PRESSURE = {"backend": STR, "port": STR, "baudrate": INT}
 TRACKER = {"backend": STR, "address": STR, "port": INT, "rigid_body_id": INT, "offset": "length",
-           "rotation": MATRIX3, "multicast_group": STR, "timeout": "time", "max_error": "length"}
+           "rotation": MATRIX3, "multicast_group": STR, "timeout": "time", "max_error": "length",
+           "natnet_version": STR}
+#: CAN bitrates [bit/s] (CiA 301 bit timing table; the EPOS4 supports all of them)
+CAN_BITRATES = (10_000, 20_000, 50_000, 125_000, 250_000, 500_000, 800_000, 1_000_000)
+#: accepted encoder scale of a drive [counts per mm of tendon]: a resolution of 0.1 mm … 1 nm
+COUNTS_PER_MM_RANGE = (10.0, 1e6)
+#: channels of the serial load-cell board
+FORCE_CHANNELS = 3
 BACKENDS = {"drives": ("sim", "epos4"), "force_sensors": ("sim", "serial"), "pressure": ("sim", "serial"),
             "tracker": ("sim", "natnet")}
 
@@ -165,8 +173,9 @@ def _value(v: Any, kind: str, fac: float, where: str):
     return x
 
 
-def parse_table(table: Any, spec: dict, where: str) -> dict:
-    """``{key_with_unit: value}`` → ``{field: SI value}``; unknown keys and missing units are errors."""
+def parse_table(table: Any, spec: dict, where: str, spelled: Optional[dict] = None, prefix: str = "") -> dict:
+    """``{key_with_unit: value}`` → ``{field: SI value}``; unknown keys and missing units are errors.
+    ``spelled`` (optional) collects ``{"<prefix>.<field>": "<prefix>.<key as written>"}`` for messages."""
     if not isinstance(table, dict):
         raise RigConfigError(f"{where}: expected a table, got {type(table).__name__}")
     sp = _spellings(spec)
@@ -177,6 +186,8 @@ def parse_table(table: Any, spec: dict, where: str) -> dict:
             if f in out:
                 raise RigConfigError(f"{where}: '{f}' given twice (e.g. in two units)")
             out[f] = _value(v, kind, fac, f"{where}.{key}")
+            if spelled is not None:
+                spelled[f"{prefix}.{f}" if prefix else f] = f"{prefix}.{key}" if prefix else key
         elif key in spec and spec[key] in DIMENSIONS:
             opts = ", ".join(f"{key}_{u}" for u in DIMENSIONS[spec[key]])
             raise RigConfigError(f"{where}: '{key}' needs an explicit unit; write one of: {opts}")
@@ -208,6 +219,8 @@ class RigConfig:
     pressure: dict = field(default_factory=dict)
     tracker: dict = field(default_factory=dict)
     base_dir: str = "."
+    #: ``{"drives[1].counts": "drives[1].counts_per_mm"}``: the keys as written in the file (for messages)
+    spelled: dict = field(default_factory=dict, compare=False, repr=False)
 
     # --------------------------------------------------------------------------------------- loading
     @classmethod
@@ -245,17 +258,18 @@ class RigConfig:
             raise RigConfigError(f"{where}.on_fault_pressure: 'hold' or 'vent', got {ofp!r}")
         limits = parse_table(sections.get("limits", {}), LIMITS, f"{where}.limits")
         sim = parse_table(sections.get("simulation", {}), SIMULATION, f"{where}.simulation")
-        devs = {}
+        devs, spelled = {}, {}
         for key, spec in (("drives", DRIVE), ("force_sensors", FORCE)):
             raw = sections.get(key, [])
             if not isinstance(raw, list):
                 raise RigConfigError(f"{where}.{key}: expected an array of tables ([[{key}]])")
-            devs[key] = tuple(parse_table(t, spec, f"{where}.{key}[{i}]") for i, t in enumerate(raw))
+            devs[key] = tuple(parse_table(t, spec, f"{where}.{key}[{i}]", spelled, f"{key}[{i}]")
+                              for i, t in enumerate(raw))
         for key, spec in (("pressure", PRESSURE), ("tracker", TRACKER)):
-            devs[key] = parse_table(sections.get(key, {}), spec, f"{where}.{key}")
+            devs[key] = parse_table(sections.get(key, {}), spec, f"{where}.{key}", spelled, key)
         cfg = cls(name=top.get("name", "rig"), backend=backend, actuator=top.get("actuator", "paper"),
                   on_fault_pressure=ofp, settle_time=top.get("settle_time", 0.0), speed=top.get("speed"),
-                  limits=limits, simulation=sim, base_dir=base_dir, **devs)
+                  limits=limits, simulation=sim, base_dir=base_dir, spelled=spelled, **devs)
         cfg._validate(where)
         return cfg
 
@@ -287,15 +301,93 @@ class RigConfig:
                                          f"got {b!r}")
         for i, d in enumerate(self.drives):
             _require(d, ("node_id", "channel", "counts", "zero_length"), f"{where}.drives[{i}]")
-            if not d["counts"] > 0:
-                raise RigConfigError(f"{where}.drives[{i}].counts_per_*: must be > 0")
-        if len(self.force_sensors) != len(self.drives):
-            raise RigConfigError(f"{where}: {len(self.force_sensors)} force sensors for {len(self.drives)} drives")
         for i, d in enumerate(self.force_sensors):
             _require(d, ("port", "channel"), f"{where}.force_sensors[{i}]")
         _require(self.pressure, ("port",), f"{where}.pressure")
         if not isinstance(self.tracker.get("offset", [0, 0, 0]), list):
             raise RigConfigError(f"{where}.tracker.offset_*: needs 3 numbers [x, y, z]")
+        self._check_conflicts(where, lim)
+
+    def _key(self, table: str, f: str) -> str:
+        """The key ``f`` of ``table`` ("drives[1]", "tracker") as written in the file."""
+        return self.spelled.get(f"{table}.{f}", f"{table}.{f}" + ("_*" if f in ("counts", "zero_length") else ""))
+
+    def _check_conflicts(self, where: str, lim: SafetyLimits) -> None:
+        """Hardware rig: values in range and no two devices on one address (see docs/rig.md, "Conflicts")."""
+        def bad(msg: str):
+            raise RigConfigError(f"{where}: {msg}")
+
+        # one drive and one force sensor per tendon, in tendon order
+        m = self.actuator_params().n_tendons
+        if len(self.drives) != m:
+            bad(f"{len(self.drives)} [[drives]] tables for the {m} tendons of actuator {self.actuator!r} "
+                f"(one per tendon, in tendon order)")
+        if len(self.force_sensors) != len(self.drives):
+            bad(f"{len(self.force_sensors)} [[force_sensors]] tables for {len(self.drives)} [[drives]] "
+                f"(one per tendon, the {m} tendons of actuator {self.actuator!r})")
+        # drives: node ids, bitrates, encoder scale
+        buses: dict = {}
+        for i, d in enumerate(self.drives):
+            t = f"drives[{i}]"
+            if not 1 <= d["node_id"] <= 127:
+                bad(f"{self._key(t, 'node_id')} = {d['node_id']}: a CANopen node id is 1…127")
+            br = d.get("bitrate", 1_000_000)
+            if br not in CAN_BITRATES:
+                bad(f"{self._key(t, 'bitrate')} = {br}: not a CAN bitrate "
+                    f"(one of {', '.join(str(b) for b in CAN_BITRATES)})")
+            bus = (d.get("interface", "socketcan"), d["channel"])
+            for j in buses.get(bus, ()):
+                o = self.drives[j]
+                if o["node_id"] == d["node_id"]:
+                    bad(f"drives[{j}].node_id and {t}.node_id are both node {d['node_id']} on CAN bus "
+                        f"{bus[0]}:{bus[1]} (node ids on one bus must differ)")
+                if o.get("bitrate", 1_000_000) != br:
+                    bad(f"drives[{j}].bitrate = {o.get('bitrate', 1_000_000)} and {t}.bitrate = {br} differ on "
+                        f"CAN bus {bus[0]}:{bus[1]} (one bus has one bitrate)")
+            buses.setdefault(bus, []).append(i)
+            cpmm = d["counts"] * 1e-3
+            key = self._key(t, "counts")
+            if not COUNTS_PER_MM_RANGE[0] <= cpmm <= COUNTS_PER_MM_RANGE[1]:
+                bad(f"{key}: {cpmm:g} counts per mm is outside the accepted "
+                    f"{COUNTS_PER_MM_RANGE[0]:g}…{COUNTS_PER_MM_RANGE[1]:g} counts per mm (tendon resolution "
+                    f"0.1 mm … 1 nm; a counts_per_m value written as counts_per_mm, or the reverse, lands outside)")
+            reach = max(abs(lim.length_min - d["zero_length"]), abs(lim.length_max - d["zero_length"]))
+            if reach * d["counts"] >= 2 ** 31:
+                bad(f"{key} with {self._key(t, 'zero_length')}: the travel limits "
+                    f"{lim.length_min * 1e3:g}…{lim.length_max * 1e3:g} mm reach {reach * d['counts']:.3g} counts, "
+                    f"outside the drive's 32-bit position range")
+        # serial instruments: baudrates, load-cell channels, one port per instrument
+        channels: dict = {}
+        for i, d in enumerate(self.force_sensors):
+            t = f"force_sensors[{i}]"
+            if d.get("baudrate", 115200) <= 0:
+                bad(f"{self._key(t, 'baudrate')} = {d['baudrate']}: must be > 0")
+            if not 1 <= d["channel"] <= FORCE_CHANNELS:
+                bad(f"{self._key(t, 'channel')} = {d['channel']}: the load-cell board has channels 1…{FORCE_CHANNELS}")
+            key = (d["port"], d["channel"])
+            if key in channels:
+                bad(f"force_sensors[{channels[key]}].channel and {t}.channel both read channel {d['channel']} "
+                    f"of {d['port']} (two tendons on one sensor channel)")
+            channels[key] = i
+        if self.pressure.get("baudrate", 115200) <= 0:
+            bad(f"pressure.baudrate = {self.pressure['baudrate']}: must be > 0")
+        for i, d in enumerate(self.force_sensors):
+            if d["port"] == self.pressure["port"]:
+                bad(f"pressure.port and force_sensors[{i}].port are both {d['port']} "
+                    f"(the valve controller and the load-cell board need their own ports)")
+        # tracker
+        port = self.tracker.get("port", 1511)
+        if not 1 <= port <= 65535:
+            bad(f"tracker.port = {port}: a UDP port is 1…65535")
+        rb = self.tracker.get("rigid_body_id", 1)
+        if rb < 0:
+            bad(f"tracker.rigid_body_id = {rb}: must be >= 0")
+        if "natnet_version" in self.tracker:
+            from .tracking import natnet_version
+            try:
+                natnet_version(self.tracker["natnet_version"])
+            except RigConfigError as exc:
+                bad(f"tracker.natnet_version: {exc}")
 
     # --------------------------------------------------------------------------------------- derived
     def actuator_params(self, which: str = "actuator"):
@@ -319,7 +411,7 @@ class RigConfig:
         return SafetyLimits(**self.limits)
 
     def to_dict(self) -> dict:
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items()}
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in self.__dict__.items() if k != "spelled"}
 
 
 def build_rig(cfg: RigConfig, **sim_overrides):
@@ -358,7 +450,8 @@ def build_rig(cfg: RigConfig, **sim_overrides):
     tracker = NatNetTracker(address=t.get("address", "0.0.0.0"), port=t.get("port", 1511),
                             rigid_body_id=t.get("rigid_body_id", 1), offset=t.get("offset", (0.0, 0.0, 0.0)),
                             rotation=t.get("rotation"), multicast_group=t.get("multicast_group"),
-                            timeout=t.get("timeout", limits.sensor_timeout), max_error=t.get("max_error", 2e-3))
+                            timeout=t.get("timeout", limits.sensor_timeout), max_error=t.get("max_error", 2e-3),
+                            natnet_version=t.get("natnet_version", "3.0"))
     return Rig(drives, forces, pressure, tracker, limits=limits, on_fault_pressure=cfg.on_fault_pressure,
                settle_time=cfg.settle_time, speed=cfg.speed, name=cfg.name, config=cfg.to_dict(),
                params=cfg.actuator_params())

@@ -323,15 +323,37 @@ class Epos4Drive(TendonDrive):
         return bool(sw & SW_TARGET_REACHED) and not sw & SW_SETPOINT_ACK
 
     def hold(self) -> None:
-        """Halt (controlword bit 8): decelerate and hold position, still enabled."""
-        self._control(CW_ENABLE | CW_HALT)
+        """Halt (controlword bit 8): decelerate and hold position, still enabled.
+
+        Only an OPERATION ENABLED drive is halted.  A drive in any other state (QUICK STOP ACTIVE, FAULT,
+        switched off) is already stopped and is left alone: the halt controlword 0x10F carries *enable
+        operation*, which would take a quick-stopped drive back to OPERATION ENABLED — a safe-stop path must
+        never re-enable a stopped drive."""
+        with self._lock:
+            if state_of(self.statusword()) == "OPERATION ENABLED":
+                self._control(CW_ENABLE | CW_HALT)
 
     def quick_stop(self) -> None:
         self._control(CW_QUICK_STOP)
 
     def disable(self) -> None:
-        """Shutdown: power stage off (READY TO SWITCH ON)."""
-        self._control(CW_SHUTDOWN)
+        """Power stage off, never through OPERATION ENABLED (CiA 402):
+
+        * OPERATION ENABLED / SWITCHED ON / READY TO SWITCH ON: shutdown 0x06 → READY TO SWITCH ON;
+        * QUICK STOP ACTIVE: disable voltage 0x00 → SWITCH ON DISABLED (shutdown is no transition from
+          quick stop, and enable operation would re-enable the drive);
+        * FAULT, FAULT REACTION ACTIVE, SWITCH ON DISABLED, NOT READY TO SWITCH ON: already off — nothing is
+          written (a fault is not reset here).
+
+        The new state is confirmed within ``state_timeout``, else :class:`DriveFault`."""
+        with self._lock:
+            st = state_of(self.statusword())
+            if st in ("OPERATION ENABLED", "SWITCHED ON", "READY TO SWITCH ON"):
+                self._control(CW_SHUTDOWN)
+                self._wait_state(("READY TO SWITCH ON", "SWITCH ON DISABLED"), what="disable (controlword 0x06)")
+            elif st == "QUICK STOP ACTIVE":
+                self._control(CW_DISABLE_VOLTAGE)
+                self._wait_state(("SWITCH ON DISABLED",), what="disable (controlword 0x00)")
 
     def __exit__(self, exc_type, exc, tb):
         """On an exception (Ctrl-C included): quick stop; on a normal exit: halt, then disable."""

@@ -9,7 +9,8 @@ called when something has already gone wrong; what it could not do is returned a
 interface          what a backend implements
 =================  ====================================================================================
 TendonDrive        enable, move_to(length [m]), position [m], current [A], target_reached, hold,
-                   quick_stop, fault_reset, check (raises DriveFault)
+                   quick_stop, disable, fault_reset, check (raises DriveFault); hold and disable
+                   never re-enable a quick-stopped or faulted drive
 ForceSensor        read() → tension [N]  (raises SensorTimeout)
 PressureSupply     set(p [Pa]), read() → p [Pa], hold(), vent()
 TipTracker         read() → :class:`TrackedPose` (timestamp, frame number, position [m], validity)
@@ -79,6 +80,9 @@ class TendonDrive(Device):
 
     @abc.abstractmethod
     def quick_stop(self) -> None: ...
+
+    def disable(self) -> None:
+        """Power stage off (the rig closes with its drives disabled).  Never re-enables a stopped drive."""
 
     @abc.abstractmethod
     def fault_reset(self) -> None: ...

@@ -12,8 +12,11 @@ same code.  What it adds to the devices:
   drive fault; :meth:`Rig.measure` raises :class:`~hardware.errors.TrackingLost` for an invalid pose and
   :class:`~hardware.errors.SensorTimeout` for a stale one.
 * **Safe stop.**  :meth:`Rig.safe_stop` holds the drives (quick stop after a drive fault), holds or vents
-  the pressure (``on_fault_pressure``), never raises, and records the reason.  Leaving ``with rig:`` —
-  normally, by an exception or by Ctrl-C — makes every device safe and closes it.
+  the pressure (``on_fault_pressure``), never raises, and records the reason.  A quick-stopped or faulted
+  drive is never re-enabled by a safe stop (the halt is sent only to an OPERATION ENABLED drive).
+  Leaving ``with rig:`` — normally, by an exception or by Ctrl-C — makes every device safe, **disables the
+  drives** (:meth:`Rig.close`: CiA 402 shutdown 0x06 → READY TO SWITCH ON; a quick-stopped drive gets
+  disable voltage 0x00 → SWITCH ON DISABLED; a faulted drive stays in FAULT) and closes every device.
 
 Events (limit violations, faults, stops) go to ``rig.events`` and to every listener in ``rig.listeners``
 (a run log registers itself there).
@@ -112,6 +115,11 @@ class Rig:
         except BaseException:
             for d in reversed(opened):
                 d.make_safe()
+                if d in self.drives:
+                    try:
+                        d.disable()
+                    except Exception:                 # noqa: BLE001 - the original error is the one to raise
+                        pass
                 d.close()
             raise
         self._open = True
@@ -121,6 +129,11 @@ class Rig:
         if not self._open:
             return
         self.safe_stop("rig closed", quiet=True)
+        for d in self.drives:                         # closing disables the drives (a stopped one stays stopped)
+            try:
+                d.disable()
+            except Exception as exc:                  # noqa: BLE001 - closing must reach every device
+                self.event("warning", f"disabling {d.name}: {exc}")
         for d in reversed(self.devices()):
             try:
                 d.close()

@@ -26,8 +26,13 @@ Layout (format ``bellows-run-log``, version 1; documented in docs/data-formats.m
 Why it survives a crash: every dataset is chunked and resizable and *created when the log is opened*;
 then ``swmr_mode`` is switched on (no group or attribute can be created after that) and each append is
 resize + write + ``flush``.  HDF5 guarantees that a file written in SWMR mode stays valid if the writer
-dies (even by SIGKILL); a reader opens it with ``swmr=True`` while the run goes on.  The end of a run
-is an ``end`` event (attributes cannot change any more).
+dies (even by SIGKILL).  Numeric datasets are filled with NaN, so a row resized but never written reads
+NaN.  The end of a run is an ``end`` event (attributes cannot change any more).
+
+Reading: a finished log is opened without SWMR (HDF5 then refuses a truncated file at once); only a file a
+writer holds — a run going on, or a writer that was killed — is opened with ``swmr=True``, after its
+recorded end of file was checked against its size and with a bounded number of metadata read attempts
+(:func:`hardware.static_states.open_hdf5`), so a damaged log is a ConfigError, never a hang.
 """
 
 from __future__ import annotations
@@ -120,12 +125,12 @@ class RunLog:
         self.samples = {}
         for name, (shape, units) in self.fields.items():
             ds = g.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), chunks=(chunk, *shape),
-                                  dtype="f8")
+                                  dtype="f8", fillvalue=np.nan)
             ds.attrs["units"] = units
             self.samples[name] = ds
         e = f.create_group("events")
         sdt = h5py.string_dtype()
-        self.ev_t = e.create_dataset("t", shape=(0,), maxshape=(None,), chunks=(64,), dtype="f8")
+        self.ev_t = e.create_dataset("t", shape=(0,), maxshape=(None,), chunks=(64,), dtype="f8", fillvalue=np.nan)
         self.ev_t.attrs["units"] = "s"
         self.ev_kind = e.create_dataset("kind", shape=(0,), maxshape=(None,), chunks=(64,), dtype=sdt)
         self.ev_msg = e.create_dataset("message", shape=(0,), maxshape=(None,), chunks=(64,), dtype=sdt)
@@ -137,7 +142,8 @@ class RunLog:
         st_shapes = {"tensions": (self.m,), "pressure": (), "tip_position": (3,), "tip_force": (3,), "time": ()}
         self.static = {}
         for name, shape in st_shapes.items():
-            ds = s.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), chunks=(64, *shape), dtype="f8")
+            ds = s.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), chunks=(64, *shape), dtype="f8",
+                                  fillvalue=np.nan)
             ds.attrs["units"] = ss._DATASETS[name]
             self.static[name] = ds
         self.static_label = s.create_dataset("label", shape=(0,), maxshape=(None,), chunks=(64,), dtype=sdt)
@@ -148,7 +154,7 @@ class RunLog:
         pg = g.create_group("periods")
         self.summary_periods = {}
         for name, unit in PERIOD_FIELDS.items():
-            ds = pg.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(64,), dtype="f8")
+            ds = pg.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(64,), dtype="f8", fillvalue=np.nan)
             ds.attrs["units"] = unit
             self.summary_periods[name] = ds
         f.swmr_mode = True
@@ -263,48 +269,82 @@ class RunData:
         return ss.read_static_states(self.path)
 
 
+JSON_ATTRS = ("versions", "rig", "controller", "run")
+
+
 def read_run_log(path) -> RunData:
-    """Read a run log (also while it is being written, and after the writer was killed)."""
-    import h5py
+    """Read a run log (also while it is being written, and after the writer was killed).
+
+    A finished log is opened without SWMR; SWMR only while a writer holds the file (or held it and was
+    killed) — see :func:`hardware.static_states.open_hdf5`.  A truncated or damaged file, a missing
+    ``/samples`` or ``/events`` group and a malformed JSON attribute are :class:`ConfigError` naming what
+    is wrong; an empty ``/samples`` group is a log of 0 rows."""
     p = pathlib.Path(path)
     if not p.exists():
         raise InputError(f"run log {p} does not exist")
-    try:
-        f = h5py.File(p, "r", libver="latest", swmr=True)
-    except OSError as exc:
-        raise ConfigError(f"{p}: not a readable HDF5 file ({exc})") from None
+    f = ss.open_hdf5(p)
     with f:
-        if f.attrs.get("format") != FORMAT:
-            raise ConfigError(f"{p}: not a bellows run log (format attribute {f.attrs.get('format')!r})")
-        if int(f.attrs.get("format_version", 0)) > FORMAT_VERSION:
-            raise ConfigError(f"{p}: run-log format version {f.attrs['format_version']} is newer than this reader")
-        attrs = {}
-        for k, v in f.attrs.items():
-            if isinstance(v, str) and k in ("versions", "rig", "controller", "run"):
-                attrs[k] = json.loads(v)
-            else:
-                attrs[k] = v.item() if hasattr(v, "item") else v
-        g = f["samples"]
-        for ds in g.values():
-            ds.refresh()
-        n = min(ds.shape[0] for ds in g.values())          # a row is complete when every field has it
-        samples = {k: ds[:n] for k, ds in g.items()}
-        units = {k: ds.attrs.get("units", "") for k, ds in g.items()}
-        e = f["events"]
-        for ds in e.values():
-            ds.refresh()
-        ne = min(ds.shape[0] for ds in e.values())
-        dec = lambda x: x.decode() if isinstance(x, bytes) else str(x)
-        events = [(float(t), dec(k), dec(m)) for t, k, m in zip(e["t"][:ne], e["kind"][:ne], e["message"][:ne])]
-        summ = None
-        if "summary" in f and "result" in f["summary"]:
-            r = f["summary"]["result"]
+        try:
+            return _read(f, p)
+        except (ConfigError, InputError):
+            raise
+        except (OSError, KeyError, ValueError, TypeError, RuntimeError, AttributeError, IndexError) as exc:
+            raise ConfigError(f"{p}: damaged run log ({type(exc).__name__}: {exc})") from None
+
+
+def _read(f, p: pathlib.Path) -> RunData:
+    import h5py
+    dec = lambda x: x.decode() if isinstance(x, bytes) else str(x)          # noqa: E731
+
+    def group(name: str):
+        if name not in f or not isinstance(f[name], h5py.Group):
+            raise ConfigError(f"{p}: no /{name} group: not a complete bellows run log")
+        g = f[name]
+        if f.swmr_mode:
+            for ds in g.values():
+                if isinstance(ds, h5py.Dataset):
+                    ds.refresh()
+        return g
+
+    if f.attrs.get("format") != FORMAT:
+        raise ConfigError(f"{p}: not a bellows run log (format attribute {f.attrs.get('format')!r})")
+    if int(f.attrs.get("format_version", 0)) > FORMAT_VERSION:
+        raise ConfigError(f"{p}: run-log format version {f.attrs['format_version']} is newer than this reader")
+    attrs = {}
+    for k, v in f.attrs.items():
+        if k in JSON_ATTRS:
+            try:
+                attrs[k] = json.loads(dec(v))
+            except ValueError:
+                raise ConfigError(f"{p}: root attribute '{k}' is not valid JSON ({dec(v)[:40]!r})") from None
+            if not isinstance(attrs[k], dict):
+                raise ConfigError(f"{p}: root attribute '{k}' must be a JSON object, got "
+                                  f"{type(attrs[k]).__name__} {dec(v)[:40]!r}")
+        else:
+            attrs[k] = v.item() if hasattr(v, "item") else v
+    g = group("samples")
+    bad = [k for k, ds in g.items() if not isinstance(ds, h5py.Dataset) or ds.ndim < 1]
+    if bad:
+        raise ConfigError(f"{p}: /samples/{bad[0]} is not a dataset of rows")
+    n = min((ds.shape[0] for ds in g.values()), default=0)   # a row is complete when every field has it
+    samples = {k: ds[:n] for k, ds in g.items()}
+    units = {k: dec(ds.attrs.get("units", "")) for k, ds in g.items()}
+    e = group("events")
+    missing = [k for k in ("t", "kind", "message") if k not in e]
+    if missing:
+        raise ConfigError(f"{p}: /events has no '{missing[0]}' dataset")
+    ne = min(e[k].shape[0] for k in ("t", "kind", "message"))
+    events = [(float(t), dec(k), dec(m)) for t, k, m in zip(e["t"][:ne], e["kind"][:ne], e["message"][:ne])]
+    summ = None
+    if "summary" in f and "result" in f["summary"]:
+        r = f["summary"]["result"]
+        if f.swmr_mode:
             r.refresh()
-            if r.shape[0]:
-                try:
-                    summ = json.loads(dec(r[0]))
-                except ValueError:
-                    raise ConfigError(f"{p}: /summary/result is not valid JSON") from None
+        if r.shape[0]:
+            try:
+                summ = json.loads(dec(r[0]))
+            except ValueError:
+                raise ConfigError(f"{p}: /summary/result is not valid JSON") from None
     return RunData(p, attrs, samples, units, events, summ)
 
 
@@ -316,22 +356,27 @@ def summary(path) -> str:
              f"  rig: {rig.get('name', '?')} ({'simulated' if rig.get('simulated') else 'hardware'}, "
              f"{d.attrs.get('n_tendons')} tendons); controller: {d.attrs.get('controller', {}).get('name', '?')}"]
     if "target_m" in run:
-        lines.append(f"  target [mm]: {np.round(np.asarray(run['target_m']) * 1e3, 3).tolist()}, pressure "
-                     f"{run.get('pressure_Pa', float('nan')) / 1e3:.1f} kPa")
+        try:
+            lines.append(f"  target [mm]: {np.round(np.asarray(run['target_m'], float) * 1e3, 3).tolist()}, "
+                         f"pressure {float(run.get('pressure_Pa', float('nan'))) / 1e3:.1f} kPa")
+        except (TypeError, ValueError):
+            lines.append(f"  target: malformed in the 'run' attribute ({str(run['target_m'])[:40]})")
     n = d.rows
     lines.append(f"  samples: {n}")
-    if n:
+    if n and "t" in d.samples and "error_norm" in d.samples:
         t, en = d.samples["t"], d.samples["error_norm"]
         lines.append(f"  time {t[0]:.3f} … {t[-1]:.3f} s; tip error [mm]: first {en[0] * 1e3:.4f}, last "
                      f"{en[-1] * 1e3:.4f}, max {np.nanmax(en) * 1e3:.4f}")
-        tt = d.samples["true_tip"]
+        tt = d.samples.get("true_tip", np.full((n, 3), np.nan))
         if np.any(np.isfinite(tt)):
             target = np.asarray(run.get("target_m", [np.nan] * 3))
             te = np.linalg.norm(tt - target, axis=1)
             lines.append(f"  true tip error (simulated rig) [mm]: last {te[-1] * 1e3:.4f}, max {np.nanmax(te) * 1e3:.4f}")
     try:
         st = d.static_states()
-        lines.append(f"  static states: {st.n_states}")
+        torn = st.meta.get("torn_rows", [])
+        lines.append(f"  static states: {st.n_states}" + (f" (and {len(torn)} torn row not read: the writer "
+                                                           f"stopped while recording it)" if torn else ""))
     except (ConfigError, InputError):
         lines.append("  static states: 0")
     sm = d.summary
@@ -372,7 +417,7 @@ def export_csv(path, out, *, force: bool = False) -> pathlib.Path:
             for i, lab in enumerate(labels):
                 header.append(f"{name}_{lab}{suf}" if lab in "xyz" else f"{name}{lab}{suf}")
                 cols.append(a[:, i])
-    order = ["t_s"] + [h for h in header if h != "t_s"]
+    order = [h for h in header if h == "t_s"] + [h for h in header if h != "t_s"]
     idx = [header.index(h) for h in order]
     with open(out, "w", newline="") as fh:
         w = csv.writer(fh)

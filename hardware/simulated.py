@@ -265,6 +265,10 @@ class SimDrive(TendonDrive):
         self.hold()
         self.enabled = False
 
+    def disable(self) -> None:
+        self.hold()
+        self.enabled = False
+
     def fault_reset(self) -> None:
         self.p.faults.pop("drive_fault", None)
         self.faulted = False

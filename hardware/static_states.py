@@ -200,45 +200,157 @@ def read_static_states(path, *, group: Optional[str] = None) -> StaticStates:
         raise InputError(f"static-states file {path} does not exist")
     if path.suffix.lower() == ".csv":
         return _read_csv(path)
-    import h5py
-    try:
-        f = h5py.File(path, "r")
-    except OSError as exc:
-        try:   # a run log still being written in SWMR mode, or whose writer was killed
-            f = h5py.File(path, "r", libver="latest", swmr=True)
-        except OSError:
-            raise ConfigError(f"{path}: not a readable HDF5 file ({exc})") from None
+    f = open_hdf5(path)
     with f:
-        if group is not None:
-            if group not in f:
-                raise ConfigError(f"{path}: no group '{group}'")
-            g = f[group]
-        elif f.attrs.get("format") == FORMAT:
-            g = f
-        elif "static_states" in f:
-            g = f["static_states"]
-        else:
-            raise ConfigError(f"{path}: no static states (neither a '/static_states' group nor a file with "
-                              f"format = '{FORMAT}')")
-        if g.attrs.get("format") != FORMAT:
-            raise ConfigError(f"{path}: group {g.name} is not in the '{FORMAT}' format")
-        version = int(g.attrs.get("format_version", 0))
-        if version > FORMAT_VERSION:
-            raise ConfigError(f"{path}: format version {version} is newer than this reader ({FORMAT_VERSION})")
-        kw = {}
-        for name, unit in _DATASETS.items():
-            if name in g:
-                got = g[name].attrs.get("units")
-                if got != unit:
-                    raise ConfigError(f"{path}: dataset {name} has units {got!r}; expected {unit!r}")
-                kw[name] = g[name][()]
-        for req in ("tensions", "pressure", "tip_position"):
-            if req not in kw:
-                raise ConfigError(f"{path}: static states need a '{req}' dataset")
-        if "label" in g:
-            kw["label"] = [x.decode() if isinstance(x, bytes) else str(x) for x in g["label"][()]]
-        kw["description"] = str(g.attrs.get("description", ""))
-        kw["actuator_toml"] = str(g.attrs.get("actuator_toml", ""))
+        try:
+            return _read_group(f, path, group)
+        except (ConfigError, InputError):
+            raise
+        except (OSError, KeyError, ValueError, TypeError, RuntimeError, AttributeError) as exc:
+            raise ConfigError(f"{path}: damaged static states ({type(exc).__name__}: {exc})") from None
+
+
+def _superblock_eof(path: pathlib.Path) -> Optional[int]:
+    """End-of-file address the HDF5 superblock (version 2/3, the one SWMR files have) records, or None."""
+    import struct
+    with open(path, "rb") as fh:
+        for base in (0, 512, 1024, 2048, 4096, 8192):
+            fh.seek(base)
+            head = fh.read(12)
+            if len(head) < 12:
+                return None
+            if head[:8] == b"\x89HDF\r\n\x1a\n":
+                if head[8] < 2:
+                    return None
+                o = head[9]
+                rest = fh.read(3 * o)
+                if o not in (4, 8) or len(rest) < 3 * o:
+                    return None
+                fmt = "<I" if o == 4 else "<Q"
+                base_addr = struct.unpack(fmt, rest[:o])[0]
+                eof = struct.unpack(fmt, rest[2 * o:3 * o])[0]
+                return base_addr + eof
+    return None
+
+
+def open_hdf5(path) -> "h5py.File":  # noqa: F821
+    """Open an HDF5 file (a run log or a static-states file) for reading, without hanging on a damaged one.
+
+    A finished file — and every file that no writer holds open — is opened *without* SWMR, so HDF5 checks
+    it: a truncated file is a :class:`ConfigError` at once.  Only when the file is marked as open by a
+    (SWMR) writer — a run still going on, or one whose writer was killed — is it opened with ``swmr=True``,
+    and then only after the recorded end of file was checked against the file's size (a SWMR reader
+    does not check it, and blocks inside the first read of a truncated file)."""
+    import re
+    import h5py
+    path = pathlib.Path(path)
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        msg = str(exc)
+    size = path.stat().st_size
+    m = re.search(r"truncated file: eof = (\d+).*stored_eof = (\d+)", msg)
+    if m or "truncated" in msg:
+        got, want = (int(m.group(1)), int(m.group(2))) if m else (size, None)
+        raise ConfigError(f"{path}: truncated HDF5 file ({got} of {want if want is not None else '?'} bytes): the "
+                          f"file was cut short (an interrupted copy or a full disk?); copy it again from where it "
+                          f"was written") from None
+    if "already open for write" not in msg and "lock" not in msg.lower():
+        raise ConfigError(f"{path}: not a readable HDF5 file ({msg})")
+    eof = _superblock_eof(path)                   # a writer holds (or held) it: a live or killed run
+    if eof is not None and size < eof:
+        raise ConfigError(f"{path}: truncated HDF5 file ({size} of {eof} bytes): the file was cut short (an "
+                          f"interrupted copy or a full disk?); copy it again from where it was written")
+    try:
+        return _swmr_open(path)
+    except OSError as exc:
+        raise ConfigError(f"{path}: not a readable HDF5 file ({exc})") from None
+
+
+#: metadata read attempts of a SWMR reader.  HDF5's default (100, with a delay doubling from 1 µs up to an
+#: hour) makes a reader of a damaged file block for hours inside one read; 20 attempts are about 2 s at
+#: most — ample for a read racing the writer's flush.
+SWMR_READ_ATTEMPTS = 20
+
+
+def _swmr_open(path: pathlib.Path):
+    """``h5py.File(path, "r", libver="latest", swmr=True)`` with at most :data:`SWMR_READ_ATTEMPTS` metadata
+    read attempts (set through the HDF5 library h5py loaded — h5py does not expose the property; where that
+    library cannot be found the HDF5 default applies)."""
+    import ctypes
+    import re
+    import h5py
+    fn = None
+    try:
+        with open("/proc/self/maps") as fh:                 # the libhdf5 h5py is linked with (Linux)
+            libs = sorted(set(re.findall(r"(/\S*/libhdf5(?:-[0-9a-f]+)?\.so[.\d]*)\s*$", fh.read(), flags=re.M)))
+        if libs:
+            fn = ctypes.CDLL(libs[0]).H5Pset_metadata_read_attempts
+            fn.argtypes, fn.restype = [ctypes.c_int64, ctypes.c_uint], ctypes.c_int
+    except (OSError, AttributeError):
+        fn = None
+    if fn is None:
+        return h5py.File(path, "r", libver="latest", swmr=True)
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5py.h5f.LIBVER_LATEST, h5py.h5f.LIBVER_LATEST)
+    if fn(fapl.id, SWMR_READ_ATTEMPTS) < 0:
+        return h5py.File(path, "r", libver="latest", swmr=True)
+    fid = h5py.h5f.open(str(path).encode(), h5py.h5f.ACC_RDONLY | h5py.h5f.ACC_SWMR_READ, fapl=fapl)
+    return h5py.File(fid)
+
+
+#: the per-state datasets that must be finite in a finished row (a torn row reads NaN: the fill value)
+_FINITE = ("tensions", "pressure", "tip_position", "time")
+
+
+def _read_group(f, path: pathlib.Path, group: Optional[str]) -> StaticStates:
+    if group is not None:
+        if group not in f:
+            raise ConfigError(f"{path}: no group '{group}'")
+        g = f[group]
+    elif f.attrs.get("format") == FORMAT:
+        g = f
+    elif "static_states" in f:
+        g = f["static_states"]
+    else:
+        raise ConfigError(f"{path}: no static states (neither a '/static_states' group nor a file with "
+                          f"format = '{FORMAT}')")
+    if g.attrs.get("format") != FORMAT:
+        raise ConfigError(f"{path}: group {g.name} is not in the '{FORMAT}' format")
+    version = int(g.attrs.get("format_version", 0))
+    if version > FORMAT_VERSION:
+        raise ConfigError(f"{path}: format version {version} is newer than this reader ({FORMAT_VERSION})")
+    kw = {}
+    for name, unit in _DATASETS.items():
+        if name in g:
+            got = g[name].attrs.get("units")
+            if got != unit:
+                raise ConfigError(f"{path}: dataset {name} has units {got!r}; expected {unit!r}")
+            kw[name] = g[name][()]
+    for req in ("tensions", "pressure", "tip_position"):
+        if req not in kw:
+            raise ConfigError(f"{path}: static states need a '{req}' dataset")
+    if "label" in g:
+        kw["label"] = [x.decode() if isinstance(x, bytes) else str(x) for x in g["label"][()]]
+    kw["description"] = str(g.attrs.get("description", ""))
+    kw["actuator_toml"] = str(g.attrs.get("actuator_toml", ""))
+    # appended (resizable) datasets, as a run log writes them: a writer killed within a state leaves a
+    # torn last row — datasets one row longer than others, or a resized row never written (NaN).  The
+    # complete rows are read; the torn one is reported in ``meta["torn_rows"]``.
+    per_state = [n for n in (*_DATASETS, "label") if n in g and n != "marker_arclength"]
+    if per_state and all(g[n].maxshape[0] is None for n in per_state):
+        total = max(len(kw[n]) for n in per_state)
+        n_ok = min(len(kw[n]) for n in per_state)
+        if n_ok == total and n_ok > 0 and any(
+                n in kw and not np.all(np.isfinite(np.asarray(kw[n][n_ok - 1], float))) for n in _FINITE):
+            n_ok -= 1                         # the last row resized but not written (only it can be torn)
+        if n_ok < total:
+            for n in per_state:
+                kw[n] = kw[n][:n_ok]
+            kw["meta"] = {"torn_rows": list(range(n_ok, total))}
+            if n_ok == 0:
+                raise ConfigError(f"{path}: the only static state is torn (the writer stopped while "
+                                  f"recording it)")
     try:
         return StaticStates(**kw)
     except InputError as exc:

@@ -14,7 +14,10 @@ rigid bodies           int32 count; each: int32 id, 3 float32 position [m], 4 fl
                        (qx, qy, qz, qw), float32 mean marker error [m], int16 params (bit 0: tracked)
 =====================  ===============================================================================
 
-and stops there (skeletons, labeled markers, timing follow).  A rigid body whose params bit 0 is clear
+and stops there (skeletons, labeled markers, timing follow).  From NatNet 4.1 on, every count is
+followed by an int32 byte count of its entries: pass ``version=(4, 1)`` (rig file: ``natnet_version =
+"4.1"``); the default (3, 0) reads the 3.0 … 4.0 layout.  NatNet 2.x (rigid-body markers inside the rigid
+body) is not supported.  A rigid body whose params bit 0 is clear
 is an *invalid* pose (occluded): :class:`NatNetTracker` returns it with ``valid=False`` and the rig
 raises :class:`~hardware.errors.TrackingLost`; no packet within the timeout is a
 :class:`~hardware.errors.SensorTimeout`.  The tracker frame is mapped to the actuator frame by
@@ -32,7 +35,7 @@ from typing import Optional
 
 import numpy as np
 
-from .errors import CommunicationError, SensorTimeout
+from .errors import CommunicationError, RigConfigError, SensorTimeout
 from .interfaces import TipTracker, TrackedPose
 
 NAT_FRAMEOFDATA = 7
@@ -54,9 +57,20 @@ class NatNetFrame:
     rigid_bodies: dict            # id → RigidBody
 
 
+def natnet_version(version) -> tuple:
+    """``(major, minor)`` from a tuple or a "4.1" string; NatNet 3.0 or later, else RigConfigError."""
+    try:
+        v = tuple(int(x) for x in (version.split(".") if isinstance(version, str) else version))
+    except (TypeError, ValueError, AttributeError):
+        raise RigConfigError(f"NatNet version must be 'major.minor' (e.g. '4.1'), got {version!r}") from None
+    if len(v) < 2 or v[:2] < (3, 0):
+        raise RigConfigError(f"NatNet version {version!r}: 3.0 or later is supported (2.x has another layout)")
+    return v[:2]
+
+
 class _Reader:
-    def __init__(self, data: bytes):
-        self.data, self.pos = data, 0
+    def __init__(self, data: bytes, sized: bool = False):
+        self.data, self.pos, self.sized = data, 0, sized
 
     def take(self, st: struct.Struct):
         if self.pos + st.size > len(self.data):
@@ -73,16 +87,23 @@ class _Reader:
         self.pos = end + 1
         return s
 
-    def count(self, what: str, limit: int = 10_000) -> int:
+    def count(self, what: str, limit: int = 10_000, top: bool = True) -> int:
+        """A count; for a top-level section (``top``) of a NatNet >= 4.1 frame, then its byte count."""
         (n,) = self.take(_I32)
         if not 0 <= n <= limit:
             raise CommunicationError(f"NatNet packet: implausible {what} count {n}", device="NatNet")
+        if self.sized and top:                         # NatNet >= 4.1: byte count of the entries
+            (size,) = self.take(_I32)
+            if not 0 <= size <= len(self.data) - self.pos:
+                raise CommunicationError(f"NatNet packet: {what} data of {size} bytes, "
+                                         f"{len(self.data) - self.pos} left", device="NatNet")
         return n
 
 
-def parse_packet(data: bytes) -> Optional[NatNetFrame]:
-    """Parse one NatNet packet; returns None for messages other than frame-of-data.  Malformed packets
-    raise CommunicationError."""
+def parse_packet(data: bytes, version=(3, 0)) -> Optional[NatNetFrame]:
+    """Parse one NatNet packet of the stream version ``version`` (major, minor); returns None for messages
+    other than frame-of-data.  Malformed packets raise CommunicationError."""
+    sized = natnet_version(version) >= (4, 1)
     if not isinstance(data, (bytes, bytearray)) or len(data) < 4:
         raise CommunicationError("NatNet packet shorter than its header", device="NatNet")
     msg_id, size = struct.unpack_from("<HH", data, 0)
@@ -90,11 +111,11 @@ def parse_packet(data: bytes) -> Optional[NatNetFrame]:
         return None
     if size > len(data) - 4:
         raise CommunicationError(f"NatNet packet: payload size {size} > {len(data) - 4} bytes received", device="NatNet")
-    r = _Reader(bytes(data[4:4 + size]))
+    r = _Reader(bytes(data[4:4 + size]), sized)
     (frame_no,) = r.take(_I32)
     for _ in range(r.count("marker set")):
         r.cstring()
-        for _ in range(r.count("marker")):
+        for _ in range(r.count("marker", top=False)):
             r.take(_F3)
     for _ in range(r.count("unlabeled marker")):
         r.take(_F3)
@@ -129,12 +150,15 @@ class NatNetTracker(TipTracker):
 
     address, port : local address and data port to bind ("0.0.0.0", 1511); multicast_group : join this
     group (None: unicast); rigid_body_id : the tool's rigid body; rotation (3, 3), offset (3,) [m] : tracker
-    → actuator frame; timeout : how long :meth:`read` waits for a first frame [s]
+    → actuator frame; timeout : how long :meth:`read` waits for a first frame [s]; natnet_version : the
+    stream's NatNet version (Motive's streaming settings), (3, 0) … (4, 0) share a layout, (4, 1)+ adds byte
+    counts
     """
 
     def __init__(self, address: str = "0.0.0.0", port: int = 1511, *, rigid_body_id: int = 1,
                  multicast_group: Optional[str] = None, rotation=None, offset=(0.0, 0.0, 0.0), timeout: float = 0.5,
-                 max_error: float = 2e-3):
+                 max_error: float = 2e-3, natnet_version=(3, 0)):
+        self.version = globals()["natnet_version"](natnet_version)
         self.address, self.port, self.group = address, int(port), multicast_group
         self.rigid_body_id = int(rigid_body_id)
         self.R = np.eye(3) if rotation is None else np.asarray(rotation, float).reshape(3, 3)
@@ -174,7 +198,7 @@ class NatNetTracker(TipTracker):
             except BlockingIOError:
                 return
             try:
-                fr = parse_packet(data)
+                fr = parse_packet(data, self.version)
             except CommunicationError:
                 self.bad_packets += 1
                 continue

@@ -379,4 +379,6 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
     _finalise_params(res, base)
     res.meta = {"path": str(path) if not isinstance(path, StaticStates) else "<StaticStates>",
                 "n_states": obs.n, "n_heldout": int(ho.sum()), "seed": seed}
+    if states.meta.get("torn_rows"):              # a state the writer did not finish: not used, reported
+        res.meta["torn_rows"] = list(states.meta["torn_rows"])
     return res

@@ -202,6 +202,9 @@ def identify_cmd(
     else:
         res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance)
     res.meta["command"] = _command_line()
+    if res.meta.get("torn_rows"):
+        console.print(f"note: {measurements}: static-state row(s) {res.meta['torn_rows']} torn (the writer stopped "
+                      f"while recording them) and not used; {res.meta['n_states']} complete states used")
     res.to_toml(d / "actuator.toml", force=force)
     res.save(d / "fit.json", force=force)
     _print_identification(res)

@@ -150,3 +150,42 @@ def test_bad_parameters():
     with pytest.raises(LimitError):
         Epos4Drive(node_id=1, counts_per_metre=CPM, speed=0.01)       # speed needs counts_per_turn
     assert e4.state_of(0x0237) == "OPERATION ENABLED" and e4.state_of(0x0008) == "FAULT"
+
+
+def _wait_state(fake, state, timeout=1.0):
+    t0 = time.monotonic()
+    while fake.state != state:
+        assert time.monotonic() - t0 < timeout, f"fake drive stayed in {fake.state}, expected {state}"
+        time.sleep(0.002)
+
+
+def test_safe_stop_never_re_enables_a_quick_stopped_drive(bus):
+    """hold()/make_safe() on a QUICK STOP ACTIVE drive must not write enable operation (0x0F) again."""
+    fake, ch = bus
+    with pytest.raises(DriveFault):
+        with drive(ch) as d:
+            d.quick_stop()
+            _wait_state(fake, "QUICK STOP ACTIVE")
+            n = len(fake.writes)
+            assert d.make_safe() == []
+            d.hold()
+            assert fake.state == "QUICK STOP ACTIVE"
+            assert not [v for i, v in fake.writes[n:] if i == e4.CONTROLWORD and v & 0x0F == 0x0F]
+            raise DriveFault("test")
+    assert fake.state == "QUICK STOP ACTIVE"
+
+
+def test_disable_from_each_state(bus):
+    """disable(): enabled → READY TO SWITCH ON (0x06); quick stop → SWITCH ON DISABLED (0x00); fault: left off."""
+    fake, ch = bus
+    with drive(ch) as d:
+        d.disable()
+        assert fake.state == "READY TO SWITCH ON" and d.state() == "READY TO SWITCH ON"
+        d.enable()
+        d.quick_stop()
+        _wait_state(fake, "QUICK STOP ACTIVE")
+        d.disable()
+        assert fake.state == "SWITCH ON DISABLED"
+        fake.inject_fault(0x8611, emcy=False)
+        d.disable()                                                     # no exception, no reset, no enable
+        assert fake.state == "FAULT"

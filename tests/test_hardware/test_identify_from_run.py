@@ -27,3 +27,22 @@ def test_identification_from_a_run_log(tmp_path):
     for name, true in (("a", law["a"]), ("k1", law["a"] + law["b"]), ("D_a", law["D_a"])):
         lo, hi = fit.ci95[name]
         assert lo <= true <= hi, (name, lo, true, hi)       # the truth lies in the stated 95 % interval
+
+
+def test_identification_uses_the_complete_states_of_a_log_with_a_torn_state(tmp_path):
+    """A writer killed while recording a static state leaves a torn last row: the identification uses the
+    complete states and reports the torn one (it used to refuse the whole log)."""
+    from validation.identify import from_measurements
+    model = Model(presets.paper_unscaled())
+    path = tmp_path / "torn.h5"
+    log = RunLog(path, n_tendons=3)
+    k = 0
+    for T in ((2.2, 1.6, 1.6), (1.2, 3.0, 1.0), (1.0, 1.0, 3.0), (3.5, 1.0, 1.0)):
+        for p in (40e3, 80e3):
+            log.static_state(time=k, tensions=T, pressure=p, tip=model.fk(T, p, (0, 0, 0)).tip, tip_force=(0, 0, 0))
+            k += 1
+    RunLog._append(log.static["tensions"], [2.0, 2.0, 2.0])           # the next state: killed after its tensions
+    log.f.flush()
+    log.close()
+    r = from_measurements(path, heldout_fraction=0, forms=("paper",))
+    assert r.meta["n_states"] == 8 and r.meta["torn_rows"] == [8]

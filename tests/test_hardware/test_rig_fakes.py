@@ -183,6 +183,57 @@ def test_each_fault_on_the_fake_backends(bench, fault):
     assert any(k == "stop" for _, k, _ in rig.events)
 
 
+def test_closing_the_rig_disables_the_drives(fake_bench):
+    path, drives, *_ = fake_bench
+    with Rig.from_config(RigConfig.from_toml(path)) as rig:
+        rig.command([0.166, 0.165, 0.165])
+        rig.advance()
+    assert [d.state for d in drives] == ["READY TO SWITCH ON"] * 3
+
+
+def _enable_writes_after_quick_stop(d):
+    cws = [v for i, v in d.writes if i == e4.CONTROLWORD]
+    k = max((j for j, v in enumerate(cws) if v == e4.CW_QUICK_STOP), default=len(cws))
+    return [v for v in cws[k:] if v & 0x0F == 0x0F]
+
+
+def test_a_drive_fault_leaves_every_drive_stopped_after_close(fake_bench):
+    """Rig.__exit__ after a DriveFault quick-stops, then closes: no drive is re-enabled (no 0x0F after the
+    quick stop), the faulted drive stays in FAULT, the others end switched off."""
+    path, drives, *_ = fake_bench
+    with pytest.raises(DriveFault):
+        with Rig.from_config(RigConfig.from_toml(path)) as rig:
+            rig.command([0.166, 0.165, 0.165])
+            rig.advance()
+            drives[1].inject_fault(0x8611)
+            time.sleep(0.05)
+            rig.check_health()
+    assert [d.state for d in drives] == ["SWITCH ON DISABLED", "FAULT", "SWITCH ON DISABLED"]
+    assert not any(_enable_writes_after_quick_stop(d) for d in drives)
+
+
+def test_run_on_rig_drive_fault_leaves_the_drives_stopped(fake_bench, tmp_path):
+    from ancf import Model, presets
+    from controller import LACC, run_on_rig
+    path, drives, loadcells, valves, nat = fake_bench
+    model = Model(presets.paper_unscaled())
+    target = model.fk((2.2, 1.6, 1.6), 60e3).tip
+    nat.position = tuple(target + np.array([0.002, 0.0, 0.0]))
+    rig = Rig.from_config(RigConfig.from_toml(path))
+    orig = rig.check_health
+
+    def faulty():
+        drives[0].inject_fault(0x8611)
+        time.sleep(0.05)
+        return orig()
+    rig.check_health = faulty
+    with pytest.raises(DriveFault):
+        run_on_rig(LACC(model, 60e3), rig, target, log=tmp_path / "run.h5", max_iterations=2)
+    assert drives[0].state == "FAULT"
+    assert [d.state for d in drives[1:]] == ["SWITCH ON DISABLED"] * 2
+    assert not any(_enable_writes_after_quick_stop(d) for d in drives)
+
+
 def test_bellows_control_on_the_fake_hardware(fake_bench, tmp_path):
     """The CLI drives the fake bench end to end: the tracker reports the target, so LACC converges at once;
     the log holds the hardware readings and a static state; the drives are disabled after the run."""
@@ -207,7 +258,8 @@ def test_bellows_control_on_the_fake_hardware(fake_bench, tmp_path):
     assert np.all(np.isnan(d.samples["true_tip"]))                         # no truth on hardware
     st = read_static_states(log)
     assert st.n_states == 1 and st.pressure[0] == 60e3
-    assert all(d.halt and d.state == "OPERATION ENABLED" for d in drives)   # holding position after the run
+    assert all(d.state == "READY TO SWITCH ON" for d in drives)             # disabled after the run (0x06)
+    assert all([v for i, v in d.writes if i == e4.CONTROLWORD][-1] == e4.CW_SHUTDOWN for d in drives)
     with pytest.raises(SystemExit):                                         # sim-only options refused
         from validation.cli import main
         import sys

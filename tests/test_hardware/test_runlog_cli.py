@@ -183,9 +183,11 @@ def test_control_refuses_existing_log_before_any_work(monkeypatch, capsys, tmp_p
 
 def test_control_rejects_sim_options_on_a_hardware_rig(monkeypatch, capsys, tmp_path):
     rig = tmp_path / "rig.toml"
-    rig.write_text('backend = "hardware"\n[[drives]]\nbackend="epos4"\nnode_id=1\nchannel="can0"\ncounts_per_mm=100\n'
-                   'zero_length_mm=160\n[[force_sensors]]\nbackend="serial"\nport="/dev/null"\nchannel=1\n'
-                   '[pressure]\nbackend="serial"\nport="/dev/null"\n[tracker]\nbackend="natnet"\n')
+    rig.write_text('backend = "hardware"\n'
+                   + "".join(f'[[drives]]\nbackend="epos4"\nnode_id={i}\nchannel="can0"\ncounts_per_mm=100\n'
+                             f'zero_length_mm=160\n[[force_sensors]]\nbackend="serial"\nport="/dev/null"\n'
+                             f'channel={i}\n' for i in (1, 2, 3))
+                   + '[pressure]\nbackend="serial"\nport="/dev/zero"\n[tracker]\nbackend="natnet"\n')
     bad = tmp_path / "bad.toml"
     bad.write_text(rig.read_text().replace("counts_per_mm", "counts"))
     for f, extra, msg in ((rig, ["--seed", "0"], "only for a simulated rig"), (bad, [], "needs an explicit unit")):
