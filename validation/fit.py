@@ -21,7 +21,10 @@ Uncertainty (reported for every parameter):
 
 Identifiability: a parameter is *not identifiable* when the data do not determine it — (1) it has a share
 > 1 % in a direction of the column-scaled Jacobian whose singular value is below 1e-7 of the largest
-(rank deficiency; e.g. D_eff without any pressure state), or (2) its 95 % CI is wider than its value
+(rank deficiency; e.g. D_eff without any pressure state).  The columns are scaled by a fixed typical size of
+each parameter (:meth:`~validation.forms.ModelForm.typical_scale`: its starting value, or for a signed
+slope the size of the stiffness it is a slope of), never by the fitted value, so the verdict is a property
+of the data: a slope whose true value is 0 is as identifiable as one of 1e-6 or 1000, or (2) its 95 % CI is wider than its value
 (|half-width| > |value|).  Such a parameter is held at its initial value, the others are refitted without
 it, and it is reported as not identifiable, never as a number.
 
@@ -263,11 +266,13 @@ def _observed(obs: Observations) -> np.ndarray:
 
 
 def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, absolute_sigma: Optional[bool] = None,
-        fixed: Sequence[str] = (), max_nfev: int = 200, _refit: bool = True) -> FitResult:
+        fixed: Sequence[str] = (), max_nfev: int = 200, scale=None, _refit: bool = True) -> FitResult:
     """Fit ``form`` to ``obs`` from ``theta0`` (everything else from ``base``); see the module docstring.
 
     ``absolute_sigma`` (default: whether ``obs`` states uncertainties) — treat σ as known.
     ``fixed`` — parameter names held at ``theta0``.
+    ``scale`` — typical size of each parameter (default :meth:`ModelForm.typical_scale` of ``theta0``): the
+    column scaling of the identifiability test and the optimiser's step scale.
     Raises :class:`~ancf.errors.InputError` on inconsistent inputs, :class:`~ancf.errors.ConvergenceError`
     when an equilibrium cannot be solved along the way."""
     theta0 = np.asarray(theta0, float)
@@ -281,6 +286,10 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)} of form {form.name}")
     absolute = obs.has_sigma if absolute_sigma is None else bool(absolute_sigma)
     lo, hi = np.array(form.lower, float), np.array(form.upper, float)
+    typical = form.typical_scale(theta0) if scale is None else np.asarray(scale, float)
+    if typical.shape != (form.n,) or not np.all(np.isfinite(typical) & (typical > 0)):
+        raise InputError(f"typical sizes of the parameters of form {form.name} must be {form.n} positive values, "
+                         f"got {typical}")
     theta0 = np.clip(theta0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
     free = np.array([nm not in fixed for nm in form.names])
     w = obs.weights().ravel()
@@ -313,9 +322,8 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         _, _, J = ev.evaluate(full(x), jacobian=True)
         return J.reshape(-1, form.n)[:, free] * w[:, None]
 
-    scale = np.maximum(np.abs(theta0[free]), 1e-12)
     res = so.least_squares(fun, theta0[free], jac=jac, bounds=(lo[free], hi[free]), method="trf",
-                           x_scale=scale, xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=max_nfev)
+                           x_scale=typical[free], xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=max_nfev)
     theta = full(res.x)
     params, pred, J3 = ev.evaluate(theta, jacobian=True)
     r = pred - _observed(obs)
@@ -323,10 +331,10 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     rw = r.ravel() * w
     rss = float(rw @ rw)
     n_obs = rw.size
-    # identifiability 1: rank of the column-scaled Jacobian over the free parameters
-    colscale = np.maximum(np.abs(theta), 1e-12)
+    # identifiability 1: rank of the Jacobian over the free parameters, columns scaled by the parameters'
+    # fixed typical sizes (not by their values: a signed parameter near 0 would look undetermined)
     idx_free = np.flatnonzero(free)
-    Js = Jw[:, idx_free] * colscale[idx_free]
+    Js = Jw[:, idx_free] * typical[idx_free]
     U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
     tiny = sv < RANK_TOL * (sv[0] if sv.size and sv[0] > 0 else 1.0)
     share = np.sum(Vt[tiny] ** 2, axis=0) if tiny.any() else np.zeros(idx_free.size)
@@ -352,7 +360,7 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     if _refit and (wide.any() or (~ident & free).any()):
         newly = [nm for nm, bad in zip(form.names, (~ident | wide) & free) if bad]
         out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
-                  max_nfev=max_nfev, _refit=False)
+                  max_nfev=max_nfev, scale=typical, _refit=False)
         out.rejected += ev.rejected
         for nm in newly:
             out.identifiable[nm] = False
