@@ -28,6 +28,12 @@ of the data: a slope whose true value is 0 is as identifiable as one of 1e-6 or 
 (|half-width| > |value|).  Such a parameter is held at its initial value, the others are refitted without
 it, and it is reported as not identifiable, never as a number.
 
+Too few data.  With fewer states than the free parameters + ``MIN_SPARE_STATES`` or fewer residual degrees
+of freedom than ``MIN_DOF`` (weighted residuals − free parameters) a fit is an interpolation: its residuals
+say nothing about its error and its intervals are meaningless (two states can be matched exactly by a wrong
+D_eff).  Then every parameter and derived value is reported as not identifiable, with that reason in
+``FitResult.reasons``, and no interval is given.
+
 Infeasible trial parameters.  A trial θ of the optimiser for which some state has no verified equilibrium
 (:class:`~ancf.errors.ConvergenceError`, :class:`~ancf.errors.UnstableEquilibriumError`,
 :class:`~ancf.errors.CollapsedStateError`, or parameters the model refuses: ``InputError``/``ConfigError``)
@@ -63,6 +69,10 @@ __all__ = ["Observations", "FitResult", "fit", "predict"]
 
 RANK_TOL = 1e-7
 NULL_SHARE = 0.01
+#: A fit claims nothing (every parameter not identifiable) with fewer states than free parameters + this …
+MIN_SPARE_STATES = 1
+#: … or with fewer residual degrees of freedom (weighted residuals − free parameters) than this.
+MIN_DOF = 5
 #: Weighted residual returned for a trial step whose equilibria cannot be solved: non-finite, so scipy's trf
 #: rejects the step and shrinks its trust region (module docstring).
 REJECTED_RESIDUAL = np.inf
@@ -155,7 +165,8 @@ class FitResult:
     values_identifiable: the same for the derived, reported values; residuals (N, 3 + 3k) [m]
     (prediction − observation); params: the ActuatorParams at θ; rms_tip [m]; rss (weighted);
     dof; s2 (variance scale used); singular_values (of the column-scaled Jacobian); nfev; rejected: trial
-    parameter vectors answered as infeasible (module docstring), summed over the refit.
+    parameter vectors answered as infeasible (module docstring), summed over the refit; reasons: {name: why
+    it is not identifiable} for the parameters that are not.
     """
     form: ModelForm
     theta: np.ndarray
@@ -176,6 +187,7 @@ class FitResult:
     nfev: int
     message: str = ""
     rejected: int = 0
+    reasons: dict = field(default_factory=dict)
 
     @property
     def names(self) -> tuple:
@@ -322,7 +334,28 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         _, _, J = ev.evaluate(full(x), jacobian=True)
         return J.reshape(-1, form.n)[:, free] * w[:, None]
 
-    res = so.least_squares(fun, theta0[free], jac=jac, bounds=(lo[free], hi[free]), method="trf",
+    x0 = theta0[free].copy()
+    signed_free = np.array([nm in SIGNED for nm in np.array(form.names)[free]])
+    if signed_free.any() and not signed_free.all():
+        # continuation: the magnitudes first with the signed slopes held at their start, then everything —
+        # from a start far off (a slope of 0, a stiffness several times too small) a joint first step can
+        # fall into a distant local minimum with a huge slope
+        keep = ~signed_free
+
+        def fun0(x):
+            xx = x0.copy()
+            xx[keep] = x
+            return fun(xx)
+
+        def jac0(x):
+            xx = x0.copy()
+            xx[keep] = x
+            return jac(xx)[:, keep]
+
+        pre = so.least_squares(fun0, x0[keep], jac=jac0, bounds=(lo[free][keep], hi[free][keep]), method="trf",
+                               x_scale=typical[free][keep], xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=max_nfev)
+        x0[keep] = pre.x
+    res = so.least_squares(fun, x0, jac=jac, bounds=(lo[free], hi[free]), method="trf",
                            x_scale=typical[free], xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=max_nfev)
     theta = full(res.x)
     params, pred, J3 = ev.evaluate(theta, jacobian=True)
@@ -331,6 +364,25 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     rw = r.ravel() * w
     rss = float(rw @ rw)
     n_obs = rw.size
+    n_free = int(free.sum())
+    short = []
+    if obs.n < n_free + MIN_SPARE_STATES:
+        short.append(f"{obs.n} state(s) for {n_free} free parameter(s) (at least {n_free + MIN_SPARE_STATES} "
+                     f"needed: free parameters + {MIN_SPARE_STATES})")
+    if n_obs - n_free < MIN_DOF:
+        short.append(f"{n_obs - n_free} residual degree(s) of freedom ({n_obs} residuals − {n_free} free "
+                     f"parameters; at least {MIN_DOF} needed)")
+    if short:       # no spare degrees of freedom: a CI from such a fit is meaningless, claim nothing
+        why = "too few data: " + "; ".join(short)
+        nan2 = (float("nan"), float("nan"))
+        names = form.names
+        keys = list(form.derived(theta))
+        return FitResult(form, theta, np.full((form.n, form.n), np.nan), {nm: nan2 for nm in names},
+                         {nm: False for nm in names}, np.full((form.n, form.n), np.nan), {k: None for k in keys},
+                         {k: nan2 for k in keys}, {k: False for k in keys}, r, params,
+                         float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, n_obs - n_free, float("nan"),
+                         np.zeros(0), ev.nfev, str(res.message), ev.rejected,
+                         reasons={nm: why for nm in names} | {k: why for k in keys})
     # identifiability 1: rank of the Jacobian over the free parameters, columns scaled by the parameters'
     # fixed typical sizes (not by their values: a signed parameter near 0 would look undetermined)
     idx_free = np.flatnonzero(free)
@@ -359,12 +411,17 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     wide = ident & ~signed & (q * sd > np.abs(theta))
     if _refit and (wide.any() or (~ident & free).any()):
         newly = [nm for nm, bad in zip(form.names, (~ident | wide) & free) if bad]
+        why = {nm: ("the data do not determine it (a direction of the scaled Jacobian with singular value "
+                    f"< {RANK_TOL:g} × the largest)" if not ident[j] else
+                    "its 95 % confidence interval is wider than its value")
+               for j, nm in enumerate(form.names) if nm in newly}
         out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
                   max_nfev=max_nfev, scale=typical, _refit=False)
         out.rejected += ev.rejected
         for nm in newly:
             out.identifiable[nm] = False
             out.ci95[nm] = (float("nan"), float("nan"))
+            out.reasons.setdefault(nm, why[nm])
         out.values_identifiable, out.values_ci95 = _derived_identifiability(form, out.theta, out.cov,
                                                                             out.identifiable, q)
         out.values = {k: (v if out.values_identifiable[k] else None) for k, v in form.derived(out.theta).items()}

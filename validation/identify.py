@@ -205,7 +205,7 @@ class IdentificationResult:
                           "values": f.values, "values_ci95": f.values_ci95,
                           "values_identifiable": f.values_identifiable, "rms_tip_m": f.rms_tip, "dof": f.dof,
                           "variance_scale": f.s2, "singular_values": f.singular_values, "nfev": f.nfev,
-                          "rejected_trials": f.rejected,
+                          "rejected_trials": f.rejected, "not_identifiable_reasons": f.reasons,
                           "residuals_m": f.residuals, "description": f.form.description}
         return to_jsonable({
             "source": self.source, "form": self.form, "values": self.values, "ci95": self.ci95,
