@@ -25,8 +25,17 @@ Identifiability: a parameter is *not identifiable* when the data do not determin
 each parameter (:meth:`~validation.forms.ModelForm.typical_scale`: its starting value, or for a signed
 slope the size of the stiffness it is a slope of), never by the fitted value, so the verdict is a property
 of the data: a slope whose true value is 0 is as identifiable as one of 1e-6 or 1000, or (2) its 95 % CI is wider than its value
-(|half-width| > |value|).  Such a parameter is held at its initial value, the others are refitted without
-it, and it is reported as not identifiable, never as a number.
+(|half-width| > |value|).  Such a parameter is held at its *first-pass optimum* (recorded in
+``FitResult.held`` / ``held_at`` and in fit.json and the actuator file), the others are refitted without it,
+and it is reported as not identifiable, never as a number.  The intervals of the others
+(``FitResult.intervals`` says which):
+
+* held by rule (2): *marginal* — their block of the first-pass covariance, which includes the held
+  parameter's uncertainty (the conditional covariance given the held value is narrower and undercovers
+  when they are correlated with it);
+* held by rule (1): *conditional on the held value* — the data carry no information along the held
+  direction, so no interval can include it; a parameter with a share > 1 % in that direction is itself
+  held.
 
 Too few data.  With fewer states than the free parameters + ``MIN_SPARE_STATES`` or fewer residual degrees
 of freedom than ``MIN_DOF`` (weighted residuals − free parameters) a fit is an interpolation: its residuals
@@ -188,6 +197,9 @@ class FitResult:
     message: str = ""
     rejected: int = 0
     reasons: dict = field(default_factory=dict)
+    held: dict = field(default_factory=dict)
+    held_at: dict = field(default_factory=dict)
+    intervals: str = "full"
 
     @property
     def names(self) -> tuple:
@@ -278,7 +290,8 @@ def _observed(obs: Observations) -> np.ndarray:
 
 
 def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, absolute_sigma: Optional[bool] = None,
-        fixed: Sequence[str] = (), max_nfev: int = 200, scale=None, _refit: bool = True) -> FitResult:
+        fixed: Sequence[str] = (), max_nfev: int = 200, scale=None, _refit: bool = True,
+        _marginal: Optional[np.ndarray] = None) -> FitResult:
     """Fit ``form`` to ``obs`` from ``theta0`` (everything else from ``base``); see the module docstring.
 
     ``absolute_sigma`` (default: whether ``obs`` states uncertainties) — treat σ as known.
@@ -382,7 +395,8 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
                          {k: nan2 for k in keys}, {k: False for k in keys}, r, params,
                          float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, n_obs - n_free, float("nan"),
                          np.zeros(0), ev.nfev, str(res.message), ev.rejected,
-                         reasons={nm: why for nm in names} | {k: why for k in keys})
+                         reasons={nm: why for nm in names} | {k: why for k in keys},
+                         intervals="none: " + why)
     # identifiability 1: rank of the Jacobian over the free parameters, columns scaled by the parameters'
     # fixed typical sizes (not by their values: a signed parameter near 0 would look undetermined)
     idx_free = np.flatnonzero(free)
@@ -404,6 +418,13 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         except np.linalg.LinAlgError:
             cov_id = s2 * np.linalg.pinv(A.T @ A)
         cov[np.ix_(ii, ii)] = cov_id
+        if _marginal is not None:
+            # after holding parameters whose interval was wider than their value: the others' covariance is
+            # their marginal block of the first pass (the held parameter's uncertainty included), not the
+            # narrower covariance conditional on the held value
+            blk = np.asarray(_marginal)[np.ix_(ii, ii)]
+            if np.all(np.isfinite(blk)):
+                cov[np.ix_(ii, ii)] = blk
     q = st.norm.ppf(0.975) if absolute else st.t.ppf(0.975, dof)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     # identifiability 2: CI wider than the value
@@ -416,12 +437,17 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
                     "its 95 % confidence interval is wider than its value")
                for j, nm in enumerate(form.names) if nm in newly}
         out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
-                  max_nfev=max_nfev, scale=typical, _refit=False)
+                  max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov)
         out.rejected += ev.rejected
         for nm in newly:
             out.identifiable[nm] = False
             out.ci95[nm] = (float("nan"), float("nan"))
             out.reasons.setdefault(nm, why[nm])
+            out.held[nm] = float(out.theta[form.names.index(nm)])
+            out.held_at[nm] = "first-pass optimum"
+        rank_held = [nm for nm in newly if not ident[form.names.index(nm)]]
+        out.intervals = ("conditional on the held value(s) of " + ", ".join(rank_held)) if rank_held else \
+            "marginal (first-pass covariance; the held parameters' uncertainty included)"
         out.values_identifiable, out.values_ci95 = _derived_identifiability(form, out.theta, out.cov,
                                                                             out.identifiable, q)
         out.values = {k: (v if out.values_identifiable[k] else None) for k, v in form.derived(out.theta).items()}
@@ -435,7 +461,10 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     values = {k: (v if vid[k] else None) for k, v in form.derived(theta).items()}
     return FitResult(form, theta, cov, ci, ident_map, corr, values, vci, vid, r, params,
                      float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, dof, s2, sv, ev.nfev,
-                     str(res.message), ev.rejected)
+                     str(res.message), ev.rejected,
+                     held={nm: float(theta[form.names.index(nm)]) for nm in fixed},
+                     held_at={nm: "value given to the fit" for nm in fixed},
+                     intervals=("conditional on the held value(s) of " + ", ".join(fixed)) if fixed else "full")
 
 
 def _derived_identifiability(form, theta, cov, ident: dict, q: float):

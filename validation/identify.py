@@ -135,8 +135,8 @@ class IdentificationResult:
 
     values / ci95 / identifiable : the reported values of the chosen form (``a``, ``b`` [N], ``EA`` [N],
         ``EI`` [N m²], ``D_a``, ``D_eff`` [m], ``beta`` [-]); a value that is not identifiable is ``None``
-    params : ActuatorParams of the chosen form (a non-identifiable parameter keeps its starting value and is
-        marked in the TOML file)
+    params : ActuatorParams of the chosen form (a non-identifiable parameter is held at the first-pass
+        optimum — ``fit.held`` — and marked with that value in the TOML file)
     form : name of the chosen form; fits : {form: FitResult}; comparison : rows per form with the training
         and held-out errors [m]; heldout_errors : per held-out state [m] for the chosen form
     source : "fem" or "measurements"; design, records (FEM), rod (closed-form first estimate); provenance
@@ -186,11 +186,23 @@ class IdentificationResult:
         lines = [f"# Identified by bellows ({self.source}), form '{self.form}': {self.fit.form.description}",
                  f"# git revision {self.provenance.get('git_revision', 'unknown')}, "
                  f"created {self.provenance.get('created', '')}"]
+        f = self.fit
+        held = ", ".join(f"{nm} held at the first-pass optimum {v:.6g} {dict(zip(f.names, f.form.units))[nm]}"
+                         if f.held_at.get(nm) == "first-pass optimum" else
+                         f"{nm} held at the given value {v:.6g} {dict(zip(f.names, f.form.units))[nm]}"
+                         for nm, v in f.held.items())
         for k, v in self.values.items():
             lo, hi = self.ci95.get(k, (float('nan'), float('nan')))
             unit = REPORTED.get(k, "")
-            lines.append(f"#   {k:6s} = {v:.6g} {unit}  (95 % CI {lo:.6g} .. {hi:.6g})" if v is not None else
-                         f"#   {k:6s} NOT IDENTIFIABLE from these data: the value below is the starting value")
+            if v is not None:
+                lines.append(f"#   {k:6s} = {v:.6g} {unit}  (95 % CI {lo:.6g} .. {hi:.6g})")
+            elif held:
+                lines.append(f"#   {k:6s} NOT IDENTIFIABLE from these data: the value below follows from {held}")
+            else:
+                lines.append(f"#   {k:6s} NOT IDENTIFIABLE from these data ({f.reasons.get(k, 'see fit.json')}): "
+                             "the value below is the fit's optimum, not determined by the data")
+        if held:
+            lines.append(f"# held: {held}; the intervals above are {f.intervals}")
         text = "\n".join(lines) + "\n" + self.params.to_toml()
         if path is not None:
             p = prepare_output_file(path, force=force, suffixes=(".toml",))
@@ -206,6 +218,9 @@ class IdentificationResult:
                           "values_identifiable": f.values_identifiable, "rms_tip_m": f.rms_tip, "dof": f.dof,
                           "variance_scale": f.s2, "singular_values": f.singular_values, "nfev": f.nfev,
                           "rejected_trials": f.rejected, "not_identifiable_reasons": f.reasons,
+                          "held": {nm: {"value": v, "unit": dict(zip(f.names, f.form.units))[nm],
+                                        "held_at": f.held_at.get(nm, "")} for nm, v in f.held.items()},
+                          "intervals": f.intervals,
                           "residuals_m": f.residuals, "description": f.form.description}
         return to_jsonable({
             "source": self.source, "form": self.form, "values": self.values, "ci95": self.ci95,
