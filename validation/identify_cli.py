@@ -160,12 +160,22 @@ def _source_check(design: Optional[str], measurements: Optional[pathlib.Path]) -
         raise InputError(f"--measurements: no such file {measurements}")
 
 
+def _base_check(measurements: Optional[pathlib.Path], base: Optional[str]) -> None:
+    """Measured data need the actuator they were measured on: no default (a wrong base gives wrong numbers)."""
+    if measurements is not None and base is None:
+        raise InputError("--measurements needs --base: the actuator the states were measured on (a preset name or "
+                         "an actuator .toml: length, tendon routing, masses, limits, starting stiffness)")
+    if measurements is None and base is not None:
+        raise InputError("--base applies only with --measurements (the FEM design sets the actuator)")
+
+
 def identify_cmd(
         design: Optional[str] = typer.Option(None, help=DESIGN_HELP + " Default: paper (unless --measurements)."),
         measurements: Optional[pathlib.Path] = typer.Option(
             None, help="Measured static states (.h5 run log or static-states file, or .csv; docs/data-formats.md)."),
-        base: str = typer.Option("paper", help="With --measurements: the actuator as built (preset or .toml) — "
-                                               "length, tendon routing, masses, limits, starting stiffness."),
+        base: Optional[str] = typer.Option(None, help="Required with --measurements: the actuator as built (preset "
+                                                      "or .toml) — length, tendon routing, masses, limits, starting "
+                                                      "stiffness."),
         heldout_fraction: float = typer.Option(0.25, help="With --measurements: share of states held out to choose "
                                                           "the model form (states labelled 'heldout…' are held out "
                                                           "instead)."),
@@ -185,6 +195,7 @@ def identify_cmd(
     Writes actuator.toml (with 95 % intervals) and fit.json into --out."""
     _source_check(design, measurements)
     names = _forms(forms)
+    _base_check(measurements, base)
     fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     d = prepare_output_dir(out, ("actuator.toml", "fit.json"), force=force)
     t0 = time.perf_counter()
@@ -231,7 +242,8 @@ REPORT_FILES = ("report.html", "actuator.toml", "fit.json", "validation.json", "
 def report_cmd(
         design: Optional[str] = typer.Option(None, help=DESIGN_HELP + " Default: paper (unless --measurements)."),
         measurements: Optional[pathlib.Path] = typer.Option(None, help="Measured static states instead of the FEM."),
-        base: str = typer.Option("paper", help="With --measurements: the actuator as built (preset or .toml)."),
+        base: Optional[str] = typer.Option(None, help="Required with --measurements: the actuator as built (preset "
+                                                      "or .toml)."),
         quick: bool = typer.Option(False, help=QUICK_HELP),
         tension_max_n: Optional[float] = TMAX_OPT,
         pressure_max_kpa: Optional[float] = PMAX_OPT,
@@ -251,6 +263,7 @@ def report_cmd(
     from .report import write_report
     _source_check(design, measurements)
     names = _forms(forms, quick)
+    _base_check(measurements, base)
     fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     d = prepare_output_dir(out, REPORT_FILES, force=force)
     t0 = time.perf_counter()

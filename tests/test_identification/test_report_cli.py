@@ -134,6 +134,8 @@ def test_cli_identify_and_report_from_measurements(measured_files):
     (("identify", "--design", "paper", "--measurements", "states.h5"), "not both"),
     (("identify", "--measurements", "nope.h5"), "no such file"),
     (("identify", "--measurements", "states.h5", "--forms", "bogus"), "unknown form"),
+    (("identify", "--measurements", "states.h5"), "--base"),
+    (("report", "--measurements", "states.h5", "--quick"), "--base"),
     (("report", "--design", "nope.toml"), "nope.toml"),
     (("calibrate", "--design", "paper"), "at least one"),
     (("identify", "--design", "paper", "--pressure-max-kpa", "0"), "--pressure-max-kpa"),
