@@ -15,7 +15,9 @@ Protocol (``docs/identification.md``):
    reported as such.
 4. **Model selection** on held-out states: each form predicts the held-out states it was not fitted to; the
    form with the smallest held-out RMS error wins, except that a simpler form (fewer parameters) is preferred
-   when its held-out error is within 10 % of the best — evidence, not a default, sets the form.
+   when its held-out error is within 10 % of the best — evidence, not a default, sets the form.  A form that
+   had too few states for its parameters (:data:`validation.fit.MIN_SPARE_STATES`, ``MIN_DOF``) identified
+   nothing and is chosen only when every form did.
 
 ``from_fem(geometry, material, …)`` and ``from_measurements(path, base=…)`` return an
 :class:`IdentificationResult`: ``values`` / ``ci95`` / ``identifiable`` (keys ``a``, ``b``, ``EA``, ``EI``,
@@ -266,6 +268,8 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
         row = {"form": form.name, "n_params": form.n, "description": form.description,
                "train_rms_tip_m": f.rms_tip, "train_max_tip_m": float(f.tip_errors().max()),
                "not_identifiable": [k for k, ok in f.values_identifiable.items() if not ok]}
+        if f.intervals.startswith("none"):          # too few data for this form: it identified nothing
+            row["too_few_data"] = f.intervals[len("none: "):]
         if heldout is not None:
             try:
                 pred = predict(f.params, heldout)
@@ -289,6 +293,8 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
     if not ok:
         raise ConfigError(f"no fitted form could predict the held-out states: "
                           f"{[r.get('heldout_failed') for r in rows]}")
+    # a form that had too few data for its parameters identified nothing: it is chosen only if every form did
+    ok = [r for r in ok if "too_few_data" not in r] or ok
     best = min(r[key] for r in ok)
     # parsimony: the simplest form within PARSIMONY × the best error
     chosen = min((r for r in ok if r[key] <= PARSIMONY * best + 1e-15), key=lambda r: (r["n_params"], r[key]))

@@ -94,3 +94,23 @@ def test_the_held_value_is_reported_as_held_at_the_first_pass_optimum(tmp_path):
     entry = data["fits"]["paper"]["held"]["D_eff"]
     assert entry["held_at"] == "first-pass optimum" and entry["value"] == pytest.approx(held)
     assert "do not determine" in data["fits"]["paper"]["not_identifiable_reasons"]["D_eff"]
+
+
+def test_a_form_with_too_few_data_is_not_chosen_over_one_that_identifies_something():
+    """Four training states: the four-parameter paper form claims nothing (too few data) and must not be
+    chosen over the three-parameter constant form that the same states determine, whatever its held-out
+    error."""
+    from hardware.static_states import StaticStates
+    from validation import identify
+    form = get_form("paper")
+    cases = default_design().cases[:6]
+    obs = synthetic(form, np.array(TRUE["paper"]), cases, noise=2e-5, seed=4)
+    states = StaticStates(tensions=obs.tensions, pressure=obs.pressure, tip_position=obs.tip,
+                          tip_force=obs.tip_force, tip_position_std=obs.tip_std, markers=obs.markers,
+                          marker_arclength=obs.marker_s, markers_std=obs.markers_std, label=obs.labels)
+    res = identify.from_measurements(states, BASE, forms=("paper", "constant"), gravity=False)
+    assert res.train.n == 4
+    assert not any(res.fits["paper"].identifiable.values())
+    assert res.form == "constant" and res.values["EA"] is not None
+    row = next(r for r in res.comparison if r["form"] == "paper")
+    assert "too few data" in row["too_few_data"]
