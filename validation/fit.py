@@ -21,11 +21,12 @@ Uncertainty (reported for every parameter):
 
 Identifiability: a parameter is *not identifiable* when the data do not determine it — (1) it has a share
 > 1 % in a direction of the column-scaled Jacobian whose singular value is below 1e-7 of the largest
-(rank deficiency; e.g. D_eff without any pressure state).  The columns are scaled by a fixed typical size of
-each parameter (:meth:`~validation.forms.ModelForm.typical_scale`: its starting value, or for a signed
-slope the size of the stiffness it is a slope of), never by the fitted value, so the verdict is a property
-of the data: a slope whose true value is 0 is as identifiable as one of 1e-6 or 1000, or (2) its 95 % CI is wider than its value
-(|half-width| > |value|).  Such a parameter is held at its *first-pass optimum* (recorded in
+(rank deficiency; e.g. D_eff without any pressure state), or (2) its 95 % CI is wider than its value
+(|half-width| > |value|; not for the signed parameters ``SIGNED``, for which 0 is a meaningful value).  The
+columns of (1) are scaled by a fixed typical size of each parameter
+(:meth:`~validation.forms.ModelForm.typical_scale`: its starting value, or for a signed slope the size of the
+stiffness it is a slope of), never by the fitted value, so the verdict is a property of the data: a slope
+whose true value is 0 is as identifiable as one of 1e-6 or 1000.  Such a parameter is held at its *first-pass optimum* (recorded in
 ``FitResult.held`` / ``held_at`` and in fit.json and the actuator file), the others are refitted without it,
 and it is reported as not identifiable, never as a number.  The intervals of the others
 (``FitResult.intervals`` says which):
@@ -175,7 +176,9 @@ class FitResult:
     (prediction − observation); params: the ActuatorParams at θ; rms_tip [m]; rss (weighted);
     dof; s2 (variance scale used); singular_values (of the column-scaled Jacobian); nfev; rejected: trial
     parameter vectors answered as infeasible (module docstring), summed over the refit; reasons: {name: why
-    it is not identifiable} for the parameters that are not.
+    it is not identifiable} for the parameters and values that are not; held: {name: value} of the parameters
+    held in the fit, held_at: {name: "first-pass optimum" | "value given to the fit"}; intervals: what the
+    intervals are ("full", "marginal …", "conditional on the held value(s) of …", "none: too few data …").
     """
     form: ModelForm
     theta: np.ndarray
