@@ -26,9 +26,11 @@ dataset                shape       units   meaning
 =====================  ==========  ======  ==========================================================
 
 CSV (accepted).  One row per state; every numeric column names its unit as a suffix, as in actuator
-files: ``tension1_N``, ``pressure_kPa`` | ``pressure_Pa``, ``tip_x_mm`` | ``tip_x_m`` (and ``_y``, ``_z``),
+files, and the unit must be one of its quantity's (:data:`CSV_UNITS`): ``tension1_N`` …,
+``pressure_kPa`` | ``_Pa`` | ``_MPa`` | ``_bar``, ``tip_x_mm`` | ``tip_x_m`` (and ``_y``, ``_z``),
 ``force_x_N`` …, ``tip_std_mm`` | ``tip_std_m`` (isotropic), ``tension_std_N``, ``pressure_std_kPa``,
-``label``.  Markers are HDF5-only.
+``time_s``, ``label``.  A unit of the wrong quantity, an unknown unit or an unknown column is a
+:class:`ConfigError` naming the column and the accepted units.  Markers are HDF5-only.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from __future__ import annotations
 import csv
 import math
 import pathlib
+import re
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -45,8 +48,6 @@ from ancf.errors import ConfigError, InputError
 
 FORMAT = "bellows-static-states"
 FORMAT_VERSION = 1
-
-_UNITS = {"N": 1.0, "Pa": 1.0, "kPa": 1e3, "bar": 1e5, "m": 1.0, "mm": 1e-3, "s": 1.0}
 
 
 @dataclass
@@ -358,17 +359,53 @@ def _read_group(f, path: pathlib.Path, group: Optional[str]) -> StaticStates:
 
 
 # ------------------------------------------------------------------------------------------------ CSV
-def _column(header: list[str], stem: str) -> Optional[tuple[int, float]]:
-    hits = [(i, _UNITS[h[len(stem) + 1:]]) for i, h in enumerate(header)
-            if h.startswith(stem + "_") and h[len(stem) + 1:] in _UNITS]
-    if len(hits) > 1:
-        raise ConfigError(f"column '{stem}' given twice (in two units)")
-    if not hits:
-        bare = [h for h in header if h == stem]
-        if bare:
-            raise ConfigError(f"column '{stem}' needs a unit suffix (e.g. {stem}_mm, {stem}_N, {stem}_kPa)")
-        return None
-    return hits[0]
+#: Units accepted in a CSV column suffix, per dimension (factor to SI).
+CSV_UNITS = {
+    "force": {"N": 1.0},
+    "pressure": {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "bar": 1e5},
+    "length": {"m": 1.0, "mm": 1e-3},
+    "time": {"s": 1.0},
+}
+#: The CSV columns (without the unit suffix) and the dimension of each; ``tension<i>`` for i = 1 … m.
+CSV_COLUMNS = {"pressure": "pressure", "tip_x": "length", "tip_y": "length", "tip_z": "length",
+               "force_x": "force", "force_y": "force", "force_z": "force", "tip_std": "length",
+               "tension_std": "force", "pressure_std": "pressure", "time": "time"}
+_TENSION = re.compile(r"^tension([1-9][0-9]*)$")
+
+
+def _accepted(dim: str) -> str:
+    return ", ".join(CSV_UNITS[dim])
+
+
+def _parse_header(header: list[str]) -> dict:
+    """{stem: (column index, factor to SI)} for every column of ``header`` except ``label``; a column that is
+    unknown, lacks a unit, or names a unit not of its quantity's dimension is a :class:`ConfigError`."""
+    out = {}
+    for i, h in enumerate(header):
+        if h == "label":
+            continue
+        if not h:
+            raise ConfigError(f"column {i + 1} has an empty header")
+        stem = unit = None
+        for j in range(len(h)):           # the longest known stem that the header starts with, then "_<unit>"
+            cand = h[:len(h) - j]
+            if (cand in CSV_COLUMNS or _TENSION.match(cand)) and (j == 0 or h[len(cand)] == "_"):
+                stem, unit = cand, (h[len(cand) + 1:] if j else "")
+                break
+        if stem is None:
+            raise ConfigError(f"unknown column '{h}'; the columns are tension1_<unit> … tension<m>_<unit>, "
+                              f"{', '.join(k + '_<unit>' for k in CSV_COLUMNS)} and label "
+                              "(docs/data-formats.md)")
+        dim = "force" if _TENSION.match(stem) else CSV_COLUMNS[stem]
+        if not unit:
+            raise ConfigError(f"column '{h}' needs a unit suffix (accepted units for a {dim}: {_accepted(dim)})")
+        if unit not in CSV_UNITS[dim]:
+            raise ConfigError(f"column '{h}': unit '{unit}' is not a unit of {dim}; accepted units: "
+                              f"{_accepted(dim)}")
+        if stem in out:
+            raise ConfigError(f"column '{stem}' given twice ('{header[out[stem][0]]}' and '{h}')")
+        out[stem] = (i, CSV_UNITS[dim][unit])
+    return out
 
 
 def _read_csv(path: pathlib.Path) -> StaticStates:
@@ -378,17 +415,17 @@ def _read_csv(path: pathlib.Path) -> StaticStates:
         raise ConfigError(f"{path}: needs a header row and at least one state")
     header = [h.strip() for h in rows[0]]
     body = rows[1:]
+    try:
+        cols = _parse_header(header)
+    except ConfigError as exc:
+        raise ConfigError(f"{path}: {exc}") from None
 
     def col(stem, required=False):
-        try:
-            hit = _column(header, stem)
-        except ConfigError as exc:
-            raise ConfigError(f"{path}: {exc}") from None
-        if hit is None:
+        if stem not in cols:
             if required:
                 raise ConfigError(f"{path}: missing column '{stem}_<unit>'")
             return None
-        i, fac = hit
+        i, fac = cols[stem]
         out = []
         for r, row in enumerate(body):
             txt = row[i].strip() if i < len(row) else ""
@@ -398,11 +435,15 @@ def _read_csv(path: pathlib.Path) -> StaticStates:
                 raise ConfigError(f"{path}: row {r + 2}, column {header[i]}: not a number: {txt!r}") from None
         return np.array(out)
 
-    m = 0
-    while any(h.startswith(f"tension{m + 1}_") for h in header):
-        m += 1
-    if m == 0:
+    idx = sorted(int(_TENSION.match(k).group(1)) for k in cols if _TENSION.match(k))
+    if not idx:
         raise ConfigError(f"{path}: no tension columns (tension1_N, tension2_N, ...)")
+    m = len(idx)
+    if idx != list(range(1, m + 1)):
+        extra = [header[cols[f"tension{k}"][0]] for k in idx if k > m]
+        raise ConfigError(f"{path}: tension columns must be numbered 1 … {m} without gaps; got "
+                          f"{', '.join(header[cols[f'tension{k}'][0]] for k in idx)} "
+                          f"(out of sequence: {', '.join(extra)})")
     T = np.column_stack([col(f"tension{i + 1}", True) for i in range(m)])
     p = col("pressure", True)
     tip = np.column_stack([col(f"tip_{c}", True) for c in "xyz"])
@@ -412,6 +453,7 @@ def _read_csv(path: pathlib.Path) -> StaticStates:
     tip_std = col("tip_std")
     t_std = col("tension_std")
     p_std = col("pressure_std")
+    time = col("time")
     labels = None
     if "label" in header:
         i = header.index("label")
@@ -419,11 +461,15 @@ def _read_csv(path: pathlib.Path) -> StaticStates:
     for name, v in (("tensions", T), ("pressure", p), ("tip_position", tip)):
         if np.any(np.isnan(v)):
             raise ConfigError(f"{path}: empty cells in the required {name} columns")
+    for name, v in (("tip_std", tip_std), ("tension_std", t_std), ("pressure_std", p_std), ("time", time)):
+        if v is not None and np.any(np.isnan(v)):
+            raise ConfigError(f"{path}: empty cells in the {name} column (give every state a value or drop "
+                              "the column)")
     try:
         return StaticStates(tensions=T, pressure=p, tip_position=tip, tip_force=F,
                             tip_position_std=None if tip_std is None else np.repeat(tip_std[:, None], 3, 1),
                             tensions_std=None if t_std is None else np.repeat(t_std[:, None], m, 1),
-                            pressure_std=p_std, label=labels)
+                            pressure_std=p_std, time=time, label=labels)
     except InputError as exc:
         raise ConfigError(f"{path}: {exc}") from None
 

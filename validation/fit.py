@@ -22,8 +22,27 @@ Uncertainty (reported for every parameter):
 Identifiability: a parameter is *not identifiable* when the data do not determine it — (1) it has a share
 > 1 % in a direction of the column-scaled Jacobian whose singular value is below 1e-7 of the largest
 (rank deficiency; e.g. D_eff without any pressure state), or (2) its 95 % CI is wider than its value
-(|half-width| > |value|).  Such a parameter is held at its initial value, the others are refitted without
-it, and it is reported as not identifiable, never as a number.
+(|half-width| > |value|; not for the signed parameters ``SIGNED``, for which 0 is a meaningful value).  The
+columns of (1) are scaled by a fixed typical size of each parameter
+(:meth:`~validation.forms.ModelForm.typical_scale`: its starting value, or for a signed slope the size of the
+stiffness it is a slope of), never by the fitted value, so the verdict is a property of the data: a slope
+whose true value is 0 is as identifiable as one of 1e-6 or 1000.  Such a parameter is held at its *first-pass optimum* (recorded in
+``FitResult.held`` / ``held_at`` and in fit.json and the actuator file), the others are refitted without it,
+and it is reported as not identifiable, never as a number.  The intervals of the others
+(``FitResult.intervals`` says which):
+
+* held by rule (2): *marginal* — their block of the first-pass covariance, which includes the held
+  parameter's uncertainty (the conditional covariance given the held value is narrower and undercovers
+  when they are correlated with it);
+* held by rule (1): *conditional on the held value* — the data carry no information along the held
+  direction, so no interval can include it; a parameter with a share > 1 % in that direction is itself
+  held.
+
+Too few data.  With fewer states than the free parameters + ``MIN_SPARE_STATES`` or fewer residual degrees
+of freedom than ``MIN_DOF`` (weighted residuals − free parameters) a fit is an interpolation: its residuals
+say nothing about its error and its intervals are meaningless (two states can be matched exactly by a wrong
+D_eff).  Then every parameter and derived value is reported as not identifiable, with that reason in
+``FitResult.reasons``, and no interval is given.
 
 Infeasible trial parameters.  A trial θ of the optimiser for which some state has no verified equilibrium
 (:class:`~ancf.errors.ConvergenceError`, :class:`~ancf.errors.UnstableEquilibriumError`,
@@ -60,6 +79,10 @@ __all__ = ["Observations", "FitResult", "fit", "predict"]
 
 RANK_TOL = 1e-7
 NULL_SHARE = 0.01
+#: A fit claims nothing (every parameter not identifiable) with fewer states than free parameters + this …
+MIN_SPARE_STATES = 1
+#: … or with fewer residual degrees of freedom (weighted residuals − free parameters) than this.
+MIN_DOF = 5
 #: Weighted residual returned for a trial step whose equilibria cannot be solved: non-finite, so scipy's trf
 #: rejects the step and shrinks its trust region (module docstring).
 REJECTED_RESIDUAL = np.inf
@@ -152,7 +175,10 @@ class FitResult:
     values_identifiable: the same for the derived, reported values; residuals (N, 3 + 3k) [m]
     (prediction − observation); params: the ActuatorParams at θ; rms_tip [m]; rss (weighted);
     dof; s2 (variance scale used); singular_values (of the column-scaled Jacobian); nfev; rejected: trial
-    parameter vectors answered as infeasible (module docstring), summed over the refit.
+    parameter vectors answered as infeasible (module docstring), summed over the refit; reasons: {name: why
+    it is not identifiable} for the parameters and values that are not; held: {name: value} of the parameters
+    held in the fit, held_at: {name: "first-pass optimum" | "value given to the fit"}; intervals: what the
+    intervals are ("full", "marginal …", "conditional on the held value(s) of …", "none: too few data …").
     """
     form: ModelForm
     theta: np.ndarray
@@ -173,6 +199,10 @@ class FitResult:
     nfev: int
     message: str = ""
     rejected: int = 0
+    reasons: dict = field(default_factory=dict)
+    held: dict = field(default_factory=dict)
+    held_at: dict = field(default_factory=dict)
+    intervals: str = "full"
 
     @property
     def names(self) -> tuple:
@@ -263,11 +293,14 @@ def _observed(obs: Observations) -> np.ndarray:
 
 
 def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, absolute_sigma: Optional[bool] = None,
-        fixed: Sequence[str] = (), max_nfev: int = 200, _refit: bool = True) -> FitResult:
+        fixed: Sequence[str] = (), max_nfev: int = 200, scale=None, _refit: bool = True,
+        _marginal: Optional[np.ndarray] = None) -> FitResult:
     """Fit ``form`` to ``obs`` from ``theta0`` (everything else from ``base``); see the module docstring.
 
     ``absolute_sigma`` (default: whether ``obs`` states uncertainties) — treat σ as known.
     ``fixed`` — parameter names held at ``theta0``.
+    ``scale`` — typical size of each parameter (default :meth:`ModelForm.typical_scale` of ``theta0``): the
+    column scaling of the identifiability test and the optimiser's step scale.
     Raises :class:`~ancf.errors.InputError` on inconsistent inputs, :class:`~ancf.errors.ConvergenceError`
     when an equilibrium cannot be solved along the way."""
     theta0 = np.asarray(theta0, float)
@@ -281,6 +314,10 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)} of form {form.name}")
     absolute = obs.has_sigma if absolute_sigma is None else bool(absolute_sigma)
     lo, hi = np.array(form.lower, float), np.array(form.upper, float)
+    typical = form.typical_scale(theta0) if scale is None else np.asarray(scale, float)
+    if typical.shape != (form.n,) or not np.all(np.isfinite(typical) & (typical > 0)):
+        raise InputError(f"typical sizes of the parameters of form {form.name} must be {form.n} positive values, "
+                         f"got {typical}")
     theta0 = np.clip(theta0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
     free = np.array([nm not in fixed for nm in form.names])
     w = obs.weights().ravel()
@@ -313,9 +350,29 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         _, _, J = ev.evaluate(full(x), jacobian=True)
         return J.reshape(-1, form.n)[:, free] * w[:, None]
 
-    scale = np.maximum(np.abs(theta0[free]), 1e-12)
-    res = so.least_squares(fun, theta0[free], jac=jac, bounds=(lo[free], hi[free]), method="trf",
-                           x_scale=scale, xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=max_nfev)
+    x0 = theta0[free].copy()
+    signed_free = np.array([nm in SIGNED for nm in np.array(form.names)[free]])
+    if signed_free.any() and not signed_free.all():
+        # continuation: the magnitudes first with the signed slopes held at their start, then everything —
+        # from a start far off (a slope of 0, a stiffness several times too small) a joint first step can
+        # fall into a distant local minimum with a huge slope
+        keep = ~signed_free
+
+        def fun0(x):
+            xx = x0.copy()
+            xx[keep] = x
+            return fun(xx)
+
+        def jac0(x):
+            xx = x0.copy()
+            xx[keep] = x
+            return jac(xx)[:, keep]
+
+        pre = so.least_squares(fun0, x0[keep], jac=jac0, bounds=(lo[free][keep], hi[free][keep]), method="trf",
+                               x_scale=typical[free][keep], xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=max_nfev)
+        x0[keep] = pre.x
+    res = so.least_squares(fun, x0, jac=jac, bounds=(lo[free], hi[free]), method="trf",
+                           x_scale=typical[free], xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=max_nfev)
     theta = full(res.x)
     params, pred, J3 = ev.evaluate(theta, jacobian=True)
     r = pred - _observed(obs)
@@ -323,10 +380,30 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     rw = r.ravel() * w
     rss = float(rw @ rw)
     n_obs = rw.size
-    # identifiability 1: rank of the column-scaled Jacobian over the free parameters
-    colscale = np.maximum(np.abs(theta), 1e-12)
+    n_free = int(free.sum())
+    short = []
+    if obs.n < n_free + MIN_SPARE_STATES:
+        short.append(f"{obs.n} state(s) for {n_free} free parameter(s) (at least {n_free + MIN_SPARE_STATES} "
+                     f"needed: free parameters + {MIN_SPARE_STATES})")
+    if n_obs - n_free < MIN_DOF:
+        short.append(f"{n_obs - n_free} residual degree(s) of freedom ({n_obs} residuals − {n_free} free "
+                     f"parameters; at least {MIN_DOF} needed)")
+    if short:       # no spare degrees of freedom: a CI from such a fit is meaningless, claim nothing
+        why = "too few data: " + "; ".join(short)
+        nan2 = (float("nan"), float("nan"))
+        names = form.names
+        keys = list(form.derived(theta))
+        return FitResult(form, theta, np.full((form.n, form.n), np.nan), {nm: nan2 for nm in names},
+                         {nm: False for nm in names}, np.full((form.n, form.n), np.nan), {k: None for k in keys},
+                         {k: nan2 for k in keys}, {k: False for k in keys}, r, params,
+                         float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, n_obs - n_free, float("nan"),
+                         np.zeros(0), ev.nfev, str(res.message), ev.rejected,
+                         reasons={nm: why for nm in names} | {k: why for k in keys},
+                         intervals="none: " + why)
+    # identifiability 1: rank of the Jacobian over the free parameters, columns scaled by the parameters'
+    # fixed typical sizes (not by their values: a signed parameter near 0 would look undetermined)
     idx_free = np.flatnonzero(free)
-    Js = Jw[:, idx_free] * colscale[idx_free]
+    Js = Jw[:, idx_free] * typical[idx_free]
     U, sv, Vt = np.linalg.svd(Js, full_matrices=False)
     tiny = sv < RANK_TOL * (sv[0] if sv.size and sv[0] > 0 else 1.0)
     share = np.sum(Vt[tiny] ** 2, axis=0) if tiny.any() else np.zeros(idx_free.size)
@@ -344,6 +421,13 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         except np.linalg.LinAlgError:
             cov_id = s2 * np.linalg.pinv(A.T @ A)
         cov[np.ix_(ii, ii)] = cov_id
+        if _marginal is not None:
+            # after holding parameters whose interval was wider than their value: the others' covariance is
+            # their marginal block of the first pass (the held parameter's uncertainty included), not the
+            # narrower covariance conditional on the held value
+            blk = np.asarray(_marginal)[np.ix_(ii, ii)]
+            if np.all(np.isfinite(blk)):
+                cov[np.ix_(ii, ii)] = blk
     q = st.norm.ppf(0.975) if absolute else st.t.ppf(0.975, dof)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     # identifiability 2: CI wider than the value
@@ -351,12 +435,22 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     wide = ident & ~signed & (q * sd > np.abs(theta))
     if _refit and (wide.any() or (~ident & free).any()):
         newly = [nm for nm, bad in zip(form.names, (~ident | wide) & free) if bad]
+        why = {nm: ("the data do not determine it (a direction of the scaled Jacobian with singular value "
+                    f"< {RANK_TOL:g} × the largest)" if not ident[j] else
+                    "its 95 % confidence interval is wider than its value")
+               for j, nm in enumerate(form.names) if nm in newly}
         out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
-                  max_nfev=max_nfev, _refit=False)
+                  max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov)
         out.rejected += ev.rejected
         for nm in newly:
             out.identifiable[nm] = False
             out.ci95[nm] = (float("nan"), float("nan"))
+            out.reasons.setdefault(nm, why[nm])
+            out.held[nm] = float(out.theta[form.names.index(nm)])
+            out.held_at[nm] = "first-pass optimum"
+        rank_held = [nm for nm in newly if not ident[form.names.index(nm)]]
+        out.intervals = ("conditional on the held value(s) of " + ", ".join(rank_held)) if rank_held else \
+            "marginal (first-pass covariance; the held parameters' uncertainty included)"
         out.values_identifiable, out.values_ci95 = _derived_identifiability(form, out.theta, out.cov,
                                                                             out.identifiable, q)
         out.values = {k: (v if out.values_identifiable[k] else None) for k, v in form.derived(out.theta).items()}
@@ -370,7 +464,10 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     values = {k: (v if vid[k] else None) for k, v in form.derived(theta).items()}
     return FitResult(form, theta, cov, ci, ident_map, corr, values, vci, vid, r, params,
                      float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, dof, s2, sv, ev.nfev,
-                     str(res.message), ev.rejected)
+                     str(res.message), ev.rejected,
+                     held={nm: float(theta[form.names.index(nm)]) for nm in fixed},
+                     held_at={nm: "value given to the fit" for nm in fixed},
+                     intervals=("conditional on the held value(s) of " + ", ".join(fixed)) if fixed else "full")
 
 
 def _derived_identifiability(form, theta, cov, ident: dict, q: float):

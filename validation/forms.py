@@ -89,10 +89,34 @@ class ModelForm:
     laws_jacobian: Callable
     fits_distance: bool = False
     description: str = ""
+    typical: tuple = ()
 
     @property
     def n(self) -> int:
         return len(self.names)
+
+    def typical_scale(self, theta0) -> np.ndarray:
+        """A fixed typical magnitude of each parameter (SI), set by the form's definition and the starting
+        point ``theta0`` — never by a fitted value.  ``typical[j]`` is ``None`` (a positive magnitude: its
+        starting value, at least its lower bound), the name of the magnitude it is a slope of (``a`` and
+        ``s_A``, ``c_A`` take EA's size, ``s_I`` EI's: a unit change of stretch changes the stiffness by about
+        its size) or a number (``beta``: 1, dimensionless).  The fit scales its Jacobian columns and steps by
+        these, so a signed parameter whose value is near 0 is judged by the data, not by its value."""
+        theta0 = np.asarray(theta0, float)
+        spec = self.typical or (None,) * self.n
+        own = np.maximum(np.abs(theta0), np.abs(np.asarray(self.lower, float)))
+        out = np.empty(self.n)
+        for j, t in enumerate(spec):
+            if t is None:
+                out[j] = own[j]
+            elif isinstance(t, str):
+                out[j] = own[self.names.index(t)]
+            else:
+                out[j] = float(t)
+        if not np.all(np.isfinite(out) & (out > 0)):
+            raise InputError(f"form {self.name}: no positive typical size of the parameters from the starting "
+                             f"values {dict(zip(self.names, theta0))}")
+        return out
 
     # ------------------------------------------------------------------ θ ↔ ActuatorParams
     def to_params(self, theta, base: ActuatorParams) -> ActuatorParams:
@@ -301,18 +325,24 @@ _DEF = {
                  _constant_jac, False, "constant EA and EI, constant pressure area"),
 }
 
+#: Typical size of each signed parameter (:meth:`ModelForm.typical_scale`): the magnitude parameter it is a
+#: slope of, or a number; every other parameter's typical size is its own starting value.
+_TYPICAL = {"a": "k1", "sA": "EA1", "cA": "EA1", "sI": "EI1", "beta": 1.0}
+
 
 def get_form(name: str, fit_distance: bool = False) -> ModelForm:
     """The form ``name`` (one of :data:`FORMS`); ``fit_distance`` adds the tendon routing distance d [m]."""
     if name not in _DEF:
         raise InputError(f"unknown model form {name!r}; choose from {sorted(_DEF)}")
     names, units, lo, hi, laws, jac, area, desc = _DEF[name]
+    typical = tuple(_TYPICAL.get(nm) for nm in names)
     if fit_distance:
         names, units, lo, hi = names + ("d",), units + ("m",), lo + (1e-4,), hi + (0.49,)
+        typical = typical + (None,)
     return ModelForm(name + ("+d" if fit_distance else ""), names, units, lo, hi,
                      lambda th, laws=laws, area=area, fd=fit_distance: laws(th, area, fd),
                      lambda th, jac=jac, area=area, fd=fit_distance: jac(th, area) + ([(None, None, None)] if fd else []),
-                     fit_distance, desc + (", tendon distance fitted" if fit_distance else ""))
+                     fit_distance, desc + (", tendon distance fitted" if fit_distance else ""), typical)
 
 
 FORMS = tuple(_DEF)

@@ -15,7 +15,9 @@ Protocol (``docs/identification.md``):
    reported as such.
 4. **Model selection** on held-out states: each form predicts the held-out states it was not fitted to; the
    form with the smallest held-out RMS error wins, except that a simpler form (fewer parameters) is preferred
-   when its held-out error is within 10 % of the best — evidence, not a default, sets the form.
+   when its held-out error is within 10 % of the best — evidence, not a default, sets the form.  A form that
+   had too few states for its parameters (:data:`validation.fit.MIN_SPARE_STATES`, ``MIN_DOF``) identified
+   nothing and is chosen only when every form did.
 
 ``from_fem(geometry, material, …)`` and ``from_measurements(path, base=…)`` return an
 :class:`IdentificationResult`: ``values`` / ``ci95`` / ``identifiable`` (keys ``a``, ``b``, ``EA``, ``EI``,
@@ -135,8 +137,8 @@ class IdentificationResult:
 
     values / ci95 / identifiable : the reported values of the chosen form (``a``, ``b`` [N], ``EA`` [N],
         ``EI`` [N m²], ``D_a``, ``D_eff`` [m], ``beta`` [-]); a value that is not identifiable is ``None``
-    params : ActuatorParams of the chosen form (a non-identifiable parameter keeps its starting value and is
-        marked in the TOML file)
+    params : ActuatorParams of the chosen form (a non-identifiable parameter is held at the first-pass
+        optimum — ``fit.held`` — and marked with that value in the TOML file)
     form : name of the chosen form; fits : {form: FitResult}; comparison : rows per form with the training
         and held-out errors [m]; heldout_errors : per held-out state [m] for the chosen form
     source : "fem" or "measurements"; design, records (FEM), rod (closed-form first estimate); provenance
@@ -186,11 +188,23 @@ class IdentificationResult:
         lines = [f"# Identified by bellows ({self.source}), form '{self.form}': {self.fit.form.description}",
                  f"# git revision {self.provenance.get('git_revision', 'unknown')}, "
                  f"created {self.provenance.get('created', '')}"]
+        f = self.fit
+        held = ", ".join(f"{nm} held at the first-pass optimum {v:.6g} {dict(zip(f.names, f.form.units))[nm]}"
+                         if f.held_at.get(nm) == "first-pass optimum" else
+                         f"{nm} held at the given value {v:.6g} {dict(zip(f.names, f.form.units))[nm]}"
+                         for nm, v in f.held.items())
         for k, v in self.values.items():
             lo, hi = self.ci95.get(k, (float('nan'), float('nan')))
             unit = REPORTED.get(k, "")
-            lines.append(f"#   {k:6s} = {v:.6g} {unit}  (95 % CI {lo:.6g} .. {hi:.6g})" if v is not None else
-                         f"#   {k:6s} NOT IDENTIFIABLE from these data: the value below is the starting value")
+            if v is not None:
+                lines.append(f"#   {k:6s} = {v:.6g} {unit}  (95 % CI {lo:.6g} .. {hi:.6g})")
+            elif held:
+                lines.append(f"#   {k:6s} NOT IDENTIFIABLE from these data: the value below follows from {held}")
+            else:
+                lines.append(f"#   {k:6s} NOT IDENTIFIABLE from these data ({f.reasons.get(k, 'see fit.json')}): "
+                             "the value below is the fit's optimum, not determined by the data")
+        if held:
+            lines.append(f"# held: {held}; the intervals above are {f.intervals}")
         text = "\n".join(lines) + "\n" + self.params.to_toml()
         if path is not None:
             p = prepare_output_file(path, force=force, suffixes=(".toml",))
@@ -205,7 +219,10 @@ class IdentificationResult:
                           "values": f.values, "values_ci95": f.values_ci95,
                           "values_identifiable": f.values_identifiable, "rms_tip_m": f.rms_tip, "dof": f.dof,
                           "variance_scale": f.s2, "singular_values": f.singular_values, "nfev": f.nfev,
-                          "rejected_trials": f.rejected,
+                          "rejected_trials": f.rejected, "not_identifiable_reasons": f.reasons,
+                          "held": {nm: {"value": v, "unit": dict(zip(f.names, f.form.units))[nm],
+                                        "held_at": f.held_at.get(nm, "")} for nm, v in f.held.items()},
+                          "intervals": f.intervals,
                           "residuals_m": f.residuals, "description": f.form.description}
         return to_jsonable({
             "source": self.source, "form": self.form, "values": self.values, "ci95": self.ci95,
@@ -251,6 +268,8 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
         row = {"form": form.name, "n_params": form.n, "description": form.description,
                "train_rms_tip_m": f.rms_tip, "train_max_tip_m": float(f.tip_errors().max()),
                "not_identifiable": [k for k, ok in f.values_identifiable.items() if not ok]}
+        if f.intervals.startswith("none"):          # too few data for this form: it identified nothing
+            row["too_few_data"] = f.intervals[len("none: "):]
         if heldout is not None:
             try:
                 pred = predict(f.params, heldout)
@@ -274,6 +293,8 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
     if not ok:
         raise ConfigError(f"no fitted form could predict the held-out states: "
                           f"{[r.get('heldout_failed') for r in rows]}")
+    # a form that had too few data for its parameters identified nothing: it is chosen only if every form did
+    ok = [r for r in ok if "too_few_data" not in r] or ok
     best = min(r[key] for r in ok)
     # parsimony: the simplest form within PARSIMONY × the best error
     chosen = min((r for r in ok if r[key] <= PARSIMONY * best + 1e-15), key=lambda r: (r["n_params"], r[key]))

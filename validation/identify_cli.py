@@ -108,7 +108,9 @@ def _print_validation(val) -> None:
                       f"{c['tension']['max']:.1f} %), tendons locked mean {c['locked']['mean']:.1f} % "
                       f"(max {c['locked']['max']:.1f} %)")
     for name, t in val.targets.items():
-        console.print(f"target {name} < {t['target']} %: {t['value']:.2f} % — " + ("met" if t["met"] else "NOT met"))
+        verdict = {"met": "met", "not met": "NOT met"}.get(t.get("status"), "INCOMPLETE (not checked on "
+                                                                        f"{', '.join(t.get('incomplete', []))})")
+        console.print(f"target {name} < {t['target']} %: {t['value']:.2f} % — {verdict}")
     for f in val.failures:
         console.print(f"[yellow]not compared: {f['label']} ({f['model']}): {f['error']}[/yellow]")
 

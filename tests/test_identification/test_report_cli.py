@@ -8,6 +8,8 @@ error into one ``error:`` line with exit status 2.
 
 import base64
 import json
+import os
+import pathlib
 import re
 import subprocess
 import sys
@@ -95,9 +97,14 @@ def test_report_needs_an_identification_result():
         build_report({"EA": 1.0})
 
 
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+
 def _bellows(*args, cwd):
+    # the checkout under test first on the path: an editable install of another checkout must not answer
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
     return subprocess.run([sys.executable, "-m", "validation.cli", *map(str, args)], cwd=cwd, capture_output=True,
-                          text=True, timeout=600)
+                          text=True, timeout=600, env=env)
 
 
 @pytest.fixture(scope="module")

@@ -54,14 +54,22 @@ def test_compare_two_presets_small(tmp_path):
     assert bad.exit_code == 2 and "unknown preset" in bad.output
 
 
-def test_failed_study_is_reported_not_fatal(monkeypatch):
-    def boom(**kw):
-        raise RuntimeError("no rig")
+def test_failed_study_is_reported_not_fatal_but_a_bug_propagates(monkeypatch):
+    from ancf.errors import ConfigError
     from validation import paper
-    monkeypatch.setitem(paper.CONTROL_STUDIES, "table1", boom)
+
+    def typed(**kw):
+        raise ConfigError("no rig")
+
+    def bug(**kw):
+        raise RuntimeError("no rig")
+    monkeypatch.setitem(paper.CONTROL_STUDIES, "table1", typed)
     row, notes = {}, {}
     comparison._control_numbers("table1", None, row, notes)
-    assert notes["table1"].startswith("not run: RuntimeError: no rig") and row == {}
+    assert notes["table1"].startswith("not run: ConfigError: no rig") and row == {}
+    monkeypatch.setitem(paper.CONTROL_STUDIES, "table1", bug)
+    with pytest.raises(RuntimeError, match="no rig"):
+        comparison._control_numbers("table1", None, {}, {})
 
 
 def test_convergence_rate_on_a_uniform_beam():

@@ -33,6 +33,7 @@ from typing import Any, Callable, Optional, Sequence, Union
 
 import numpy as np
 
+from ancf.errors import BellowsError
 from ancf.export import write_json
 from ancf.outputs import prepare_output_dir
 
@@ -99,7 +100,7 @@ def verdict(key: str, value) -> Optional[bool]:
 def _guard(fn: Callable, *a, **kw):
     try:
         return fn(*a, **kw), None
-    except Exception as exc:            # a study that fails on a preset is reported, not fatal
+    except BellowsError as exc:         # a typed failure on a preset is reported; a bug propagates
         return None, f"not run: {type(exc).__name__}: {str(exc)[:200]}"
 
 

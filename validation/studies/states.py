@@ -24,6 +24,7 @@ from functools import lru_cache
 import numpy as np
 
 from ancf import ActuatorParams, Model
+from ancf.errors import ConfigError
 
 
 def stretches(model: Model, q) -> np.ndarray:
@@ -128,7 +129,7 @@ def reading_facts(params: ActuatorParams, *, pressure: float = 120e3, compressio
     try:
         lam = law.stretch_under_force(-compression, lam0=1.0)
         out["stretch_under_compression"] = lam if lam > out["critical_stretch"] else float("nan")
-    except Exception:                                        # no root: compression beyond N_c
+    except ConfigError:                                      # no root: compression beyond N_c
         out["stretch_under_compression"] = float("nan")
     out["compression_N"] = compression
     out["pressure_Pa"] = pressure
