@@ -188,8 +188,8 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
             d.append(f"Shear: a tip force bends the unloaded FEM {100 * sh:.1f} % more than its pure-moment EI predicts; "
                      "the reduced model (no shear compliance) misses that share of lateral-force deflections.")
     if ident.not_identifiable:
-        d.append("Not identifiable: " + ", ".join(ident.not_identifiable) + ". The fit fixed these at their "
-                 "starting values and refitted the rest; the actuator file marks them.")
+        d.append("Not identifiable: " + ", ".join(ident.not_identifiable) + ". The fit held these at its first-pass "
+                 "optimum and refitted the rest (fit.json: 'held'); the actuator file marks them.")
     if val is not None and val.ratio:
         d.append(f"Locked/constant-tension vertical stiffness ratio on the held-out states: FEM "
                  f"{val.ratio['fem']['mean']:.2f} (max {val.ratio['fem']['max']:.2f}), reduced model "
