@@ -26,6 +26,7 @@ Results are therefore equal across backends to round-off only (never compare the
 from __future__ import annotations
 
 import contextlib
+from concurrent.futures.process import BrokenProcessPool
 import hashlib
 import json
 import os
@@ -38,7 +39,7 @@ from typing import Any, Callable, Iterable, Optional, Sequence
 
 from ancf.errors import BellowsError, InputError
 
-__all__ = ["RunInterrupted", "RunOutcome", "ResultCache", "run_tasks", "source_fingerprint", "task_key", "check_workers"]
+__all__ = ["RunInterrupted", "WorkerDied", "RunOutcome", "ResultCache", "run_tasks", "source_fingerprint", "task_key", "check_workers"]
 
 _BLAS_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
               "NUMBA_NUM_THREADS")
@@ -57,6 +58,17 @@ class RunInterrupted(BellowsError, RuntimeError):
     def __str__(self) -> str:
         where = f"; finished results saved to {self.saved_to}" if self.saved_to else ""
         return f"{self.args[0]}: {len(self.completed)} of {self.total} tasks finished{where}"
+
+
+class WorkerDied(BellowsError, RuntimeError):
+    """A worker process died while running a task (a crash in compiled code, or the system killed it, e.g.
+    out of memory).  ``completed``: {index: result} of the tasks finished before (already cached when the
+    run has a cache); ``total``: number of tasks."""
+
+    def __init__(self, message: str, *, completed: dict[int, Any], total: int):
+        self.completed = completed
+        self.total = int(total)
+        super().__init__(message)
 
 
 @dataclass
@@ -378,6 +390,12 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence[Any], *, workers: Option
                     _run_pool(fn, tasks, todo, nworkers, method, done)
         except KeyboardInterrupt:
             raise RunInterrupted(f"{description} interrupted", completed=dict(results), total=n) from None
+        except BrokenProcessPool as exc:
+            kept = "; they are cached: a re-run computes only the rest" if cache is not None else ""
+            raise WorkerDied(f"{description}: a worker process died (a crash or the system killed it, e.g. out of "
+                             f"memory) after {len(results)} of {n} tasks had finished{kept}; run with one worker "
+                             f"(--workers 1) to see the failing task's error in this process",
+                             completed=dict(results), total=n) from exc
     return RunOutcome([results[i] for i in range(n)], backend, nworkers, cached, time.perf_counter() - t0,
                       computed_indices=todo)
 

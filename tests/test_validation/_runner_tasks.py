@@ -18,3 +18,12 @@ def fail_on(task):
     if task["x"] == task["bad"]:
         raise InputError(f"bad task {task['x']}")
     return task["x"]
+
+
+def die_on(task):
+    """Kills its own worker process (as a segfault or the OOM killer would) for one task."""
+    import signal
+    if task["x"] == task["bad"]:
+        time.sleep(0.5)                       # let the other tasks finish first
+        os.kill(os.getpid(), signal.SIGKILL)
+    return task["x"]

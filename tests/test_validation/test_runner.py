@@ -176,3 +176,18 @@ def test_source_fingerprint_follows_computing_code_only(tmp_path, monkeypatch):
     assert b != a
     (tmp_path / "fextra_demo.py").write_text("X = 2\n")
     assert fp() != b
+
+
+def test_a_dying_worker_is_a_typed_error_that_keeps_finished_results(tmp_path):
+    """A worker killed mid-task (segfault, OOM killer) ends the run with WorkerDied, not BrokenProcessPool; the
+    results finished before are kept (and cached), so a re-run computes only the rest."""
+    from validation.runner import WorkerDied
+    tasks = [{"x": k, "bad": 3} for k in range(4)]
+    cache = ResultCache(tmp_path / "cache", version="t")
+    with pytest.raises(WorkerDied) as info:
+        run_tasks(T.die_on, tasks, workers=2, progress=False, cache=cache)
+    assert isinstance(info.value, BellowsError) and info.value.total == 4
+    assert 3 not in info.value.completed and len(info.value.completed) >= 1
+    assert "--workers 1" in str(info.value) and "cached" in str(info.value)
+    again = run_tasks(T.square, [{"x": k} for k in range(2)], workers=1, progress=False)   # the runner still works
+    assert [r["y"] for r in again.results] == [0, 1]
