@@ -3,10 +3,8 @@ every reader runs in a subprocess with a timeout, so the test itself cannot hang
 malformed attributes are clear errors; an empty log has a summary; a torn (half-written) last row reads
 as NaN, and a torn static state does not lose the finished ones."""
 
-import json
 import os
 import pathlib
-import signal
 import subprocess
 import sys
 import textwrap
