@@ -49,6 +49,15 @@ OK, NONFINITE, COLLAPSED, REVERSED, FOLDED = 0, 1, 2, 3, 4
 
 
 @njit(cache=True)
+def _interpolate(Nk, q, off, alpha, out):
+    """``out`` (3,) = d^α r/dx^α at one quadrature point of the element whose coordinates start at ``off``:
+    Σ_j Nk[α, j] q[off + 3 j : off + 3 j + 3] (in place)."""
+    for c in range(3):
+        out[c] = (Nk[alpha, 0] * q[off + c] + Nk[alpha, 1] * q[off + 3 + c] + Nk[alpha, 2] * q[off + 6 + c]
+                  + Nk[alpha, 3] * q[off + 9 + c])
+
+
+@njit(cache=True)
 def slope_status(a, E):
     """(code, value) of the stretch and frame rules for one slope a = r_x: ``COLLAPSED`` with |a|,
     ``REVERSED`` with 1 + t·e1, or ``OK``.  NaN fails every comparison, so it is never admissible."""
@@ -88,9 +97,8 @@ def state_status(q, n_el, N, E, d, co, so):
         off = 6 * e
         for k in range(nq):
             Nk = N[k]
-            for c in range(3):
-                a[c] = Nk[1, 0] * q[off + c] + Nk[1, 1] * q[off + 3 + c] + Nk[1, 2] * q[off + 6 + c] + Nk[1, 3] * q[off + 9 + c]
-                b[c] = Nk[2, 0] * q[off + c] + Nk[2, 1] * q[off + 3 + c] + Nk[2, 2] * q[off + 6 + c] + Nk[2, 3] * q[off + 9 + c]
+            _interpolate(Nk, q, off, 1, a)
+            _interpolate(Nk, q, off, 2, b)
             code, i, v = point_status(a, b, E, d, co, so)
             if code != OK:
                 return code, e, k, i, v
@@ -172,10 +180,9 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
         off = 6 * e
         for k in range(nq):
             Nk = N[k]
-            for c in range(3):
-                r[c] = Nk[0, 0] * q[off + c] + Nk[0, 1] * q[off + 3 + c] + Nk[0, 2] * q[off + 6 + c] + Nk[0, 3] * q[off + 9 + c]
-                a[c] = Nk[1, 0] * q[off + c] + Nk[1, 1] * q[off + 3 + c] + Nk[1, 2] * q[off + 6 + c] + Nk[1, 3] * q[off + 9 + c]
-                b[c] = Nk[2, 0] * q[off + c] + Nk[2, 1] * q[off + 3 + c] + Nk[2, 2] * q[off + 6 + c] + Nk[2, 3] * q[off + 9 + c]
+            _interpolate(Nk, q, off, 0, r)
+            _interpolate(Nk, q, off, 1, a)
+            _interpolate(Nk, q, off, 2, b)
             sc = wq[k]
             if slope_status(a, E)[0] != OK:
                 # inadmissible state (module docstring); line searches back off on inf.  The tendon rule

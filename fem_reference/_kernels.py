@@ -153,6 +153,26 @@ def _material_point(F, mode, mu, kappa, c01, tangent, P, A):
 
 
 @njit(cache=True)
+def _gather(U, edofs, e, ue):
+    """The 27 nodal displacements of element ``e``: ``ue[i, a] = U[i, edofs[a, e]]`` (in place)."""
+    for a in range(27):
+        n = edofs[a, e]
+        for i in range(3):
+            ue[i, a] = U[i, n]
+
+
+@njit(cache=True)
+def _deformation_gradient(ue, D, F):
+    """F = I + Σ_a u_a ⊗ ∇N_a at one point (in place); ``D[J, a] = ∂N_a/∂X_J`` (3, 27)."""
+    for i in range(3):
+        for j in range(3):
+            s = 1.0 if i == j else 0.0
+            for a in range(27):
+                s += ue[i, a] * D[j, a]
+            F[i, j] = s
+
+
+@njit(cache=True)
 def _hex_kernel(U, edofs, dphi, dx, mode, mu, kappa, c01, tangent, emap, f, data):
     """Element loop of :class:`HexKernel` (arrays already checked there).  Returns ``(ok, jmin)``."""
     ne = dx.shape[0]
@@ -167,21 +187,13 @@ def _hex_kernel(U, edofs, dphi, dx, mode, mu, kappa, c01, tangent, emap, f, data
     fe = np.empty((27, 3))
     jmin = np.inf
     for e in range(ne):
-        for a in range(27):
-            n = edofs[a, e]
-            for i in range(3):
-                ue[i, a] = U[i, n]
+        _gather(U, edofs, e, ue)
         fe[:] = 0.0
         if tangent:
             Ke[:] = 0.0
         for q in range(nq):
             D = dphi[e, q]  # (3, 27): D[J, a] = dN_a/dX_J
-            for i in range(3):
-                for j in range(3):
-                    s = 1.0 if i == j else 0.0
-                    for a in range(27):
-                        s += ue[i, a] * D[j, a]
-                    F[i, j] = s
+            _deformation_gradient(ue, D, F)
             J = _material_point(F, mode, mu, kappa, c01, tangent, P, A)
             if not J > 0.0:
                 return False, J
@@ -315,21 +327,13 @@ def _pressure_kernel(U, edofs, phi, dphi, nrm, dA, p, tangent, emap, f, data):
     fe = np.empty((27, 3))
     Ke = np.empty((27, 3, 27, 3))
     for e in range(ne):
-        for a in range(27):
-            n = edofs[a, e]
-            for i in range(3):
-                ue[i, a] = U[i, n]
+        _gather(U, edofs, e, ue)
         fe[:] = 0.0
         if tangent:
             Ke[:] = 0.0
         for q in range(nq):
             D = dphi[e, q]
-            for i in range(3):
-                for j in range(3):
-                    s = 1.0 if i == j else 0.0
-                    for a in range(27):
-                        s += ue[i, a] * D[j, a]
-                    F[i, j] = s
+            _deformation_gradient(ue, D, F)
             c00 = F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]
             c01 = F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2]
             c02 = F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]
