@@ -13,10 +13,14 @@ from __future__ import annotations
 import socket
 import threading
 import time
-import tomllib
 import uuid
 
 import numpy as np
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10 (tomli is a base dependency there)
+    import tomli as tomllib
 
 from hardware.tracking import build_frame_packet
 

@@ -2,8 +2,6 @@
 virtual CAN bus, serial instruments on pseudo-terminals, a NatNet stream over loopback UDP): limits send
 nothing; each fault stops motion with its reason."""
 
-import socket
-import threading
 import time
 import uuid
 
@@ -13,46 +11,12 @@ import pytest
 pytest.importorskip("canopen")
 pytest.importorskip("serial")
 
+from fakes.bench import FakeNatNet, free_udp_port  # noqa: E402
 from fakes.cia402_drive import FakeEpos4  # noqa: E402
 from fakes.serial_instruments import FakeSerialInstrument  # noqa: E402
 from hardware import DriveFault, LimitError, PressureFault, Rig, RigConfig, SensorTimeout, TrackingLost  # noqa: E402
 from hardware import epos4 as e4  # noqa: E402
-from hardware.tracking import build_frame_packet  # noqa: E402
 from fakes.fixtures import quiet_canopen  # noqa: E402,F401  (fixture)
-
-
-class FakeNatNet:
-    """Streams a rigid body at 100 Hz to a UDP port; ``tracked`` switches occlusion."""
-
-    def __init__(self):
-        self.port, self.tracked, self.position = None, True, (0.17, 0.0, -0.002)
-        self._stop = threading.Event()
-
-    def start(self, port):
-        self.port = port
-        self._t = threading.Thread(target=self._run, daemon=True)
-        self._t.start()
-
-    def _run(self):
-        tx, k = socket.socket(socket.AF_INET, socket.SOCK_DGRAM), 0
-        while not self._stop.is_set():
-            tx.sendto(build_frame_packet(k, bodies=[(1, self.position, (0, 0, 0, 1), 1e-4, self.tracked)]),
-                      ("127.0.0.1", self.port))
-            k += 1
-            time.sleep(0.01)
-        tx.close()
-
-    def stop(self):
-        self._stop.set()
-        self._t.join(timeout=1)
-
-
-def _free_udp_port() -> int:
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 @pytest.fixture
@@ -60,8 +24,9 @@ def fake_bench(tmp_path, quiet_canopen):
     """The fake instruments running, and a rig file describing them: (path, drives, loadcells, valves, natnet)."""
     ch = f"bench-{uuid.uuid4().hex[:8]}"
     drives = [FakeEpos4(node_id=i + 1, channel=ch, initial_counts=165_000) for i in range(3)]
-    nat = FakeNatNet()
-    port = _free_udp_port()
+    port = free_udp_port()
+    nat = FakeNatNet(port)
+    nat.position = (0.17, 0.0, -0.002)
     with FakeSerialInstrument(forces=[2200, 1600, 1600]) as loadcells, FakeSerialInstrument() as valves:
         for d in drives:
             d.__enter__()
@@ -104,7 +69,7 @@ rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
 '''
         path = tmp_path / "rig.toml"
         path.write_text(toml)
-        nat.start(port)
+        nat.start()
         try:
             yield path, drives, loadcells, valves, nat
         finally:
