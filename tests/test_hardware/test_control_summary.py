@@ -14,7 +14,7 @@ from controller import LACC, run_on_rig
 from hardware import PlantOptions, SimulatedRig, TrackingLost
 from hardware.loads import load_profile
 from hardware.runlog import read_run_log
-from validation.cli import app, main
+from validation.cli import app
 
 runner = CliRunner()
 TARGET_MM = "178,0,-55"          # reachable with margin for the stochastic loads at 60 kPa on the paper preset
@@ -96,26 +96,6 @@ def test_saturation_time_when_a_tendon_is_at_its_tension_bound():
     away = run_on_rig(LACC(m, 60e3), SimulatedRig(presets.paper()), np.array([0.178, 0, -0.055]), duration=2.0,
                       sim_compute_time=0)
     assert away.summary.saturation_time == 0.0
-
-
-@pytest.mark.parametrize("args, message", [
-    (["--target-mm", "100,0,80"], "not reachable"),
-    (["--target-mm", "169.9,0,-2.235"], "not reachable"),                 # the old README target
-    (["--pressure-kpa", "200"], "outside [0, 160"),
-])
-def test_a_run_refused_up_front_leaves_no_log(monkeypatch, capsys, tmp_path, args, message):
-    log = tmp_path / "run.h5"
-    argv = ["bellows", "control", "--fast", "--max-iterations", "2", "--log", str(log)]
-    base = {"--target-mm": TARGET_MM, "--pressure-kpa": "60"}
-    for k, v in base.items():
-        if k not in args:
-            argv += [k, v]
-    monkeypatch.setattr("sys.argv", argv + args)
-    with pytest.raises(SystemExit) as info:
-        main()
-    err = capsys.readouterr().err.strip().splitlines()
-    assert info.value.code == 2 and err[-1].startswith("error:") and message in err[-1]
-    assert not log.exists()
 
 
 def test_progress_lines_arrive_during_the_run_when_stderr_is_a_pipe():

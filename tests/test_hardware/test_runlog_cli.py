@@ -154,11 +154,14 @@ def test_control_cli_runs_and_logs(tmp_path):
     (["--pressure-kpa", "200"], "outside [0, 160"),
     (["--rig", "nonexistent.toml"], "cannot read rig file"),
     (["--target-mm", "100,0,80"], "not reachable"),
+    (["--target-mm", "169.9,0,-2.235"], "not reachable"),                 # an earlier README target
 ])
 def test_control_errors_are_one_line_status_2(monkeypatch, capsys, tmp_path, args, message):
+    """Each refused run is one error line, exit 2, and leaves no run log behind (checked before it exists)."""
+    log = tmp_path / "run.h5"
     base = {"--target-mm": TARGET_MM, "--pressure-kpa": "60"}
-    argv = ["bellows", "control", "--fast", "--max-iterations", "2"] if "--duration-s" not in args else \
-        ["bellows", "control", "--fast"]
+    argv = ["bellows", "control", "--fast", "--log", str(log)] + \
+        (["--max-iterations", "2"] if "--duration-s" not in args else [])
     for k, v in base.items():
         if k not in args:
             argv += [k, v]
@@ -168,6 +171,7 @@ def test_control_errors_are_one_line_status_2(monkeypatch, capsys, tmp_path, arg
     err = capsys.readouterr().err.strip().splitlines()
     assert info.value.code == 2
     assert err[-1].startswith("error:") and message in err[-1]
+    assert not log.exists()
 
 
 def test_control_refuses_existing_log_before_any_work(monkeypatch, capsys, tmp_path):
