@@ -17,8 +17,8 @@ What the test changes, and only this (docs/README.md says so too):
 * commands that drive real hardware (``--rig FILE.toml``) run in tests/test_hardware/test_doc_rig_command.py
   against fake devices;
 * commands that run FEM sweeps (``report``, ``identify``/``validate`` on the FEM, ``calibrate``; ~4–25 min
-  each on 2 cores) are marked ``slow`` (``pytest -m slow``); the default run checks that they parse and pass
-  their up-front checks with ``--help`` replaced by nothing else — see ``test_fem_sweep_commands_parse``.
+  each on 2 cores) are marked ``slow`` (``pytest -m slow``); the default run checks that the options they
+  use exist in the command's help — see ``test_fem_sweep_commands_parse``.
 """
 
 from __future__ import annotations
@@ -200,8 +200,6 @@ def test_fem_sweep_commands_parse(cmd):
     argv = shlex.split(cmd)[1:]
     res = CliRunner().invoke(app, [*argv, "--help"])
     assert res.exit_code == 0, res.output
-    sub = app
     # every option the doc gives exists in the subcommand's help
     for opt in (a for a in argv if a.startswith("--")):
         assert opt in res.output, f"{cmd}: {opt} is not an option of 'bellows {argv[0]}'"
-    assert sub is app
