@@ -98,9 +98,7 @@ def run(app, args: Sequence[str] | None = None, prog_name: str = "bellows") -> N
         error_exit(cli_message(exc))
     except (typer.Abort, KeyboardInterrupt):
         error_exit("interrupted", 130)
-    except SystemExit:
-        raise
-    except Exception as exc:
+    except Exception as exc:                          # (SystemExit is no Exception: exits pass through)
         kind = _click_kind(exc)
         if kind == "NoArgsIsHelpError":               # bare command: show its help
             ctx = getattr(exc, "ctx", None)
