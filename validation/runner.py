@@ -403,15 +403,17 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence[Any], *, workers: Option
 def _run_pool(fn, tasks, todo, nworkers, method, done) -> None:
     import concurrent.futures as cf
     import multiprocessing as mp
-    with _single_thread_env():
-        pool = cf.ProcessPoolExecutor(max_workers=nworkers, mp_context=mp.get_context(method),
-                                      initializer=_worker_init)
-        futs = {pool.submit(fn, tasks[i]): i for i in todo}
-    try:
+    pool = None
+    try:   # a Ctrl-C while the workers start or the tasks are submitted must stop them too (else exit waits)
+        with _single_thread_env():
+            pool = cf.ProcessPoolExecutor(max_workers=nworkers, mp_context=mp.get_context(method),
+                                          initializer=_worker_init)
+            futs = {pool.submit(fn, tasks[i]): i for i in todo}
         for f in cf.as_completed(futs):
             done(futs[f], f.result())
     except BaseException:
-        _kill_pool(pool)
+        if pool is not None:
+            _kill_pool(pool)
         raise
     pool.shutdown(wait=True)
 
