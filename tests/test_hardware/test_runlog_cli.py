@@ -24,6 +24,13 @@ def _target_mm() -> str:
     return ",".join(f"{1e3 * x:.3f}" for x in tip)
 
 
+def _default_sigint():
+    """In the child: SIGINT back to its default, so Python installs its KeyboardInterrupt handler even when this
+    test runs from a shell that started it in the background (which leaves SIGINT ignored in every child)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+
 TARGET_MM = _target_mm()
 
 
@@ -82,7 +89,8 @@ def _start(tmp_path, log):
     code = "from validation.cli import main; main()"
     return subprocess.Popen([sys.executable, "-c", code, "control", "--target-mm", TARGET_MM, "--pressure-kpa", "60",
                              "--load-profile", "stochastic", "--seed", "1", "--log", str(log)],
-                            cwd=os.getcwd(), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            cwd=os.getcwd(), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_default_sigint)  # noqa: PLW1509 (only resets a signal)
 
 
 def test_log_survives_sigkill_mid_run(tmp_path):

@@ -15,12 +15,20 @@ from validation.studies.workspace import read_samples
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
+def _default_sigint():
+    """In the child: SIGINT back to its default, so Python installs its KeyboardInterrupt handler even when this
+    test runs from a shell that started it in the background (which leaves SIGINT ignored in every child)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+
 def test_sigint_keeps_finished_samples(tmp_path):
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
     cmd = [sys.executable, "-m", "validation.cli", "paper", "workspace", "--samples", "20000", "--workers", "2",
            "--chunk-size", "10", "--no-progress", "--preset", "paper_unscaled", "--out", str(tmp_path)]
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True,
+                            preexec_fn=_default_sigint)  # noqa: PLW1509 (only resets a signal)
     csv_path = tmp_path / "workspace_samples.csv"
     deadline = time.monotonic() + 120
     try:

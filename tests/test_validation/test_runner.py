@@ -16,6 +16,12 @@ from validation.runner import ResultCache, RunInterrupted, run_tasks, task_key
 import _runner_tasks as T
 
 
+def _default_sigint():
+    """In the child: SIGINT back to its default, so Python installs its KeyboardInterrupt handler even when this
+    test runs from a shell that started it in the background (which leaves SIGINT ignored in every child)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_serial_and_processes_agree_and_stream_every_result():
     tasks = [{"x": k} for k in range(7)]
     seen = []
@@ -79,7 +85,8 @@ def test_ctrl_c_stops_workers_promptly_and_keeps_finished_results(tmp_path):
             json.dump({{"done": sorted(exc.completed), "total": exc.total, "pids": pids}}, open({str(out)!r}, "w"))
             sys.exit(3)
     """)
-    proc = subprocess.Popen([sys.executable, "-c", script], cwd=os.getcwd())
+    proc = subprocess.Popen([sys.executable, "-c", script], cwd=os.getcwd(),
+                            preexec_fn=_default_sigint)  # noqa: PLW1509 (only resets a signal)
     time.sleep(4.0)          # the 4 short tasks are done, two 30 s tasks are running
     t0 = time.monotonic()
     proc.send_signal(signal.SIGINT)
