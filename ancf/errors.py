@@ -84,8 +84,8 @@ class UnstableEquilibriumError(BellowsError, RuntimeError):
     solver : str
         Which solve found it.
     min_eigenvalue : float
-        Smallest eigenvalue of the reduced Hessian (on the constraint tangent space for locked tendons);
-        negative.  Units of the model's generalized stiffness.
+        Smallest eigenvalue of the reduced Hessian (on the constraint tangent space for rigid locked
+        tendons, with k_s ∇l ∇lᵀ added for elastic ones); negative.  Units of the model's generalized stiffness.
     """
 
     def __init__(self, message: str, *, solver: str, min_eigenvalue: float):

@@ -101,8 +101,9 @@ class Equilibrium:
 
     @property
     def min_eigenvalue(self) -> float:
-        """Smallest eigenvalue of the reduced Hessian ∇²Π in free coordinates (for locked tendons: on the
-        tangent space of the taut tendons' length constraints).  Positive at a stable equilibrium (a
+        """Smallest eigenvalue of the reduced Hessian ∇²Π in free coordinates (for rigid locked tendons: on
+        the tangent space of the taut tendons' length constraints; for elastic ones, ``tendon_stiffness``
+        k_s, of ∇²Π + k_s Σ ∇l ∇lᵀ, the Hessian including the tendons' own energy).  Positive at a stable equilibrium (a
         minimum of the potential).  Mixed units (N/m for positions, N m for slopes); computed on first
         access (an eigen-decomposition), while ``stable`` comes from the Cholesky factorisation done in
         every solve."""
@@ -413,8 +414,14 @@ class Model:
 
     def _verify(self, q, H, JA, solver: str, check_stability: bool):
         """CollapsedStateError outside the stiffness law's validity range; UnstableEquilibriumError when
-        the reduced Hessian ``H`` (nz, nz) projected on the null space of the active constraint rows ``JA``
-        (k, nz) is not positive definite.  Returns (projected Hessian, stable)."""
+        the reduced Hessian of the potential is not positive definite.  Returns (that Hessian, stable).
+
+        ``H`` (nz, nz) is ∂Q/∂z at fixed tensions (it holds the tendon term T ∇²l); ``JA`` (k, nz) are the
+        length gradients ∇l of the taut locked tendons.  Rigid tendons (``tendon_stiffness`` unset) are
+        constraints l = l₀: the test matrix is H projected on null(JA).  Elastic tendons of stiffness k_s
+        add the energy ½ k_s (l − l₀)² each, whose Hessian is k_s ∇l ∇lᵀ + T ∇²l; no constraint is left,
+        so the test matrix is H + k_s JAᵀ JA on all of z (a projection would ignore the tendons' own
+        stiffness and test the wrong matrix: it can pass a saddle or refuse a minimum)."""
         lam = self._stretches(q)
         lo, hi = self._lam_range
         lmin, lmax = float(lam.min()), float(lam.max())
@@ -429,9 +436,13 @@ class Model:
             return None, True
         Hr = H
         if JA is not None and len(JA):
-            Qf, _ = np.linalg.qr(np.asarray(JA, float).T, mode="complete")
-            Z = Qf[:, len(JA):]
-            Hr = Z.T @ H @ Z
+            JA = np.asarray(JA, float)
+            if self._cs > 0.0:
+                Hr = H + (JA.T @ JA) / self._cs
+            else:
+                Qf, _ = np.linalg.qr(JA.T, mode="complete")
+                Z = Qf[:, len(JA):]
+                Hr = Z.T @ H @ Z
         Hr = 0.5 * (Hr + Hr.T)
         try:
             np.linalg.cholesky(Hr)
@@ -443,7 +454,8 @@ class Model:
             return Hr, True                      # positive semi-definite within round-off
         if not check_stability:
             return Hr, False
-        what = "on the tangent space of the locked tendons " if JA is not None and len(JA) else ""
+        what = ("on the tangent space of the locked tendons " if JA is not None and len(JA) and self._cs == 0
+                else "with the locked tendons' stiffness " if JA is not None and len(JA) else "")
         raise UnstableEquilibriumError(
             f"the solve converged to an unstable equilibrium (a saddle of the potential: the reduced "
             f"Hessian {what}has a negative eigenvalue), not a usable state; perturb the start (q0), apply the "
@@ -732,8 +744,9 @@ class Model:
         The pressure is checked against the actuator's limits up front (``check_limits=False`` skips
         it).  The tensions are a result here: tensions above ``tension_max`` are listed in
         ``eq.limit_violations`` (and :meth:`Equilibrium.require_within_limits` raises
-        :class:`~ancf.errors.LimitError` for them; the CLI does so unless ``--no-limits``).  The state must be a minimum of the potential on the
-        tangent space of the taut tendons' constraints (UnstableEquilibriumError otherwise, unless
+        :class:`~ancf.errors.LimitError` for them; the CLI does so unless ``--no-limits``).  The state must be a minimum of the potential: on the
+        tangent space of the taut tendons' constraints for rigid tendons, of the potential including the
+        tendons' energy ½ k_s (l − l₀)² for elastic ones (UnstableEquilibriumError otherwise, unless
         ``check_stability=False``)."""
         tol, max_iter = self._check_solver_options(tol, max_iter)
         tol_length = check_scalar("tol_length", tol_length, low=1e-15, high=1e-3, unit="m")
@@ -746,7 +759,8 @@ class Model:
         _, pr, F = self._check_inputs(None, pressure, tip_force, check_limits)
         q0_given = q0 is not None
         if q0 is None:
-            q0 = self.fk(np.zeros(self.m), pr, F, check_limits=check_limits).q
+            # only a start: an unstable free state may well be held stable by the locked tendons
+            q0 = self.fk(np.zeros(self.m), pr, F, check_limits=check_limits, check_stability=False).q
         z0 = self._initial_z(q0)
         if tensions0 is None:
             T0 = np.zeros(self.m)

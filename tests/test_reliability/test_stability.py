@@ -50,12 +50,106 @@ def test_stable_below_and_typed_error_above_the_critical_load():
     assert info.value.min_eigenvalue == pytest.approx(above.min_eigenvalue, rel=1e-6)
 
 
-def test_stability_flag_agrees_with_the_eigenvalues_at_random_states(paper_model):
+def reduced(model, q):
+    """Free coordinates z of the full coordinates q (the clamp fixes the rest)."""
+    z = q[6:].copy() if model._P is None else np.linalg.lstsq(model._P, q - model._q_fix, rcond=None)[0]
+    assert np.allclose(model._to_full(z), q, atol=1e-14)
+    return z
+
+
+def fd_hessian(f, z, h=2e-5):
+    """Central second differences of a scalar function: an independent reference for ∇²f (no analytic
+    derivative of the model is used)."""
+    n = len(z)
+    E = np.eye(n) * h
+    H = np.empty((n, n))
+    for i in range(n):
+        for j in range(i, n):
+            H[i, j] = H[j, i] = (f(z + E[i] + E[j]) - f(z + E[i] - E[j]) - f(z - E[i] + E[j])
+                                 + f(z - E[i] - E[j])) / (4 * h * h)
+    return H
+
+
+def fd_jacobian(f, z, h=1e-7):
+    return np.array([(f(z + h * e) - f(z - h * e)) / (2 * h) for e in np.eye(len(z))]).T
+
+
+def potential(model, T, p, F, l0=None, ks=None):
+    """Total potential in free coordinates: the model's energy with dead tensions T (elastic, pressure,
+    gravity, tip load, tendon work T·l), plus ½ k_s Σ max(l − l₀, 0)² for elastic locked tendons."""
+    def f(z):
+        ev = model.evaluate(model._to_full(z), T, p, F)
+        extra = 0.0 if ks is None else 0.5 * ks * np.sum(np.maximum(ev.lengths - l0, 0.0) ** 2)
+        return ev.energy + extra
+    return f
+
+
+def test_min_eigenvalue_matches_a_finite_difference_hessian_of_the_potential(paper_model):
+    """Free FK at random loads: eq.min_eigenvalue is the smallest eigenvalue of ∇²Π, measured here by
+    second differences of the energy alone."""
+    m = paper_model
     rng = np.random.default_rng(3)
-    for _ in range(8):
-        eq = paper_model.fk(rng.uniform(0, 5, 3), rng.uniform(0, 120e3), rng.normal(0, 0.5, 3))
-        H = eq.__dict__["_stability_matrix"]
-        assert eq.stable and np.linalg.eigvalsh(H)[0] == pytest.approx(eq.min_eigenvalue) and eq.min_eigenvalue > 0
+    for _ in range(3):
+        T, p, F = rng.uniform(0, 5, 3), rng.uniform(0, 120e3), rng.normal(0, 0.5, 3)
+        eq = m.fk(T, p, F)
+        ref = np.linalg.eigvalsh(fd_hessian(potential(m, T, p, F), reduced(m, eq.q)))[0]
+        assert eq.stable and ref > 0
+        assert eq.min_eigenvalue == pytest.approx(ref, rel=2e-3)
+
+
+def test_rigid_locked_tendons_test_the_hessian_on_the_constraint_tangent_space(paper_model):
+    m = paper_model
+    l0 = m.fk((3, 1, 0), 40e3).tendon_lengths - 0.002
+    eq = m.fk_locked(l0, 40e3, (0, 0, -0.3))
+    z = reduced(m, eq.q)
+    A = list(eq.active)
+    H = fd_hessian(potential(m, eq.tensions, 40e3, (0, 0, -0.3)), z)
+    J = fd_jacobian(lambda zz: m.evaluate(m._to_full(zz), None, 40e3).lengths[A], z)
+    Z = np.linalg.qr(J.T, mode="complete")[0][:, len(A):]
+    assert eq.min_eigenvalue == pytest.approx(np.linalg.eigvalsh(Z.T @ H @ Z)[0], rel=2e-3)
+
+
+@pytest.mark.parametrize("method", ["active_set", "gamma"])
+def test_elastic_locked_tendons_add_their_own_stiffness_to_the_hessian(method):
+    """Elastic tendons (k_s = 310 N/m) are no constraints: the potential gains ½ k_s (l − l₀)² per taut
+    tendon and stability is ∇²Π + k_s ∇l ∇lᵀ on all coordinates.  The projection on null(∇l) used before
+    gave 0.069 here where the potential's Hessian has 0.043."""
+    m = Model(presets.paper().replace(tendon_stiffness=310.0))
+    l0 = m.fk((3, 1, 0), 40e3).tendon_lengths - 0.002
+    eq = m.fk_locked(l0, 40e3, (0, 0, -0.3), method=method)
+    assert eq.active == (0, 1) and eq.stable
+    H = fd_hessian(potential(m, (0, 0, 0), 40e3, (0, 0, -0.3), l0, 310.0), reduced(m, eq.q))
+    assert eq.min_eigenvalue == pytest.approx(np.linalg.eigvalsh(H)[0], rel=2e-3)
+
+
+def test_soft_locked_tendons_cannot_hold_a_column_beyond_euler():
+    """A straight column under 1.1 × Euler's load with all three tendons locked taut: stiff tendons
+    (3000 N/m) brace it, soft ones (20 N/m) cannot, and the finite-difference Hessian of the potential
+    agrees.  Projecting ∇²Π on null(∇l), as rigid tendons would, calls the soft case stable: a saddle
+    that passed before."""
+    def column(ks):
+        m = Model(presets.paper().replace(stiffness=StiffnessLaw.constant(EA=767.2, EI=EI), line_mass=0.0,
+                                          tip_mass=0.0, tool_offset=0.0, n_elements=4, tendon_stiffness=ks))
+        F = (-1.1 * P_EULER, 0, 0)
+        free = m.fk((1, 1, 1), 0.0, F, check_limits=False, check_stability=False)
+        l0 = free.tendon_lengths - 1.0 / ks                       # 1 N in each tendon
+        return m, F, l0, free.q
+
+    m, F, l0, q0 = column(3000.0)
+    assert m.fk_locked(l0, 0.0, F, q0=q0, check_limits=False).stable
+    m, F, l0, q0 = column(20.0)
+    with pytest.raises(UnstableEquilibriumError, match="stiffness") as info:
+        m.fk_locked(l0, 0.0, F, q0=q0, check_limits=False)
+    eq = m.fk_locked(l0, 0.0, F, q0=q0, check_limits=False, check_stability=False)
+    assert np.allclose(eq.tip[1:], 0.0, atol=1e-9) and np.allclose(eq.tensions, 1.0, rtol=1e-6)
+    z = reduced(m, eq.q)
+    H = fd_hessian(potential(m, (0, 0, 0), 0.0, F, l0, 20.0), z)
+    assert np.linalg.eigvalsh(H)[0] < 0
+    assert info.value.min_eigenvalue == pytest.approx(np.linalg.eigvalsh(H)[0], rel=5e-3)
+    H_T = fd_hessian(potential(m, eq.tensions, 0.0, F), z)
+    J = fd_jacobian(lambda zz: m.evaluate(m._to_full(zz), None, 0.0).lengths, z)
+    Z = np.linalg.qr(J.T, mode="complete")[0][:, 3:]
+    assert np.linalg.eigvalsh(Z.T @ H_T @ Z)[0] > 0                 # what the projection would have said
 
 
 def test_locked_lengths_far_too_short_give_a_typed_error_from_both_solvers(paper_model):
