@@ -31,7 +31,7 @@ import numpy as np
 
 from ancf import ActuatorParams, Model
 from ancf import compliance as cp
-from ancf.errors import BellowsError, InputError
+from ancf.errors import BellowsError, ConfigError, InputError
 from ancf.export import to_jsonable
 
 from .experiments import Design, LoadCase, default_design
@@ -195,6 +195,20 @@ def _spec(fem_model) -> FemSpec:
     return FemSpec(geo, mat, level)
 
 
+def check_actuator_matches(params: ActuatorParams, geometry) -> None:
+    """ConfigError unless the reduced model describes the FEM design's actuator: the same number of tendons
+    and the same length (within 0.1 %).  Checked before any FEM solve: comparing a 200 mm model with a
+    160 mm bellows would spend minutes on FEM solves to report a meaningless error."""
+    m = len(geometry.tendon_angles)
+    if params.n_tendons != m:
+        raise ConfigError(f"the actuator {params.name!r} has {params.n_tendons} tendons and the FEM design {m}: "
+                          "validate an actuator file identified from this design (or choose its design with --design)")
+    if abs(params.length - geometry.length) > 1e-3 * geometry.length:
+        raise ConfigError(f"the actuator {params.name!r} is {params.length * 1e3:g} mm long and the FEM design "
+                          f"{geometry.length * 1e3:g} mm: validate an actuator file identified from this design (or "
+                          "choose its design with --design)")
+
+
 def validate(params: ActuatorParams, fem_model, states=None, *, workers: Optional[int] = None, scheduler=None,
              cache_dir=None, progress: bool = True, records: Optional[Sequence[FemRecord]] = None) -> ValidationResult:
     """Identified reduced model vs the FEM on held-out states.
@@ -206,6 +220,7 @@ def validate(params: ActuatorParams, fem_model, states=None, *, workers: Optiona
     """
     if records is None:
         spec = _spec(fem_model)
+        check_actuator_matches(params, spec.geometry)
         if states is None:
             g = spec.geometry
             states = default_design(tension_max=params.tension_max, pressure_max=params.pressure_max,

@@ -28,7 +28,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from ancf.errors import BellowsError, ConfigError, InputError
+from ancf.errors import BellowsError, ConfigError, InputError, LimitError
 
 from .experiments import LoadCase
 from .runner import ResultCache, RunInterrupted, run_tasks, source_fingerprint
@@ -271,6 +271,29 @@ def locked_compliance(model, res, direction) -> tuple[np.ndarray, list]:
     raise InputError("the active set of the FEM locked compliance cycled (degenerate state)")
 
 
+def check_cases(spec: FemSpec, cases: Sequence[LoadCase]) -> None:
+    """Fail fast, before any FEM work: every case must have one tension per tendon of the design and loads
+    inside the FEM's operating limits (:class:`fem_reference.OperatingLimits`; the solve would refuse them
+    one by one and a fit would run on what is left).  :class:`~ancf.errors.LimitError` names the first
+    offending case, the load and the FEM's bound."""
+    from fem_reference import OperatingLimits
+    m = len(spec.geometry.tendon_angles)
+    limits = OperatingLimits()
+    for c in cases:
+        if len(c.tensions) != m:
+            raise InputError(f"load case {c.label or c.experiment} has {len(c.tensions)} tensions; the FEM design "
+                             f"has {m} tendons")
+        try:
+            limits.check_loads(c.tensions, c.pressure, c.tip_force)
+        except LimitError as exc:
+            why = str(exc).split(" (check_limits")[0]
+            raise LimitError(f"load case {c.label or c.experiment}: {why}. "
+                             "The operating range asked for (the design's [limits] table or --tension-max-n / "
+                             "--pressure-max-kpa) exceeds what the FEM reference accepts (tension ≤ "
+                             f"{limits.tension_max:g} N, pressure ≤ {limits.pressure_max / 1e3:g} kPa, |tip force| ≤ "
+                             f"{limits.tip_force_max:g} N); lower it") from None
+
+
 def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, workers: Optional[int] = None,
               scheduler=None, cache_dir=None, progress: bool = True, on_result=None,
               chain_length: int = 4) -> list[FemRecord]:
@@ -284,6 +307,7 @@ def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, wor
     cases = list(cases)
     if not cases:
         raise InputError("run_cases: no load cases")
+    check_cases(spec, cases)
     want = compliance if callable(compliance) else (lambda c, v=bool(compliance): v)
     chains = plan_chains(cases, chain_length)
     tasks = [{"kind": "chain", "spec": spec, "cases": [cases[i] for i in ch],

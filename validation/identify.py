@@ -327,7 +327,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     to compare; compliance : also compute the FEM tip compliances of the held-out states (used by
     :mod:`validation.compare`).
     """
-    from .fem_sweep import FemSpec, run_cases, run_rod
+    from .fem_sweep import FemSpec, check_cases, run_cases, run_rod
     from .runner import check_workers
     check_workers(workers)
     spec = FemSpec(geometry, material, mesh)
@@ -337,6 +337,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
                                 n_tendons=len(geometry.tendon_angles))
     if not design.training:
         raise InputError("the design has no training cases")
+    check_cases(spec, design.cases)                  # before the first FEM solve
     rod = run_rod(spec, cache_dir=cache_dir)
     base = fem_base_params(geometry, material, n_elements=n_elements, tension_max=tension_max,
                            pressure_max=pressure_max, rod=rod)

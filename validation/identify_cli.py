@@ -227,11 +227,12 @@ def validate_cmd(
 
     Tip, shape and compliance errors on the held-out states, written to validation.json."""
     from ancf import presets
-    from .compare import validate
+    from .compare import check_actuator_matches, validate
     from .designs import load_design
     from .fem_sweep import FemSpec
     p = presets.get(params)
     geo, mat = load_design(design)
+    check_actuator_matches(p, geo)
     d = prepare_output_dir(out, ("validation.json",), force=force)
     val = validate(p, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler, cache_dir=cache)
     atomic_write_text(d / "validation.json", json.dumps(val.to_dict(), indent=1))

@@ -113,6 +113,14 @@ def measured_files(tmp_path_factory):
     states = write_static_states(d / "states.h5", _states(default_design()))
     base = d / "base.toml"
     base.write_text(BASE.to_toml())
+    # an actuator of another length / tendon count than the FEM design, and a design beyond the FEM's limits
+    (d / "long.toml").write_text(BASE.replace(length=0.2).to_toml())
+    t = BASE.tendons[0]
+    four = tuple(t.model_copy(update={"angle": float(a)}) for a in np.arange(4) * np.pi / 2)
+    (d / "four.toml").write_text(BASE.replace(tendons=four).to_toml())
+    from validation.designs import design_to_toml, load_design
+    (d / "wide.toml").write_text(design_to_toml(*load_design("paper"), "wide",
+                                                limits={"tension_max": 30.0, "pressure_max": 100e3}))
     return d, states, base
 
 
@@ -147,6 +155,10 @@ def test_cli_identify_and_report_from_measurements(measured_files):
     (("calibrate", "--design", "paper"), "at least one"),
     (("identify", "--design", "paper", "--pressure-max-kpa", "0"), "--pressure-max-kpa"),
     (("validate", "--params", "no_such_preset"), "unknown preset"),
+    (("validate", "--params", "long.toml"), "200 mm long and the FEM design 160 mm"),
+    (("validate", "--params", "four.toml"), "has 4 tendons and the FEM design 3"),
+    (("identify", "--design", "wide.toml"), "exceeds what the FEM reference accepts (tension ≤ 20 N"),
+    (("identify", "--design", "paper", "--pressure-max-kpa", "300"), "pressure 225 kPa is outside"),
 ])
 def test_cli_bad_inputs_exit_2_with_one_line(measured_files, args, message):
     d, *_ = measured_files
