@@ -371,17 +371,19 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
     """Identify the reduced model from measured static states (HDF5 run log / static-states file or CSV;
     ``docs/data-formats.md``).
 
-    base : the actuator as built (length, tendon routing, masses, limits; default: the ``paper`` preset),
-    whose stiffness is the starting point; heldout_fraction : share of the states held out (random, seeded)
+    base : the actuator the states were measured on (length, tendon routing, masses, limits; required — there
+    is no default, a wrong actuator gives wrong numbers), whose stiffness is the starting point; heldout_fraction : share of the states held out (random, seeded)
     to choose the model form (0: choose on the training error); gravity : the states were measured under
     gravity (the actuator's weight from ``base`` acts).  States with labels starting with ``heldout`` are
     held out deterministically instead.
     """
     from hardware.static_states import StaticStates, read_static_states
-    states = path if isinstance(path, StaticStates) else read_static_states(path)
-    base = presets.paper() if base is None else base
+    if base is None:
+        raise InputError("from_measurements needs base=: the actuator the states were measured on (ActuatorParams, "
+                         "e.g. ancf.presets.get('actuator.toml')); there is no default")
     if not isinstance(base, ActuatorParams):
         raise InputError(f"base must be ActuatorParams, got {type(base).__name__}")
+    states = path if isinstance(path, StaticStates) else read_static_states(path)
     if states.n_tendons != base.n_tendons:
         raise InputError(f"the states have {states.n_tendons} tensions per state; the base actuator has "
                          f"{base.n_tendons} tendons")

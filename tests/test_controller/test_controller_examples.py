@@ -28,7 +28,6 @@ def test_lacc_loading():
     out = load("lacc_loading").main(["--seconds", "3"], verbose=False)
     assert out["corrections"] >= 3
     assert out["final_error_mm"] < 0.25                       # held after the ramp (0.2 mm deadband)
-    assert out["compute_ms_median"] < 100
 
 
 def test_rig_quickstart():

@@ -111,3 +111,24 @@ def test_axial_direction_is_not_estimated_by_default(paper_model):
 
 def test_exact_compliance_is_the_default(paper_model):
     assert LACC(paper_model, P).compliance == "exact"
+
+
+def test_lacc_holds_the_target_on_a_plant_that_is_not_its_model(paper_model, target):
+    """The plant is another actuator than the controller's model: bending stiffness −20 % and effective
+    diameter +2.5 %.  Uncompensated (the IK of the target with the model, no load estimate) the tip misses by
+    ≥ 30 % more than with a perfect model; LACC's measured-error loop brings it to the paper's 0.2 mm
+    anyway, with a load estimate that absorbs the mismatch (so it is not the true load).
+
+    (Not covered by LACC: a plant whose tendons stretch (elastic) under a model with rigid ones leaves an
+    axial error, ≈ 1 mm at 2 kN/m on the paper preset — the locked model is axially rigid, so no load estimate explains it.)"""
+    from ancf import Model, StiffnessLaw
+    p = paper_model.params
+    law = p.stiffness
+    plant_model = Model(p.replace(stiffness=StiffnessLaw.polynomial(law.ea, 0.8 * law.ei), D_eff=1.025 * p.D_eff))
+    ctrl = LACC(paper_model, P, compliance="exact")
+    res = run_iterations(ctrl, SimulatedPlant(plant_model, P, load=LOAD), target, iterations=15)
+    exact = run_iterations(LACC(paper_model, P, compliance="exact"), SimulatedPlant(paper_model, P, load=LOAD),
+                           target, iterations=15)
+    assert res.errors[0] > 1.3 * exact.errors[0]                # the mismatch adds to the uncompensated error
+    assert res.converged and res.final_error < 2e-4 and res.iterations <= 5
+    assert not np.allclose(ctrl.estimate[1:], LOAD[1:], rtol=0.1, atol=2e-2)   # the estimate is not the load

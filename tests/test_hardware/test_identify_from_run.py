@@ -1,6 +1,7 @@
 """Static states recorded by control runs on the simulated rig feed validation.identify.from_measurements,
 which recovers the plant's stiffness law from them."""
 
+import pytest
 
 from ancf import Model, presets
 from controller import LACC, run_on_rig
@@ -19,7 +20,7 @@ def test_identification_from_a_run_log(tmp_path):
                 rig = SimulatedRig(model, options=PlantOptions(force_noise_std=0.001, seed=int(p) + int(10 * T[0])))
                 res = run_on_rig(LACC(model, p, compliance="exact"), rig, tip, log=log, applied_load=(0, 0, 0))
                 assert res.status == "converged"
-    r = from_measurements(path, heldout_fraction=0, forms=("paper",))
+    r = from_measurements(path, presets.paper(), heldout_fraction=0, forms=("paper",))
     law = presets.paper_unscaled().stiffness.source
     fit = r.fits["paper"]
     assert abs(fit.values["a"] - law["a"]) < 0.02 * law["a"]
@@ -44,5 +45,15 @@ def test_identification_uses_the_complete_states_of_a_log_with_a_torn_state(tmp_
     RunLog._append(log.static["tensions"], [2.0, 2.0, 2.0])           # the next state: killed after its tensions
     log.f.flush()
     log.close()
-    r = from_measurements(path, heldout_fraction=0, forms=("paper",))
+    r = from_measurements(path, presets.paper(), heldout_fraction=0, forms=("paper",))
     assert r.meta["n_states"] == 8 and r.meta["torn_rows"] == [8]
+
+
+def test_measured_states_need_the_actuator_they_were_measured_on(tmp_path):
+    """No default actuator: identifying rig data against the wrong one gives wrong numbers silently."""
+    from ancf.errors import InputError
+    from validation.identify import from_measurements
+    with pytest.raises(InputError, match="needs base="):
+        from_measurements(tmp_path / "never_read.h5")
+    with pytest.raises(InputError, match="ActuatorParams"):
+        from_measurements(tmp_path / "never_read.h5", "paper")

@@ -59,7 +59,8 @@ def contract(call):
 
 
 MODELS = {"paper": Model(presets.paper()), "four_tendon": Model(presets.four_tendon()),
-          "coarse": Model(presets.paper().replace(n_elements=2, free_base_stretch=True))}
+          "coarse": Model(presets.paper().replace(n_elements=2, free_base_stretch=True)),
+          "elastic_tendons": Model(presets.paper().replace(tendon_stiffness=310.0))}
 
 
 def verify_equilibrium(m: Model, eq):
@@ -69,12 +70,25 @@ def verify_equilibrium(m: Model, eq):
     lo, hi = m.params.stiffness.valid_stretch_range
     lam = m.stretches(eq.q)
     assert lo < lam.min() and lam.max() < hi
-    H = m.reduce_mat(m.tangent(eq.q, eq.tensions, eq.pressure, eq.tip_force))
-    if eq.active:     # locked: positive definite on the tangent space of the taut tendons
-        JA = m.reduce_vec(m.tendon_jacobian(eq.q))[list(eq.active)]
-        Qf, _ = np.linalg.qr(JA.T, mode="complete")
-        H = Qf[:, len(eq.active):].T @ H @ Qf[:, len(eq.active):]
-    assert eq.stable and np.linalg.eigvalsh(0.5 * (H + H.T))[0] > -1e-8 * np.abs(H).max()
+    # stability from central differences of the residual (the gradient), not the analytic tangent the solver
+    # used, and tendon-length gradients from differences of the lengths
+    z, h = m.to_free(eq.q), 1e-6
+    E = np.eye(len(z)) * h
+    grad = lambda zz: m.reduce_vec(m.residual(m.to_full(zz), eq.tensions, eq.pressure, eq.tip_force))
+    H = np.array([(grad(z + e) - grad(z - e)) / (2 * h) for e in E])
+    H = 0.5 * (H + H.T)
+    if eq.active:
+        A = list(eq.active)
+        JA = np.array([(m.tendon_lengths(m.to_full(z + e))[A] - m.tendon_lengths(m.to_full(z - e))[A]) / (2 * h)
+                       for e in E]).T
+        if m.params.tendon_stiffness:        # elastic tendons: their energy ½ k_s (l − l₀)² adds k_s ∇l ∇lᵀ
+            H = H + m.params.tendon_stiffness * JA.T @ JA
+        else:                                # rigid: positive definite on the tangent space of the taut ones
+            Z = np.linalg.qr(JA.T, mode="complete")[0][:, len(A):]
+            H = Z.T @ H @ Z
+    lam_fd, scale = np.linalg.eigvalsh(H)[0], np.abs(H).max()
+    assert eq.stable and lam_fd > -1e-6 * scale
+    assert abs(eq.min_eigenvalue - lam_fd) < 1e-3 * abs(lam_fd) + 1e-6 * scale
     assert np.allclose(eq.tip, m.tip(eq.q))
 
 
@@ -128,7 +142,8 @@ def test_locked_fk_contract(name, ratios, p, F, method):
     tol = 1e-8
     assert np.all(eq.tensions >= 0) and np.all(eq.slack >= 0)
     assert np.all(eq.tensions * eq.slack <= tol * np.maximum(1.0, eq.tensions))      # complementarity
-    assert np.allclose(eq.tendon_lengths + eq.slack, l0, atol=1e-8)
+    ks = m.params.tendon_stiffness                # elastic tendons: l − T/k_s + slack = l₀
+    assert np.allclose(eq.tendon_lengths - (eq.tensions / ks if ks else 0.0) + eq.slack, l0, atol=1e-8)
     assert set(eq.active) == {i for i in range(m.m) if eq.tensions[i] > 0} | set(eq.active)
 
 

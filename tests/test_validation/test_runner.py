@@ -30,8 +30,17 @@ def test_serial_and_processes_agree_and_stream_every_result():
     assert [r["y"] for r in a.results] == [k * k for k in range(7)]
     assert [r["y"] for r in b.results] == [r["y"] for r in a.results]
     assert sorted(seen) == list(range(7))
-    assert len({r["pid"] for r in b.results}) >= 1 and b.backend.startswith("processes")
-    assert a.backend.startswith("serial")
+    assert b.backend.startswith("processes") and a.backend.startswith("serial")
+    assert {r["pid"] for r in a.results} == {os.getpid()}
+    assert os.getpid() not in {r["pid"] for r in b.results}            # computed in worker processes
+
+
+def test_two_workers_share_the_work():
+    """Tasks that each take 0.3 s are spread over both workers (not run one after another in one)."""
+    tasks = [{"x": k, "sleep": 0.3} for k in range(6)]
+    b = run_tasks(T.slow, tasks, workers=2, progress=False)
+    assert [r["x"] for r in b.results] == list(range(6))
+    assert len({r["pid"] for r in b.results}) == 2 and os.getpid() not in {r["pid"] for r in b.results}
 
 
 def test_cache_skips_finished_tasks_and_recomputes_changed_ones(tmp_path):
