@@ -207,3 +207,17 @@ def test_a_dying_worker_is_a_typed_error_that_keeps_finished_results(tmp_path):
     assert "--workers 1" in str(info.value) and "cached" in str(info.value)
     again = run_tasks(T.square, [{"x": k} for k in range(2)], workers=1, progress=False)   # the runner still works
     assert [r["y"] for r in again.results] == [0, 1]
+
+
+def test_fem_cache_version_covers_every_module_that_computes_a_cached_result(monkeypatch):
+    """Cached FEM records hold numbers computed in validation/ too (the sweep worker, rod measures, locked
+    compliance, the load cases): each of those modules must be hashed into the cache version, or an edit to
+    them would serve stale results."""
+    import validation.fem_sweep as fs
+    seen = {}
+    monkeypatch.setattr(fs, "source_fingerprint",
+                        lambda pkg, exclude=(), files=(): seen.update(pkg=pkg, files=set(files)) or "x")
+    fs.fem_fingerprint()
+    assert seen["pkg"] == "fem_reference"
+    for fn in (fs.solve_task, fs.solve_chain, fs.rod_estimate, fs.locked_compliance, fs.LoadCase):
+        assert fn.__module__ in seen["files"], fn.__qualname__
