@@ -38,7 +38,7 @@ from .forces.axial import add_axial
 from .forces.bending import add_bending
 from .forces.gravity import add_gravity
 from .forces.pressure import add_pressure, add_stretch_length
-from .forces.tendon import add_tendon, tendon_length_density
+from .forces.tendon import add_tendon, slack_density, slack_terms, tendon_length_density
 from .forces.tip_load import add_tip_load
 
 #: Admissibility thresholds and status codes (module docstring).
@@ -176,6 +176,12 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
     for k in range(pa.size):
         if pa[k] != 0.0:
             has_p = True
+    # three or more slack tendons: their densities from two evaluations per point (forces.tendon.slack_terms)
+    n_slack = 0
+    for i in range(m):
+        if T[i] == 0.0 and need_lengths < 2:
+            n_slack += 1
+    shared = n_slack >= 3
     for e in range(n_el):
         off = 6 * e
         for k in range(nq):
@@ -201,11 +207,16 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
                 arc += add_stretch_length(a, sc, ga)
                 if need_lengths == 2:
                     _scatter(off, Nk, ga, zero9, Jarc, H, False)
+            if shared:
+                s_ok, u0, V2, V3 = slack_terms(a, b, E)
             for i in range(m):
                 if T[i] == 0.0 and need_lengths < 2:
                     # a slack tendon: no force, but its path must be admissible too (the rule does not
                     # depend on the loads, and its length is a result)
-                    wi = tendon_length_density(a, b, E, d[i], co[i], so[i])
+                    if shared:
+                        wi = slack_density(s_ok, u0, V2, V3, d[i], co[i], so[i])
+                    else:
+                        wi = tendon_length_density(a, b, E, d[i], co[i], so[i])
                     if not (wi >= TENDON_MIN):
                         return np.inf, G, H, lc, Jl, arc, Jarc
                     if need_lengths == 1:

@@ -74,14 +74,26 @@ def _parts(model: Model, eq: Equilibrium):
     if np.shape(eq.q) != (model.ndof,):
         raise InputError(f"the equilibrium has {np.size(eq.q)} coordinates but the model has {model.ndof}: it "
                          "comes from a model with another element count")
-    key = (id(model), eq.q.tobytes(), eq.tensions.tobytes(), float(eq.pressure), eq.tip_force.tobytes())
-    cached = getattr(eq, "_compliance_parts", None)
-    if cached is not None and cached[0] == key:
-        return cached[1]
+    cached = model._tangent_parts(eq)          # the solver's own, when it ended at this very state
+    if cached is not None:
+        return cached
     ev = model.evaluate(eq.q, eq.tensions, eq.pressure, eq.tip_force)
     parts = (model.reduce_mat(ev.K), model.reduce_vec(model.tip_jacobian(eq.q)), model.reduce_vec(ev.J_l))
-    object.__setattr__(eq, "_compliance_parts", (key, parts))
+    model._keep_tangent_parts(eq, parts)
     return parts
+
+
+def _solves(model: Model, eq: Equilibrium):
+    """(H, J_p, J_l, H⁻¹J_pᵀ (nz, 3), H⁻¹J_lᵀ (nz, m)) at ``eq``: one factorisation of H for every compliance
+    form and active-set iteration at this state (kept with the parts)."""
+    H, Jp, Jl = _parts(model, eq)
+    cached = getattr(eq, "_compliance_solves", None)
+    if cached is not None and cached[0] is H:
+        return cached[1]
+    X = np.linalg.solve(H, np.hstack([Jp.T, Jl.T]))
+    out = (H, Jp, Jl, X[:, :3], X[:, 3:])
+    object.__setattr__(eq, "_compliance_solves", (H, out))
+    return out
 
 
 def _full(model: Model, Cz: np.ndarray) -> np.ndarray:
@@ -95,18 +107,16 @@ def _full(model: Model, Cz: np.ndarray) -> np.ndarray:
 
 def tension(model: Model, eq: Equilibrium) -> Compliance:
     """Constant-tension, constant-pressure compliance (eqs. 8–10)."""
-    H, Jp, _ = _parts(model, eq)
-    Cq = np.linalg.solve(H, Jp.T)
+    _, Jp, _, Cq, _ = _solves(model, eq)
     return Compliance(C_p=Jp @ Cq, C_q=_full(model, Cq), active=(), mode="tension", method="exact")
 
 
-def _kkt(H, Jp, JA, cs: float = 0.0):
-    """Exact locked sensitivities for the taut set with rows JA and series tendon compliance ``cs`` =
-    1/k_s [m/N]: (δq per δF (nz, 3), δT_A per δF)."""
-    HiJp = np.linalg.solve(H, Jp.T)
+def _kkt(HiJp, JA, HiJA, cs: float = 0.0):
+    """Exact locked sensitivities for the taut set with rows JA (k, nz) and series tendon compliance ``cs`` =
+    1/k_s [m/N], from H⁻¹J_pᵀ (nz, 3) and H⁻¹J_Aᵀ (nz, k): (δq per δF (nz, 3), δT_A per δF (k, 3)).
+    Block elimination of the KKT system [H J_Aᵀ; J_A −cs I] [δq; δT_A] = [J_pᵀ; 0]."""
     if JA.shape[0] == 0:
         return HiJp, np.zeros((0, 3))
-    HiJA = np.linalg.solve(H, JA.T)
     dTA = np.linalg.solve(JA @ HiJA + cs * np.eye(JA.shape[0]), JA @ HiJp)
     return HiJp - HiJA @ dTA, dTA
 
@@ -121,12 +131,12 @@ def active_set(model: Model, eq: Equilibrium, load_direction=None, rule: str = "
       (δl_i > 0) and its tension increment is ≥ 0.  Found by an active-set loop started from the paper's
       rule (a slack tendon can become taut only after another one is constrained).
     """
-    H, Jp, Jl = _parts(model, eq)
+    _, Jp, Jl, HiJp, HiJl = _solves(model, eq)
     dF = np.asarray(model.params.gravity if load_direction is None else load_direction, float)
     if dF.shape != (3,) or not np.all(np.isfinite(dF)) or np.linalg.norm(dF) == 0:
         raise InputError(f"load_direction must be a finite non-zero 3-vector, got {dF}")
     u = dF / np.linalg.norm(dF)
-    dl = Jl @ np.linalg.solve(H, Jp.T @ u)
+    dl = Jl @ (HiJp @ u)
     paper = tuple(int(i) for i in np.flatnonzero(dl > 0))
     if rule == "paper":
         return paper
@@ -137,7 +147,7 @@ def active_set(model: Model, eq: Equilibrium, load_direction=None, rule: str = "
     seen = set()
     while tuple(A) not in seen:
         seen.add(tuple(A))
-        dq, dTA = _kkt(H, Jp, Jl[A], model._cs)
+        dq, dTA = _kkt(HiJp, Jl[A], HiJl[:, A], model._cs)
         dT = dict(zip(A, dTA @ u))
         dl = Jl @ (dq @ u)
         drop = [i for i in A if i not in taut and dT[i] < -1e-12 * max(1.0, abs(dT[i]))]
@@ -169,11 +179,11 @@ def locked(model: Model, eq: Equilibrium, method: str = "exact", active: Optiona
     A = sorted(int(i) for i in active)
     if any(i < 0 or i >= model.m for i in A):
         raise InputError(f"active tendon indices must be in 0..{model.m - 1}, got {A}")
-    H, Jp, Jl = _parts(model, eq)
+    H, Jp, Jl, HiJp, HiJl = _solves(model, eq)
     JA = Jl[A]
     dT = None
     if method == "exact":
-        Cq, dTA = _kkt(H, Jp, JA, model._cs)
+        Cq, dTA = _kkt(HiJp, JA, HiJl[:, A], model._cs)
         dT = np.zeros((model.m, 3))
         dT[A] = dTA
     elif method == "paper":

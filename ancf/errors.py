@@ -150,7 +150,7 @@ def check_finite(name: str, value, shape: tuple[int, ...] | None = None) -> np.n
     arr = np.asarray(raw, dtype=np.float64, order="C")
     if shape is not None and arr.shape != tuple(shape):
         raise InputError(f"{name} must have shape {tuple(shape)}, got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         bad = np.flatnonzero(~np.isfinite(arr.ravel()))
         where = (f"{float(arr.ravel()[0])}" if arr.ndim == 0 else
                  f"{bad.size} of {arr.size} entries, the first {float(arr.ravel()[bad[0]])} at flat index {bad[0]}")

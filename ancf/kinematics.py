@@ -24,6 +24,7 @@ defined for every t except t = −e1 (a 180° fold, outside any physical state o
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from .errors import CollapsedStateError
 
@@ -97,15 +98,28 @@ def tip_position_jacobian(q: np.ndarray, tool_offset: float) -> np.ndarray:
     return J
 
 
+@njit(cache=True)
+def _rodrigues(t, e1):
+    """(ok, R) of :func:`rodrigues` in compiled form: R = I + V + V²/(1 + c), V = [e1 × t]×, c = e1·t."""
+    v0 = e1[1] * t[2] - e1[2] * t[1]
+    v1 = e1[2] * t[0] - e1[0] * t[2]
+    v2 = e1[0] * t[1] - e1[1] * t[0]
+    c = e1[0] * t[0] + e1[1] * t[1] + e1[2] * t[2]
+    R = np.eye(3)
+    if c <= -1.0 + 1e-12:
+        return False, R
+    V = np.array([[0.0, -v2, v1], [v2, 0.0, -v0], [-v1, v0, 0.0]])
+    R += V + V @ V / (1.0 + c)
+    return True, R
+
+
 def rodrigues(t, e1) -> np.ndarray:
     """Rotation matrix taking unit vector ``e1`` to unit vector ``t`` about e1 × t (3, 3)."""
-    v = np.cross(e1, t)
-    c = float(np.dot(e1, t))
-    if c <= -1.0 + 1e-12:
+    ok, R = _rodrigues(np.ascontiguousarray(t, dtype=float), np.ascontiguousarray(e1, dtype=float))
+    if not ok:
         raise CollapsedStateError("tip frame undefined: the tip tangent points against the base axis "
                                   "(a 180 degree fold)")
-    V = skew(v)
-    return np.eye(3) + V + V @ V / (1.0 + c)
+    return R
 
 
 def rodrigues_derivative(t, e1) -> np.ndarray:

@@ -46,6 +46,7 @@ from .errors import (
     check_scalar,
 )
 from .params import ActuatorParams
+from . import compiled_solvers as _cs
 from .solvers import SolveInfo, minimize_newton, solve_root
 from .textfmt import vector
 
@@ -158,6 +159,8 @@ class Model:
             self._q_fix[6:] = 0.0
             self._P = None
             self._free = np.arange(6, self.ndof)
+        # the same map for the compiled loops (a placeholder matrix when P is not used)
+        self._P_c = np.ascontiguousarray(self._P) if self._P is not None else np.zeros((1, 1))
         self.nz = self.ndof - 6 + (1 if p.free_base_stretch else 0)
         # scale for mixing force and position residuals (N/m): axial stiffness of the whole actuator
         self._kscale = float(p.stiffness.EA(1.0)) / p.length
@@ -403,8 +406,10 @@ class Model:
     def _result(self, q, T, pr, F, info, ev: Evaluation, solver, slack=None, active=None, *, H=None, JA=None,
                 check_stability: bool = True) -> Equilibrium:
         """Verify a converged state (stretch inside the law's validity range, stable) and package it."""
-        Hr, stable = self._verify(q, H, JA, solver, check_stability)
-        eq = Equilibrium(q=q, tip=self._tip(q), tip_rotation=self.tip_rotation(q),
+        Hr, stable = self._verify(q, H, JA, solver, check_stability,
+                                  positive_definite=info.positive_definite if JA is None else None)
+        # q is a converged, admissible state (finite energy: its tip slope passed the assembly's rules)
+        eq = Equilibrium(q=q, tip=self._tip(q), tip_rotation=kin.tip_rotation(q, self._e1),
                          tendon_lengths=ev.lengths.copy(), tensions=np.array(T, float), pressure=pr,
                          tip_force=np.array(F, float), iterations=info.iterations,
                          residual_norm=info.residual_norm, energy=ev.energy, solver=solver, slack=slack,
@@ -412,7 +417,7 @@ class Model:
         eq.__dict__["_stability_matrix"] = Hr
         return eq
 
-    def _verify(self, q, H, JA, solver: str, check_stability: bool):
+    def _verify(self, q, H, JA, solver: str, check_stability: bool, positive_definite: Optional[bool] = None):
         """CollapsedStateError outside the stiffness law's validity range; UnstableEquilibriumError when
         the reduced Hessian of the potential is not positive definite.  Returns (that Hessian, stable).
 
@@ -421,10 +426,10 @@ class Model:
         constraints l = l₀: the test matrix is H projected on null(JA).  Elastic tendons of stiffness k_s
         add the energy ½ k_s (l − l₀)² each, whose Hessian is k_s ∇l ∇lᵀ + T ∇²l; no constraint is left,
         so the test matrix is H + k_s JAᵀ JA on all of z (a projection would ignore the tendons' own
-        stiffness and test the wrong matrix: it can pass a saddle or refuse a minimum)."""
-        lam = self._stretches(q)
+        stiffness and test the wrong matrix: it can pass a saddle or refuse a minimum).
+        ``positive_definite=True``: the solver's compiled loop already factorised this very H (no JA)."""
         lo, hi = self._lam_range
-        lmin, lmax = float(lam.min()), float(lam.max())
+        lmin, lmax = _cs.stretch_range(q, self.n, self._N)
         if lmin <= lo or lmax >= hi:
             bad = lmin if lmin <= lo else lmax
             raise CollapsedStateError(
@@ -434,6 +439,8 @@ class Model:
                 solver=solver, stretch=bad)
         if H is None:
             return None, True
+        if positive_definite and (JA is None or not len(JA)):
+            return H, True           # the compiled loop factorised this very (assembled, symmetric) H
         Hr = H
         if JA is not None and len(JA):
             JA = np.asarray(JA, float)
@@ -524,8 +531,28 @@ class Model:
         z0 = self._initial_z(q0)
         z, info = self._fk_z(z0, T, pr, F, tol, max_iter)
         q = self._to_full(z)
-        ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
+        ev = self._values(q, T, pr, F, info)
         return self._result(q, T, pr, F, info, ev, "fk", H=info.matrix, check_stability=check_stability)
+
+    def _tangent_key(self, eq: Equilibrium) -> tuple:
+        return (id(self), eq.q.tobytes(), eq.tensions.tobytes(), float(eq.pressure), eq.tip_force.tobytes())
+
+    def _keep_tangent_parts(self, eq: Equilibrium, parts: tuple) -> None:
+        """Keep (H (nz, nz), J_p (3, nz), J_l (m, nz)) — the free-coordinate tangent, tip Jacobian and tendon
+        length Jacobian at ``eq`` — on the equilibrium, keyed by its state, for :mod:`ancf.compliance`."""
+        object.__setattr__(eq, "_compliance_parts", (self._tangent_key(eq), parts))
+
+    def _tangent_parts(self, eq: Equilibrium) -> Optional[tuple]:
+        """The kept parts if they belong to ``eq``'s current state (q, T, p, F) and this model, else None."""
+        cached = getattr(eq, "_compliance_parts", None)
+        return cached[1] if cached is not None and cached[0] == self._tangent_key(eq) else None
+
+    def _values(self, q, T, pr, F, info: SolveInfo) -> "Evaluation":
+        """Energy and tendon lengths at a solution: from the solver's last evaluation when it kept them
+        (the compiled loops), else assembled again."""
+        if info.values is None:
+            return self._evaluate(q, T, pr, F, hessian=False, lengths="values")
+        return Evaluation(info.values[0], None, None, info.values[1], None, float("nan"), None)
 
     def _check_solver_options(self, tol, max_iter):
         tol = self.default_tol if tol is None else check_scalar("tol", tol, low=0.0)
@@ -552,6 +579,27 @@ class Model:
             return E, self._reduce_vec(Q), (self._reduce_mat(K) if hessian else None)
         return fun
 
+    def _fk_newton(self, z0, T, pr, F, tol, max_iter, load=1.0):
+        """:func:`~ancf.solvers.minimize_newton` on Π(z) at ``load`` × (T, p, F, gravity), run by the compiled
+        loop :func:`ancf.compiled_solvers.fk_newton` (same algorithm; ``_fk_fun`` is the Python form of the
+        same potential).  Returns (z, SolveInfo) or raises ConvergenceError like ``minimize_newton``."""
+        Ts = np.ascontiguousarray(T * load, dtype=float)
+        Ftot = self.total_tip_load(F * load, gravity_scale=load)
+        status, z, it, hist, H, pd, energy, lengths = _cs.fk_newton(
+            np.ascontiguousarray(z0, dtype=float), self._q_fix, self._P_c, self._P is not None, self.n, self._N,
+            self._wq, self._ea, self._ei, float(pr * load) * self._vc, self._mg * load, self._E, self._d,
+            self._co, self._so, Ts, self.params.tool_offset, Ftot, float(tol), int(max_iter))
+        history = hist.tolist()
+        if status == _cs.CONVERGED:
+            return z, SolveInfo(int(it), history[-1], history, H, bool(pd), (float(energy), lengths))
+        if status == _cs.BAD_START:
+            raise ConvergenceError("the starting state is inadmissible (potential or its derivatives not finite)",
+                                   solver="fk", iterations=0, residual_norm=float("inf"), tolerance=tol,
+                                   history=[float("inf")])
+        raise ConvergenceError("Newton on the equilibrium did not converge", solver="fk",
+                               iterations=len(history) - 1, residual_norm=history[-1], tolerance=tol,
+                               history=history)
+
     @staticmethod
     def _admissible(ev: "Evaluation") -> bool:
         """False for states the assembly rejected (|r_x| < 0.2 somewhere: a collapsed section)."""
@@ -561,7 +609,7 @@ class Model:
         """Newton from ``z0``; if that fails within a short budget, adaptive load stepping from the
         unloaded reference with a secant predictor (robust cold start over the whole operating range)."""
         try:
-            return minimize_newton(self._fk_fun(T, pr, F), z0, tol=tol, max_iter=min(max_iter, 25), name="fk")
+            return self._fk_newton(z0, T, pr, F, tol, min(max_iter, 25))
         except ConvergenceError as exc:
             first = exc
         z_prev = z = self._to_free(self.q_ref)
@@ -570,8 +618,7 @@ class Model:
             s_try = min(1.0, s + ds)
             z_pred = z if s == 0.0 else z + (z - z_prev) * (s_try - s) / (s - s_prev)
             try:
-                z_try, info = minimize_newton(self._fk_fun(T, pr, F, s_try), z_pred, tol=tol,
-                                              max_iter=max_iter if s_try == 1.0 else 15, name="fk")
+                z_try, info = self._fk_newton(z_pred, T, pr, F, tol, max_iter if s_try == 1.0 else 15, s_try)
             except ConvergenceError as exc:
                 total_it += exc.iterations
                 ds /= 3
@@ -628,11 +675,19 @@ class Model:
         if sol is not None:
             z, T, info = sol
             if np.all(T >= p.tension_min - 1e-9) and np.all(T <= p.tension_max + 1e-9):
-                T = np.clip(T, p.tension_min, p.tension_max)
+                Tc = np.clip(T, p.tension_min, p.tension_max)
+                if not np.array_equal(Tc, T):
+                    info.values = None                      # clipped by round-off: lengths assembled again
+                T = Tc
                 q = self._to_full(z)
-                ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
-                return self._result(q, T, pr, F, info, ev, "ik", H=info.matrix[:self.nz, :self.nz],
-                                    check_stability=check_stability)
+                ev = self._values(q, T, pr, F, info)
+                nz = self.nz
+                eq = self._result(q, T, pr, F, info, ev, "ik", H=info.matrix[:nz, :nz],
+                                  check_stability=check_stability)
+                if info.values is not None:    # the compiled loop's last Jacobian is the tangent at eq
+                    J = info.matrix
+                    self._keep_tangent_parts(eq, (J[:nz, :nz], J[nz:, :nz], J[:nz, nz:].T))
+                return eq
         # bounded reduced solve over the tensions: feasible solution or nearest reachable point
         unconstrained = None if sol is None else sol[1]
         return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability)
@@ -655,8 +710,16 @@ class Model:
 
         w = np.concatenate([np.ones(nz), np.full(3, self._kscale)])
         tol_w = min(tol, self._kscale * tol_position)
-        x, info = solve_root(fun, np.concatenate([z0, T0]), tol=tol_w, max_iter=max_iter, name="ik",
-                             weights=w)
+        x0 = np.concatenate([z0, T0])
+        # the Newton phase of solve_root, compiled; a solve that needs its LM phase runs solve_root itself
+        status, x, it, hist, J, pd, energy, lengths = _cs.ik_newton(
+            x0, nz, np.ascontiguousarray(pd, dtype=float), w, self._q_fix, self._P_c, self._P is not None, self.n,
+            self._N, self._wq, self._ea, self._ei, float(pr) * self._vc, self._mg, self._E, self._d, self._co,
+            self._so, self.params.tool_offset, self.total_tip_load(F), float(tol_w), int(max_iter))
+        if status == _cs.CONVERGED:
+            history = hist.tolist()
+            return x[:nz], x[nz:], SolveInfo(int(it), history[-1], history, J, bool(pd), (float(energy), lengths))
+        x, info = solve_root(fun, x0, tol=tol_w, max_iter=max_iter, name="ik", weights=w)
         return x[:nz], x[nz:], info
 
     def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability=True):

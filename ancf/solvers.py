@@ -31,6 +31,8 @@ class SolveInfo:
     residual_norm: float
     history: list[float] = field(default_factory=list)
     matrix: Optional[np.ndarray] = None     # Hessian (minimize_newton) / Jacobian (solve_root) at the solution
+    positive_definite: Optional[bool] = None  # Cholesky of the (K block of the) matrix succeeded; None: not tried
+    values: Optional[tuple] = None            # (Π [J], tendon lengths (m,) [m]) at the solution, if known
 
 
 @njit(cache=True)

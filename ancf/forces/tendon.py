@@ -64,6 +64,12 @@ def tendon_density(a, b, E, d, co, so):
     Ju = np.empty((3, 6))
     Hu = np.zeros((3, 6, 6))
     tendon_u(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u, Ju, Hu)
+    return _density_from_u(u, Ju, Hu, E)
+
+
+@njit(cache=True)
+def _density_from_u(u, Ju, Hu, E):
+    """w = |u|, its gradient (6,) and Hessian (6, 6) in the world frame from u, ∂u, ∂²u (actuator frame)."""
     w = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
     if not (w > 0.0):
         return np.nan, np.full(6, np.nan), np.full((6, 6), np.nan)
@@ -131,6 +137,37 @@ def tendon_length_density(a, b, E, d, co, so):
     u = np.empty(3)
     tendon_u_value(al[0], al[1], al[2], bl[0], bl[1], bl[2], d, co, so, u)
     return np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+
+
+@njit(cache=True)
+def slack_terms(a, b, E):
+    """(ok, u_0, V_2, V_3) with u = u_0 + d (cos θ V_2 + sin θ V_3) for every tendon at this point (actuator
+    frame; ok False where the frame is undefined).  u = a + d (∂g/∂a) b is affine in (d cos θ, d sin θ), since
+    g(a) = R(a/|a|)(cos θ e2 + sin θ e3): two evaluations serve any number of tendons (used for the
+    admissibility rule and the lengths of slack tendons, which need no derivatives)."""
+    al, bl = _to_frame(a, b, E)
+    V2 = np.empty(3)
+    V3 = np.empty(3)
+    if not _frame_defined(al):
+        return False, al, V2, V3
+    tendon_u_value(al[0], al[1], al[2], bl[0], bl[1], bl[2], 1.0, 1.0, 0.0, V2)
+    tendon_u_value(al[0], al[1], al[2], bl[0], bl[1], bl[2], 1.0, 0.0, 1.0, V3)
+    for c in range(3):
+        V2[c] -= al[c]
+        V3[c] -= al[c]
+    return True, al, V2, V3
+
+
+@njit(cache=True)
+def slack_density(ok, u0, V2, V3, d, co, so):
+    """|u| of one tendon from :func:`slack_terms` (NaN where the frame is undefined)."""
+    if not ok:
+        return np.nan
+    s = 0.0
+    for c in range(3):
+        v = u0[c] + d * (co * V2[c] + so * V3[c])
+        s += v * v
+    return np.sqrt(s)
 
 
 @njit(cache=True)

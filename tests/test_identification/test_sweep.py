@@ -30,7 +30,8 @@ def test_interrupted_sweep_says_what_is_kept(monkeypatch, tmp_path):
         raise RunInterrupted("stopped", completed={0: [None] * len(tasks[0]["cases"])}, total=len(tasks))
 
     monkeypatch.setattr(fem_sweep, "run_tasks", interrupted)
-    spec = fem_sweep.FemSpec(None, None, "coarse")
+    from validation.designs import load_design
+    spec = fem_sweep.FemSpec(*load_design("paper"), "coarse")
     monkeypatch.setattr(fem_sweep.FemSpec, "key", lambda self: {"mesh": "coarse"})
     with pytest.raises(RunInterrupted, match=rf"of 6 FEM cases were finished; they are cached in {tmp_path}") as exc:
         fem_sweep.run_cases(spec, cases, cache_dir=tmp_path, progress=False)
