@@ -20,7 +20,7 @@ from typing import Optional
 
 import numpy as np
 
-from ancf import Equilibrium, Model
+from ancf import Equilibrium, InfeasibleTargetError, Model
 from ancf.errors import InputError
 
 from .errors import check_finite, number
@@ -39,6 +39,7 @@ class StepReport:
     compliance : (3, 3) C'_p used for the update [m/N] (LACC only), active : taut set used (LACC only)
     ik_iterations : Newton iterations of the IK solve (or function evaluations of the bounded IK)
     backtracks : how often the load step was halved because the IK became infeasible
+    saturated : the IK target was out of reach (tension limits) and the nearest reachable state was commanded
     """
     error: np.ndarray
     error_norm: float
@@ -52,6 +53,7 @@ class StepReport:
     ik_iterations: int = 0
     backtracks: int = 0
     notes: list = field(default_factory=list)
+    saturated: bool = False
 
     def to_dict(self) -> dict:
         out = {}
@@ -114,6 +116,27 @@ class Controller(abc.ABC):
         idle = (StepReport(e, en, True, None, self.estimate, "idle", time.perf_counter() - t0)
                 if en < self.tolerance else None)
         return e, en, t0, idle
+
+    def _reach(self, target: np.ndarray, load: np.ndarray) -> tuple:
+        """The IK state for the tip ``target`` [m] under the tip load ``load`` [N], or — when no tensions inside
+        their bounds reach it (:class:`~ancf.errors.InfeasibleTargetError`) — the nearest reachable state: the
+        FK at the tensions the bounded IK found, warm-started from the last state.  Returns (state, saturated,
+        note)."""
+        try:
+            eq = self.model.ik(target, self.pressure, load, q0=self.state.q, tensions0=self.state.tensions)
+            return eq, False, ""
+        except InfeasibleTargetError as exc:
+            eq, note = self._nearest(exc, target, load)
+            return eq, True, note
+
+    def _nearest(self, exc: InfeasibleTargetError, target: np.ndarray, load: np.ndarray) -> tuple:
+        """(state, note) at the tensions of ``exc`` — the nearest reachable point the bounded IK found."""
+        if exc.tensions is None:
+            raise exc
+        eq = self.model.fk(exc.tensions, self.pressure, load, q0=self.state.q)
+        note = (f"saturated: target {1e3 * np.linalg.norm(eq.tip - target):.2f} mm out of reach "
+                f"({'; '.join(exc.violated) or 'bounds'}); nearest reachable state commanded")
+        return eq, note
 
     def _warm_start(self) -> Equilibrium:
         """The stored gravity-only droop state at the controller's pressure (paper Sec. III-E)."""

@@ -32,12 +32,19 @@ Load-estimate safeguards (all explicit, all parameters):
    value and the controller switches — for the rest of the episode — to plain IK position correction:
    the IK target is shifted against the error, p_cmd ← p_cmd − ``fallback_gain`` · (p_m − p_d), with F̂
    unchanged.  That is an integral law on position, effective irrespective of the load magnitude.
-4. **Feasibility back-tracking.**  If the IK with the new estimate needs tensions outside their bounds,
-   the load step is halved (up to ``backtracks`` times); if it is still infeasible the estimate is not
-   trusted either: it is frozen and the controller falls back to IK position correction as in 3
-   (``on_infeasible="raise"`` propagates instead).  If the position-correcting IK is infeasible too, the
-   :class:`~ancf.errors.InfeasibleTargetError` propagates: the load cannot be carried within the tension
-   limits.  (An infeasible *initial* target always propagates from :meth:`LACC.start`.)
+4. **Saturation, not abort** (``on_infeasible="saturate"``, the default).  A load the tensions cannot carry
+   at the target (the load-compensated IK needs tensions outside their bounds) does not end the run: the
+   controller commands the nearest reachable state (the FK at the tensions of the bounded IK, see
+   :meth:`ancf.Model.ik`), reports the step ``saturated``, and keeps estimating the load.  Anti-windup: while
+   saturated the estimate is updated from the *innovation* — the measured tip minus the tip the model
+   expects for the commanded state under F̂ — not from the distance to the unreachable target, so F̂ follows
+   the load instead of integrating the unreachable offset; when the load allows, the IK reaches the target
+   again and the step is no longer saturated.  In fallback mode (3) the position-correcting IK saturates the
+   same way, with the IK target reset to the reachable tip (back-calculation: it does not wind up).
+   ``on_infeasible="fallback"`` keeps the earlier behaviour: the load step is halved up to ``backtracks``
+   times, then the estimate is frozen and the controller falls back to IK position correction, whose
+   infeasibility propagates; ``"raise"`` propagates the first infeasible IK.  (An infeasible *initial*
+   target always propagates from :meth:`LACC.start`: a run is refused before it starts.)
 5. **Gain.**  ``gain`` multiplies ΔF̂ (default 1.0 = Algorithm 1).
 
 Compliance choices (``compliance=``): ``"exact"`` (the default) is the exact locked linearisation (KKT
@@ -94,8 +101,9 @@ class LACC(Controller):
     rcond : SVD cut-off of the C'_p inverse, relative to σ_max (0.05: the stiff axial direction is cut)
     gain : multiplier of ΔF̂ (1 = Algorithm 1)
     fallback_gain : gain of the IK position correction once in fallback (1 = full correction)
-    backtracks : how many times a load step is halved when the IK becomes infeasible
-    on_infeasible : after the halvings, "fallback" (freeze F̂, IK position correction) or "raise"
+    backtracks : how many times a load step is halved when the IK becomes infeasible ("fallback" only)
+    on_infeasible : "saturate" (command the nearest reachable state, keep estimating; module docstring),
+        "fallback" (after the halvings freeze F̂ and correct by IK position) or "raise"
     """
 
     name = "LACC"
@@ -103,7 +111,7 @@ class LACC(Controller):
     def __init__(self, model: Model, pressure: float, *, compliance: str = "exact", constraint_weight: float = 1.0,
                  active_rule: Optional[str] = None, tolerance: float = 2e-4, validity_force: float = 0.2 * G,
                  max_step_force: Optional[float] = 1.0, rcond: float = 0.05, gain: float = 1.0,
-                 fallback_gain: float = 1.0, backtracks: int = 3, on_infeasible: str = "fallback"):
+                 fallback_gain: float = 1.0, backtracks: int = 3, on_infeasible: str = "saturate"):
         super().__init__(model, pressure, tolerance=tolerance)
         if not isinstance(compliance, str) or compliance not in COMPLIANCE_METHODS:
             raise InputError(f"LACC compliance must be one of {COMPLIANCE_METHODS}, got {compliance!r}")
@@ -123,10 +131,11 @@ class LACC(Controller):
         if isinstance(backtracks, bool) or not isinstance(backtracks, (int, np.integer)) or backtracks < 0:
             raise InputError(f"backtracks must be an integer >= 0, got {backtracks!r}")
         self.backtracks = int(backtracks)
-        if not isinstance(on_infeasible, str) or on_infeasible not in ("fallback", "raise"):
-            raise InputError(f"on_infeasible must be 'fallback' or 'raise', got {on_infeasible!r}")
+        if not isinstance(on_infeasible, str) or on_infeasible not in ("saturate", "fallback", "raise"):
+            raise InputError(f"on_infeasible must be 'saturate', 'fallback' or 'raise', got {on_infeasible!r}")
         self.on_infeasible = on_infeasible
         self._F = np.zeros(3)
+        self._offset = np.zeros(3)          # tip the model expects for the command − p_d (≠ 0 when saturated)
         self.mode = "lacc"
         self.command_target: Optional[np.ndarray] = None     # IK target (differs from p_d in fallback)
 
@@ -150,6 +159,7 @@ class LACC(Controller):
         eq = self.model.ik(pd, self.pressure, F0, q0=droop.q, tensions0=droop.tensions)   # may raise Infeasible
         self.target, self.command_target = pd, pd.copy()
         self._F = F0.copy()
+        self._offset = np.zeros(3)
         self.state = eq
         self.mode = "lacc"
         return eq.tendon_lengths.copy()
@@ -173,8 +183,11 @@ class LACC(Controller):
         notes: list = []
         Cp, A = None, ()
         backtracks = 0
+        saturated = False
         if self.mode == "lacc":
-            dF, Cp, A = self.load_increment(e)
+            # the innovation: measured tip minus the tip the model expects for the last command under F̂
+            # (the target itself unless that command was saturated — anti-windup, module docstring)
+            dF, Cp, A = self.load_increment(e - self._offset)
             if self.max_step_force is not None and np.linalg.norm(dF) > self.max_step_force:
                 notes.append(f"load step {np.linalg.norm(dF):.3g} N clipped to {self.max_step_force:g} N")
                 dF *= self.max_step_force / np.linalg.norm(dF)
@@ -192,6 +205,11 @@ class LACC(Controller):
                     self._F = F_new
                     break
                 except InfeasibleTargetError as exc:
+                    if self.on_infeasible == "saturate":
+                        eq, note = self._nearest(exc, self.command_target, F_new)
+                        self._F, saturated = F_new, True
+                        notes.append(note)
+                        break
                     if backtracks >= self.backtracks:
                         if self.on_infeasible == "raise":
                             raise
@@ -203,9 +221,17 @@ class LACC(Controller):
                     dF = 0.5 * dF
         if eq is None:
             self.command_target = self.command_target - self.fallback_gain * e
-            eq = self.model.ik(self.command_target, self.pressure, self._F, q0=self.state.q,
-                               tensions0=self.state.tensions)
+            if self.on_infeasible == "saturate":
+                eq, saturated, note = self._reach(self.command_target, self._F)
+                if saturated:
+                    self.command_target = eq.tip.copy()      # back-calculation: the IK target does not wind up
+                    notes.append(note)
+            else:
+                eq = self.model.ik(self.command_target, self.pressure, self._F, q0=self.state.q,
+                                   tensions0=self.state.tensions)
+        self._offset = eq.tip - self.target if (saturated and self.mode == "lacc") else np.zeros(3)
         self.state = eq
         cmd = eq.tendon_lengths.copy()
         return StepReport(e, en, False, cmd, self.estimate, self.mode, time.perf_counter() - t0, compliance=Cp,
-                          active=A, ik_iterations=eq.iterations, backtracks=backtracks, notes=notes)
+                          active=A, ik_iterations=eq.iterations, backtracks=backtracks, notes=notes,
+                          saturated=saturated)

@@ -16,6 +16,10 @@ When the error first drops below the controller's tolerance the equilibrium is r
 at convergence (or after ``max_iterations`` corrections); with ``duration`` [s] it holds the target until
 the rig clock has advanced that long (``math.inf``: until Ctrl-C), re-measuring every ``idle_period``.
 
+A target the actuator cannot reach under the current load does not end the run: the controller commands the
+nearest reachable state and reports the step ``saturated`` (status line, the log's ``saturated`` column,
+the summary's ``reach`` saturation time) until the load lets it track again.
+
 Faults: any :class:`~ancf.errors.BellowsError` during the run (hardware fault, limit, infeasible IK) makes
 the rig safe (:meth:`hardware.Rig.safe_stop`: drives hold — quick stop after a drive fault — pressure held
 or vented), writes the reason to the log, closes it and re-raises the error with ``.log_path`` and the
@@ -182,7 +186,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                 rig.advance(rep.compute_time if sim_compute_time == "measured" else float(sim_compute_time))
             row = {"t": t, "iteration": k, "tip": pm, "error": rep.error, "error_norm": rep.error_norm,
                    "command": rep.command, "position": readings["positions"], "tension": readings["tensions"],
-                   "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time}
+                   "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time,
+                   "saturated": float(getattr(rep, "saturated", False))}
             if simulated:
                 row["true_tip"], row["true_load"] = truth, rig.load(t)
                 result.true_errors.append(float(np.linalg.norm(truth - pd)))
@@ -195,6 +200,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
             result.estimate = np.asarray(rep.estimate, float).copy()
             if status is not None:
                 status({"t": t - t_start, "iteration": k, "error_m": rep.error_norm, "mode": rep.mode,
+                        "saturated": bool(getattr(rep, "saturated", False)),
                         "estimate_N": rep.estimate, "pressure_Pa": readings["pressure"],
                         "tensions_N": readings["tensions"]})
             if rep.command is None:
@@ -223,8 +229,13 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                 result.reason = (f"tip error {rep.error_norm * 1e3:.4f} mm after {k} corrections "
                                  f"(tolerance {controller.tolerance * 1e3:.4f} mm)")
                 break
+            t_cmd = rig.clock.now()
             rig.command(rep.command, expected_tensions=controller.state.tensions)
             rig.advance(None)
+            if rig.clock.now() <= t_cmd:
+                # nothing to move and no time passed (a simulated rig given the same command again, e.g. while
+                # saturated): wait like a held target, or the loop would spin at one instant of rig time
+                rig.advance(idle_period)
             k += 1
             result.iterations = k
             if duration is not None and rig.clock.now() - t_start >= duration:
@@ -272,6 +283,8 @@ def _saturated(rig, controller: Controller, readings: dict, rep) -> tuple:
         pos = pos[np.isfinite(pos)]
         if np.any((pos <= lim.length_min + edge) | (pos >= lim.length_max - edge)):
             reasons.append("travel")
+    if getattr(rep, "saturated", False):
+        reasons.append("reach")
     if rep.command is not None and (rep.mode == "fallback" or rep.backtracks > 0
                                     or any("clipped" in n for n in rep.notes)):
         reasons.append("controller")

@@ -20,8 +20,9 @@ the run log stores in ``/summary``):
 * **saturation time** [s] — the rig time spent in samples where something was at a limit: ``tension``
   (a tension the controller's IK expects within 1 % of the actuator's tension range from a bound, or a
   measured tension at or above 95 % of the rig's tension limit), ``travel`` (a drive within 1 % of the
-  travel range from a travel limit) or ``controller`` (LACC clipped or halved its load step, or corrected
-  in its IK fallback).  A sample counts until the next one.
+  travel range from a travel limit), ``reach`` (the controller's IK target was out of reach under the
+  current load: it commanded the nearest reachable state) or ``controller`` (LACC clipped or halved its load
+  step, or corrected in its IK fallback).  A sample counts until the next one.
 * **faults** — the rig's ``fault``, ``limit`` and ``error`` events during the run.
 * **corrections** — commands the controller sent after the first IK.
 """

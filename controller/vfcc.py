@@ -12,6 +12,10 @@ most of the load deflection uncorrected — the behaviour Table I reports (error
 N/mm (10⁴ N/m) the loop gain would be ≈ 50 and both laws below would diverge (|1 − C_L χ| > 1), which the
 paper's finite residuals rule out.  χ is a parameter; pass an array for per-axis gains.
 
+Saturation: a virtual force the tensions cannot carry at the target commands the nearest reachable state
+(the step is reported ``saturated``; the integral law holds F_v meanwhile — anti-windup) instead of ending
+the run.
+
 ``law="proportional"`` (default, the literal description): F_v is recomputed from the current error each
 step, so at the fixed point e* = (I + C_L χ)⁻¹ C_L F — a residual error proportional to the load that
 shrinks only as 1/(1 + C_L χ).  ``law="integral"``: F_v ← F_v + χ e (an integral variant, converging at
@@ -78,7 +82,10 @@ class VFCC(Controller):
         if idle is not None:
             return idle
         F = self.chi * e if self.law == "proportional" else self._F + self.chi * e
-        eq = self.model.ik(self.target, self.pressure, F, q0=self.state.q, tensions0=self.state.tensions)
-        self._F, self.state = F, eq
+        eq, saturated, note = self._reach(self.target, F)
+        if not (saturated and self.law == "integral"):   # anti-windup: the integral holds while saturated
+            self._F = F
+        self.state = eq
         return StepReport(e, en, False, eq.tendon_lengths.copy(), self.estimate, "vfcc",
-                          time.perf_counter() - t0, ik_iterations=eq.iterations)
+                          time.perf_counter() - t0, ik_iterations=eq.iterations, notes=[note] if note else [],
+                          saturated=saturated)

@@ -71,7 +71,7 @@ def _sample_fields(m: int) -> dict:
     return {"t": ((), "s"), "iteration": ((), "1"), "tip": ((3,), "m"), "error": ((3,), "m"),
             "error_norm": ((), "m"), "command": ((m,), "m"), "position": ((m,), "m"), "tension": ((m,), "N"),
             "pressure": ((), "Pa"), "estimate": ((3,), "N"), "compute_time": ((), "s"), "true_tip": ((3,), "m"),
-            "true_load": ((3,), "N")}
+            "true_load": ((3,), "N"), "saturated": ((), "1")}
 
 
 def versions() -> dict:

@@ -41,7 +41,8 @@ def _status_printer(stream=None, every_s: float = 0.5):
         last[0] = s["t"]
         F = s["estimate_N"]
         line = (f"t {s['t']:8.2f} s  iter {s['iteration']:4d}  tip error {s['error_m'] * 1e3:8.4f} mm  "
-                f"{s['mode']:8s}  F̂ ({F[0]:+.3f}, {F[1]:+.3f}, {F[2]:+.3f}) N  p {s['pressure_Pa'] / 1e3:6.2f} kPa")
+                f"{s['mode']:8s}  F̂ ({F[0]:+.3f}, {F[1]:+.3f}, {F[2]:+.3f}) N  p {s['pressure_Pa'] / 1e3:6.2f} kPa"
+                f"{'  SATURATED' if s.get('saturated') else '           '}")
         stream.write(("\r" + line) if tty else (line + "\n"))
         stream.flush()
     return status

@@ -51,12 +51,27 @@ def test_unreachable_target_propagates(paper_model):
     assert info.value.nearest is not None
 
 
-def test_load_beyond_tension_limits_propagates(paper_model, target):
-    # 300 g cannot be carried with ≤ 5 N tendons here: after back-tracking the IK error propagates
+def test_load_beyond_tension_limits_propagates_when_asked(paper_model, target):
+    # 300 g cannot be carried with ≤ 5 N tendons here: with on_infeasible="fallback", after back-tracking and
+    # the IK position correction, the IK error propagates
     plant = SimulatedPlant(paper_model, P, load=(0, 0, -2.9))
     with pytest.raises(InfeasibleTargetError):
-        run_iterations(LACC(paper_model, P, compliance="exact", validity_force=5.0, max_step_force=None),
-                       plant, target, iterations=10)
+        run_iterations(LACC(paper_model, P, compliance="exact", validity_force=5.0, max_step_force=None,
+                            on_infeasible="fallback"), plant, target, iterations=10)
+
+
+def test_load_beyond_tension_limits_saturates_by_default(paper_model, target):
+    """The same load with the default: every step after the first commands the nearest reachable state; the
+    estimate converges to the true load (the innovation is measured against the commanded state, so it does
+    not integrate the unreachable offset) and the error settles where the bounds put it."""
+    plant = SimulatedPlant(paper_model, P, load=(0, 0, -2.9))
+    ctrl = LACC(paper_model, P, compliance="exact", validity_force=5.0, max_step_force=None)
+    res = run_iterations(ctrl, plant, target, iterations=10)
+    assert not res.converged and all(r.saturated for r in res.reports[1:])
+    assert any("saturated" in n for r in res.reports for n in r.notes)
+    np.testing.assert_allclose(ctrl.estimate, (0, 0, -2.9), atol=0.05)
+    assert abs(res.errors[-1] - res.errors[-2]) < 1e-6                # settled at the bound, not drifting
+    assert np.all(ctrl.state.tensions >= -1e-12) and np.all(ctrl.state.tensions <= 5.0 + 1e-12)
 
 
 def test_non_convergence_says_by_how_much(paper_model, target):
@@ -84,8 +99,8 @@ def test_timed_loop_holds_a_slow_ramp(paper_model, target):
 
 def test_on_error_stop_records_the_failure(paper_model, target):
     plant = SimulatedPlant(paper_model, P, load=(0, 0, -2.9))
-    res = run_iterations(LACC(paper_model, P, compliance="exact", validity_force=5.0, max_step_force=None),
-                         plant, target, iterations=10, on_error="stop")
+    res = run_iterations(LACC(paper_model, P, compliance="exact", validity_force=5.0, max_step_force=None,
+                              on_infeasible="fallback"), plant, target, iterations=10, on_error="stop")
     assert res.failure and "InfeasibleTargetError" in res.failure
     assert not res.converged
     assert len(res.errors) >= 1
