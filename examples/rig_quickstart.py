@@ -22,7 +22,7 @@ import numpy as np
 def main(argv=None, verbose: bool = True) -> dict:
     from ancf import Model, presets
     from controller import LACC, run_on_rig
-    from hardware import PlantOptions, Rig, RigConfig, SimulatedRig
+    from hardware import PlantOptions, RigConfig, SimulatedRig, build_rig
     from hardware.loads import load_profile
     from hardware.runlog import read_run_log
 
@@ -38,7 +38,7 @@ def main(argv=None, verbose: bool = True) -> dict:
     p = 60e3
     target = model.fk((2.2, 1.6, 1.6), p).tip                   # near-horizontal tip [m]
     if a.rig:
-        rig = Rig.from_config(RigConfig.from_toml(a.rig))
+        rig = build_rig(RigConfig.from_toml(a.rig))
     else:
         rig = SimulatedRig(params, load=load_profile("stochastic", period=3.0, seed=1),
                            options=PlantOptions.mismatched(seed=2))

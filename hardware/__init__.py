@@ -4,7 +4,7 @@ static-states file format (:mod:`hardware.static_states`; docs/rig.md, docs/data
 ::
 
     from hardware import Rig, SimulatedRig, RigConfig, HardwareError, LimitError, DriveFault
-    rig = SimulatedRig(presets.paper(), load=(0, 0, -0.4), seed=0)      # or Rig.from_config(RigConfig.from_toml(...))
+    rig = SimulatedRig(presets.paper(), load=(0, 0, -0.4), seed=0)      # or build_rig(RigConfig.from_toml(...))
 
 Submodules are imported on first use (``hardware.epos4`` needs ``canopen``; serial devices need
 ``pyserial``): importing ``hardware`` itself is cheap.
@@ -15,11 +15,11 @@ from __future__ import annotations
 from .errors import (CommunicationError, DriveFault, HardwareError, LimitError, PressureFault, RigConfigError,
                      RunAborted, SensorTimeout, TrackingLost)
 
-__all__ = ["Rig", "SimulatedRig", "PlantOptions", "RigConfig", "SafetyLimits", "RunLog", "HardwareError",
+__all__ = ["Rig", "SimulatedRig", "build_rig", "PlantOptions", "RigConfig", "SafetyLimits", "RunLog", "HardwareError",
            "LimitError", "DriveFault", "SensorTimeout", "TrackingLost", "PressureFault", "CommunicationError",
            "RunAborted", "RigConfigError", "TrackedPose"]
 
-_LAZY = {"Rig": "rig", "SimulatedRig": "simulated", "PlantOptions": "simulated", "RigConfig": "config",
+_LAZY = {"Rig": "rig", "build_rig": "build", "SimulatedRig": "simulated", "PlantOptions": "simulated", "RigConfig": "config",
          "SafetyLimits": "limits", "RunLog": "runlog", "TrackedPose": "interfaces"}
 
 

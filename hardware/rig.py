@@ -305,8 +305,3 @@ class Rig:
                 "limits": self.limits.to_dict(), "on_fault_pressure": self.on_fault_pressure,
                 "speed_m_per_s": self.speed, "settle_time_s": self.settle_time, "config": self.config}
 
-    @classmethod
-    def from_config(cls, config) -> "Rig":
-        """Build the rig a :class:`~hardware.config.RigConfig` describes (simulated or hardware backends)."""
-        from .config import build_rig
-        return build_rig(config)

@@ -55,3 +55,21 @@ def test_fem_reference_uses_no_ancf_model():
             if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("ancf"):
                 names = [f"ancf.{a.name}" for a in node.names] if node.module == "ancf" else [node.module]
                 assert set(names) <= allowed, f"{p.relative_to(ROOT)} imports {names}"
+
+
+def _relative_imports(path: pathlib.Path) -> set[str]:
+    """Sibling modules a module imports with ``from .x import`` (module level or inside functions)."""
+    import ast
+    return {node.module.split(".")[0] for node in ast.walk(ast.parse(path.read_text()))
+            if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module}
+
+
+@pytest.mark.parametrize("module, forbidden", [
+    ("config", {"rig", "simulated", "build", "epos4", "serial_devices"}),    # the rig file knows no rig classes
+    ("rig", {"config", "build", "simulated"}),                                 # the rig knows no rig file
+    ("simulated", {"config", "build"}),
+])
+def test_building_a_rig_is_one_module_the_others_do_not_need(module, forbidden):
+    """hardware.build is the only module that knows both the rig file and the rig classes: no cycle."""
+    assert not _relative_imports(ROOT / "hardware" / f"{module}.py") & forbidden
+    assert {"config", "rig", "simulated"} <= _relative_imports(ROOT / "hardware" / "build.py")

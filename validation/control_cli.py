@@ -101,7 +101,8 @@ def control(
     from ancf.cli import parse_vector
     from ancf.outputs import prepare_output_file
     from controller import LACC, VFCC, run_on_rig
-    from hardware.config import RigConfig, build_rig
+    from hardware.build import build_rig
+    from hardware.config import RigConfig
     from hardware.errors import RunAborted
     from hardware.loads import load_profile as make_profile
     from hardware.runlog import SUFFIXES

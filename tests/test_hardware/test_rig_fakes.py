@@ -14,7 +14,7 @@ pytest.importorskip("serial")
 from fakes.bench import FakeNatNet, free_udp_port  # noqa: E402
 from fakes.cia402_drive import FakeEpos4  # noqa: E402
 from fakes.serial_instruments import FakeSerialInstrument  # noqa: E402
-from hardware import DriveFault, LimitError, PressureFault, Rig, RigConfig, SensorTimeout, TrackingLost  # noqa: E402
+from hardware import DriveFault, LimitError, PressureFault, RigConfig, SensorTimeout, TrackingLost, build_rig  # noqa: E402
 from hardware import epos4 as e4  # noqa: E402
 from fakes.fixtures import quiet_canopen  # noqa: E402,F401  (fixture)
 
@@ -81,7 +81,7 @@ rotation = [[1, 0, 0], [0, 1, 0], [0, 0, 1]]
 @pytest.fixture
 def bench(fake_bench):
     path, drives, loadcells, valves, nat = fake_bench
-    with Rig.from_config(RigConfig.from_toml(path)) as rig:
+    with build_rig(RigConfig.from_toml(path)) as rig:
         yield rig, drives, loadcells, valves, nat
 
 
@@ -150,7 +150,7 @@ def test_each_fault_on_the_fake_backends(bench, fault):
 
 def test_closing_the_rig_disables_the_drives(fake_bench):
     path, drives, *_ = fake_bench
-    with Rig.from_config(RigConfig.from_toml(path)) as rig:
+    with build_rig(RigConfig.from_toml(path)) as rig:
         rig.command([0.166, 0.165, 0.165])
         rig.advance()
     assert [d.state for d in drives] == ["READY TO SWITCH ON"] * 3
@@ -167,7 +167,7 @@ def test_a_drive_fault_leaves_every_drive_stopped_after_close(fake_bench):
     quick stop), the faulted drive stays in FAULT, the others end switched off."""
     path, drives, *_ = fake_bench
     with pytest.raises(DriveFault):
-        with Rig.from_config(RigConfig.from_toml(path)) as rig:
+        with build_rig(RigConfig.from_toml(path)) as rig:
             rig.command([0.166, 0.165, 0.165])
             rig.advance()
             drives[1].inject_fault(0x8611)
@@ -184,7 +184,7 @@ def test_run_on_rig_drive_fault_leaves_the_drives_stopped(fake_bench, tmp_path):
     model = Model(presets.paper_unscaled())
     target = model.fk((2.2, 1.6, 1.6), 60e3).tip
     nat.position = tuple(target + np.array([0.002, 0.0, 0.0]))
-    rig = Rig.from_config(RigConfig.from_toml(path))
+    rig = build_rig(RigConfig.from_toml(path))
     orig = rig.check_health
 
     def faulty():

@@ -54,7 +54,7 @@ CASES = {
     "calibrate": (["calibrate", "--target-ea-n", "700", "--out", "{d}/c.toml"], "c.toml",
                   "validation.calibrate:calibrate"),
     "control --log": (["control", "--target-mm", "150,0,20", "--pressure-kpa", "30", "--log", "{d}/run.h5"], "run.h5",
-                      "hardware.config:build_rig"),
+                      "hardware.build:build_rig"),
     "log export --csv": (["log", "export", "{d}/no_such_run.h5", "--csv", "{d}/s.csv"], "s.csv",
                          "hardware.runlog:read_run_log"),
 }
