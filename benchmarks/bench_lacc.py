@@ -146,21 +146,27 @@ def rig_cycle(repeats: int = 50) -> dict:
     target = m.fk(TENSIONS, P, (0, 0, 0)).tip
     out = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for key, log in (("cycle_no_log", None), ("cycle_with_log", f"{tmp}/b.h5")):
-            rig = SimulatedRig(m, load=load_profile("stochastic", period=0.5, seed=1),
-                               options=PlantOptions(noise_std=5e-5, length_rate=5e-3))
-            t0 = time.perf_counter()
-            res = run_on_rig(LACC(m, P, tolerance=1e-4), rig, target, log=log, duration=repeats * 0.1,
-                             idle_period=0.1, sim_compute_time=0.0)
-            out[key] = (time.perf_counter() - t0) / res.samples * 1e3
-        with RunLog(f"{tmp}/c.h5", n_tendons=3) as log:
-            ts = []
-            for k in range(repeats):
-                _, s = timed(log.sample, t=float(k), tip=target, tension=TENSIONS, pressure=P)
-                ts.append(s)
-        out["log_append"] = statistics.median(ts) * 1e3
-    print(f"run_on_rig cycle on the simulated rig (mean over the run, ms): {out['cycle_no_log']:.2f} without a log, "
-          f"{out['cycle_with_log']:.2f} with the SWMR log; one log append (median) {out['log_append']:.3f} ms")
+        cycles = {"cycle_no_log": [], "cycle_with_log": []}
+        for i in range(2):                       # interleaved: without, with, without, with
+            for key, log in (("cycle_no_log", None), ("cycle_with_log", f"{tmp}/b{i}.h5")):
+                rig = SimulatedRig(m, load=load_profile("stochastic", period=0.5, seed=1),
+                                   options=PlantOptions(noise_std=5e-5, length_rate=5e-3))
+                stamps = []
+                run_on_rig(LACC(m, P, tolerance=1e-4), rig, target, log=log, duration=repeats * 0.1,
+                           idle_period=0.1, sim_compute_time=0.0, status=lambda s: stamps.append(time.perf_counter()))
+                cycles[key] += list(np.diff(stamps))
+        for key, v in cycles.items():
+            out[key] = statistics.median(v) * 1e3
+        for flush_rows, key in ((1, "log_append_flush_each_row"), (50, "log_append_blocks")):
+            with RunLog(f"{tmp}/c{flush_rows}.h5", n_tendons=3, flush_rows=flush_rows) as log:
+                t0 = time.perf_counter()
+                for k in range(10 * repeats):
+                    log.sample(t=float(k), tip=target, tension=TENSIONS, pressure=P)
+                out[key] = (time.perf_counter() - t0) / (10 * repeats) * 1e3
+    print(f"run_on_rig cycle on the simulated rig (median, ms): {out['cycle_no_log']:.2f} without a log, "
+          f"{out['cycle_with_log']:.2f} with the SWMR log (+{100 * (out['cycle_with_log'] / out['cycle_no_log'] - 1):.0f} %); "
+          f"one log append incl. its share of the flushes (mean) {out['log_append_blocks']:.3f} ms in blocks of 50 rows, "
+          f"{out['log_append_flush_each_row']:.3f} ms flushing every row")
     return out
 
 

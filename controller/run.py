@@ -11,6 +11,11 @@ r"""Run a controller on a rig — simulated or real — through one code path, w
     rig.command(l_c, expected_tensions)  limits are checked before anything is sent
     rig.advance()                        until the drives reach their targets (+ settle time)
 
+Loop timing: every logged sample carries the controller's ``compute_time`` of this cycle and, for the
+previous cycle, ``cycle_time`` (wall clock from its start to this one's: the loop period as run) and
+``io_time`` (wall clock in rig calls: health check, measurement, command, advance — bus traffic on hardware,
+the plant's simulation on a simulated rig); ``bellows log show`` summarises them.
+
 When the error first drops below the controller's tolerance the equilibrium is recorded as a static state
 (measured tensions, pressure, tip) in the log's ``/static_states``.  Without ``duration`` the run ends
 at convergence (or after ``max_iterations`` corrections); with ``duration`` [s] it holds the target until
@@ -31,6 +36,7 @@ This module imports :mod:`hardware` only inside :func:`run_on_rig` (for the run 
 from __future__ import annotations
 
 import pathlib
+import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Union
 
@@ -176,9 +182,15 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         rig.command(lengths, expected_tensions=controller.state.tensions)
         rig.advance(None)
         k = 0
+        prev_start, prev_io, io = None, float("nan"), float("nan")
         while True:
+            # loop timing (wall clock): this cycle's start, and the rig-call time of the previous cycle
+            start = time.perf_counter()
+            cycle_time = float("nan") if prev_start is None else start - prev_start
+            prev_start, prev_io, io = start, io, 0.0
             readings = rig.check_health()
             pm = rig.measure(average_frames) if average_frames > 1 else rig.measure()
+            io += time.perf_counter() - start
             t = rig.clock.now()
             truth = rig.true_tip() if simulated else None
             rep = controller.step(pm)
@@ -187,7 +199,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
             row = {"t": t, "iteration": k, "tip": pm, "error": rep.error, "error_norm": rep.error_norm,
                    "command": rep.command, "position": readings["positions"], "tension": readings["tensions"],
                    "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time,
-                   "saturated": float(getattr(rep, "saturated", False))}
+                   "saturated": float(getattr(rep, "saturated", False)), "io_time": prev_io,
+                   "cycle_time": cycle_time}
             if simulated:
                 row["true_tip"], row["true_load"] = truth, rig.load(t)
                 result.true_errors.append(float(np.linalg.norm(truth - pd)))
@@ -221,7 +234,9 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                 if rig.clock.now() - t_start >= duration:
                     result.status = "held"
                     break
+                t_io = time.perf_counter()
                 rig.advance(idle_period)
+                io += time.perf_counter() - t_io
                 continue
             was_converged = False
             if duration is None and max_iterations is not None and k >= max_iterations:
@@ -229,13 +244,14 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                 result.reason = (f"tip error {rep.error_norm * 1e3:.4f} mm after {k} corrections "
                                  f"(tolerance {controller.tolerance * 1e3:.4f} mm)")
                 break
-            t_cmd = rig.clock.now()
+            t_cmd, t_io = rig.clock.now(), time.perf_counter()
             rig.command(rep.command, expected_tensions=controller.state.tensions)
             rig.advance(None)
             if rig.clock.now() <= t_cmd:
                 # nothing to move and no time passed (a simulated rig given the same command again, e.g. while
                 # saturated): wait like a held target, or the loop would spin at one instant of rig time
                 rig.advance(idle_period)
+            io += time.perf_counter() - t_io
             k += 1
             result.iterations = k
             if duration is not None and rig.clock.now() - t_start >= duration:

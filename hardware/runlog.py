@@ -39,7 +39,9 @@ from __future__ import annotations
 
 import datetime as _dt
 import json
+import math
 import pathlib
+import time
 from typing import Optional
 
 import numpy as np
@@ -71,7 +73,7 @@ def _sample_fields(m: int) -> dict:
     return {"t": ((), "s"), "iteration": ((), "1"), "tip": ((3,), "m"), "error": ((3,), "m"),
             "error_norm": ((), "m"), "command": ((m,), "m"), "position": ((m,), "m"), "tension": ((m,), "N"),
             "pressure": ((), "Pa"), "estimate": ((3,), "N"), "compute_time": ((), "s"), "true_tip": ((3,), "m"),
-            "true_load": ((3,), "N"), "saturated": ((), "1")}
+            "true_load": ((3,), "N"), "saturated": ((), "1"), "io_time": ((), "s"), "cycle_time": ((), "s")}
 
 
 def versions() -> dict:
@@ -88,6 +90,10 @@ def versions() -> dict:
     return out
 
 
+#: Event kinds written to disk at once (the others go out with the next block of samples).
+URGENT_EVENTS = frozenset({"fault", "limit", "error", "warning", "end"})
+
+
 class RunLog:
     """Writer of one run log.  Use as a context manager; :meth:`close` writes the ``end`` event.
 
@@ -99,14 +105,25 @@ class RunLog:
     rig, controller, run : JSON-friendly descriptions stored as root attributes
     actuator_toml : the actuator parameters as TOML text
     chunk : rows per chunk
+    flush_rows, flush_period : samples are buffered and written in blocks, at the latest every ``flush_rows``
+        rows or ``flush_period`` seconds (wall clock); events and static states go out with them (faults,
+        limits, errors, warnings and the end at once, :data:`URGENT_EVENTS`).  A crash (SIGKILL, power loss)
+        loses at most what was written since the last flush: fewer than ``flush_rows`` sample rows and at most
+        ``flush_period`` of wall-clock time (defaults 50 rows, 0.1 s).  ``flush_rows=1`` flushes every row (the
+        slowest and safest).
     """
 
     def __init__(self, path, *, n_tendons: int, force: bool = False, rig: Optional[dict] = None,
                  controller: Optional[dict] = None, run: Optional[dict] = None, actuator_toml: str = "",
-                 chunk: int = 256):
+                 chunk: int = 256, flush_rows: int = 50, flush_period: float = 0.1):
         import h5py
         if isinstance(n_tendons, bool) or not isinstance(n_tendons, (int, np.integer)) or n_tendons < 1:
             raise InputError(f"n_tendons must be a positive integer, got {n_tendons!r}")
+        if isinstance(flush_rows, bool) or not isinstance(flush_rows, (int, np.integer)) or flush_rows < 1:
+            raise InputError(f"flush_rows must be a positive integer, got {flush_rows!r}")
+        if not (isinstance(flush_period, (int, float)) and 0 <= flush_period < math.inf):
+            raise InputError(f"flush_period must be a number of seconds >= 0, got {flush_period!r}")
+        self.flush_rows, self.flush_period = int(flush_rows), float(flush_period)
         self.path = prepare_output_file(path, force=force, suffixes=SUFFIXES)
         self.m = int(n_tendons)
         self.fields = _sample_fields(self.m)
@@ -161,8 +178,37 @@ class RunLog:
         f.flush()
         self.rows = 0
         self.closed = False
+        self._buffer: dict = {name: [] for name in self.fields}
+        self._events: list = []
+        self._statics: list = []
+        self._flushed_at = time.monotonic()
 
     # ------------------------------------------------------------------------------------------ writing
+    @staticmethod
+    def _extend(ds, rows) -> None:
+        n = ds.shape[0]
+        ds.resize(n + len(rows), axis=0)
+        ds[n:] = np.asarray(rows, dtype=object if ds.dtype.kind == "O" else None)
+
+    def _write_buffered(self) -> None:
+        """Write the buffered sample rows, events and static states, one block per dataset (the caller
+        flushes).  A dataset is resized and written in one go, so a crash leaves either the block or not."""
+        if self._buffer["t"]:
+            for name, rows in self._buffer.items():
+                self._extend(self.samples[name], rows)
+                rows.clear()
+        if self._events:
+            t, kind, msg = zip(*self._events)
+            self._extend(self.ev_t, t)
+            self._extend(self.ev_kind, kind)
+            self._extend(self.ev_msg, msg)
+            self._events.clear()
+        if self._statics:
+            for name in self.static:
+                self._extend(self.static[name], [v[name] for v, _ in self._statics])
+            self._extend(self.static_label, [label for _, label in self._statics])
+            self._statics.clear()
+
     @staticmethod
     def _append(ds, value) -> None:
         n = ds.shape[0]
@@ -182,15 +228,30 @@ class RunLog:
             except (TypeError, ValueError):
                 raise InputError(f"run log: sample field {name} must be numeric with shape {shape}, got {v!r}") from None
         for name, a in rows.items():
-            self._append(self.samples[name], a)
+            self._buffer[name].append(a)
         self.rows += 1
+        if (len(self._buffer["t"]) >= self.flush_rows
+                or time.monotonic() - self._flushed_at >= self.flush_period):
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the buffered samples as one block and flush the file (readers in SWMR mode see them)."""
+        self._write_buffered()
         self.f.flush()
+        self._flushed_at = time.monotonic()
+
+    def _flush_due(self) -> None:
+        if time.monotonic() - self._flushed_at >= self.flush_period:
+            self.flush()
 
     def event(self, t: float, kind: str, message: str) -> None:
-        self._append(self.ev_t, float(t))
-        self._append(self.ev_kind, str(kind))
-        self._append(self.ev_msg, str(message))
-        self.f.flush()
+        """Append an event.  Faults, limits, errors, warnings and the end are flushed at once; other events
+        (``converged``, notes) go out with the next block, like the samples."""
+        self._events.append((float(t), str(kind), str(message)))
+        if kind in URGENT_EVENTS:
+            self.flush()
+        else:
+            self._flush_due()
 
     def static_state(self, *, time: float, tensions, pressure: float, tip, tip_force=None, label: str = "") -> None:
         """Append one measured equilibrium to ``/static_states`` (tip force NaN = unknown)."""
@@ -204,10 +265,8 @@ class RunLog:
                              "numeric with those shapes") from None
         if np.any(~np.isfinite(T)) or np.any(T < 0):
             raise InputError(f"static state: tensions must be finite and >= 0 N, got {T.tolist()}")
-        for name, v in vals.items():
-            self._append(self.static[name], v)
-        self._append(self.static_label, str(label))
-        self.f.flush()
+        self._statics.append((vals, str(label)))
+        self._flush_due()
 
     def summary(self, summary: dict) -> None:
         """Write the whole-run summary (a :meth:`controller.summary.RunSummary.to_dict`) to ``/summary``:
@@ -220,11 +279,12 @@ class RunLog:
                      for k in PERIOD_FIELDS] for p in summary.get("periods", [])]
         except (TypeError, ValueError, AttributeError) as exc:
             raise InputError(f"run log: the run summary must be a JSON-friendly dict with periods ({exc})") from None
+        self.flush()
         for row in rows:
             for name, v in zip(PERIOD_FIELDS, row):
                 self._append(self.summary_periods[name], v)
         self._append(self.summary_result, text)
-        self.f.flush()
+        self.flush()
 
     def close(self, status: str = "completed", reason: str = "", t: float = float("nan")) -> None:
         if self.closed:
@@ -244,6 +304,38 @@ class RunLog:
         else:
             self.close("aborted", f"{exc_type.__name__}: {exc}")
         return False
+
+
+def loop_timing(samples: dict) -> dict:
+    """Per-cycle timing of a run log's samples [s]: for ``compute_time`` (controller), ``io_time`` (rig calls)
+    and ``cycle_time`` (loop period as run), the median and 99th percentile over the cycles that have them,
+    the jitter of the period (99th percentile − median) and the overruns: cycles longer than twice the
+    median period.  Empty for a log without timing (older logs)."""
+    out = {}
+    for name in ("compute_time", "io_time", "cycle_time"):
+        a = np.asarray(samples.get(name, ()), float)
+        a = a[np.isfinite(a)]
+        if a.size:
+            out[name] = {"median": float(np.median(a)), "p99": float(np.percentile(a, 99)), "n": int(a.size)}
+    if "cycle_time" in out:
+        c = np.asarray(samples["cycle_time"], float)
+        c = c[np.isfinite(c)]
+        med = out["cycle_time"]["median"]
+        out["jitter"] = out["cycle_time"]["p99"] - med
+        out["overruns"] = int(np.sum(c > 2 * med))
+    return out
+
+
+def loop_timing_lines(samples: dict) -> list:
+    lt = loop_timing(samples)
+    if not lt:
+        return []
+    ms = lambda k: (f"median {lt[k]['median'] * 1e3:.3f}, p99 {lt[k]['p99'] * 1e3:.3f}" if k in lt else "—")
+    out = [f"  loop timing [ms]: controller {ms('compute_time')}; rig I/O {ms('io_time')}; cycle {ms('cycle_time')}"]
+    if "cycle_time" in lt:
+        out.append(f"  loop jitter {lt['jitter'] * 1e3:.3f} ms (p99 − median); overruns {lt['overruns']} of "
+                   f"{lt['cycle_time']['n']} cycles (longer than twice the median)")
+    return out
 
 
 # ============================================================================================ reading
@@ -372,6 +464,7 @@ def summary(path) -> str:
             target = np.asarray(run.get("target_m", [np.nan] * 3))
             te = np.linalg.norm(tt - target, axis=1)
             lines.append(f"  true tip error (simulated rig) [mm]: last {te[-1] * 1e3:.4f}, max {np.nanmax(te) * 1e3:.4f}")
+        lines += loop_timing_lines(d.samples)
     try:
         st = d.static_states()
         torn = st.meta.get("torn_rows", [])

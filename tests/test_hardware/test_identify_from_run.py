@@ -42,6 +42,7 @@ def test_identification_uses_the_complete_states_of_a_log_with_a_torn_state(tmp_
         for p in (40e3, 80e3):
             log.static_state(time=k, tensions=T, pressure=p, tip=model.fk(T, p, (0, 0, 0)).tip, tip_force=(0, 0, 0))
             k += 1
+    log.flush()                                                       # the finished states are on disk
     RunLog._append(log.static["tensions"], [2.0, 2.0, 2.0])           # the next state: killed after its tensions
     log.f.flush()
     log.close()

@@ -208,3 +208,25 @@ def test_control_rejects_sim_options_on_a_hardware_rig(monkeypatch, capsys, tmp_
         with pytest.raises(SystemExit):
             main()
         assert msg in capsys.readouterr().err
+
+
+def test_loop_timing_is_logged_and_summarised(tmp_path):
+    """Each sample carries the controller's compute time and the previous cycle's period and rig-call time;
+    'bellows log show' prints their medians, 99th percentiles, jitter and overruns."""
+    from ancf import Model, presets
+    from controller import LACC, run_on_rig
+    from hardware import SimulatedRig
+    from hardware.runlog import loop_timing
+    m = Model(presets.paper())
+    target = m.fk((2.2, 1.6, 1.6), 60e3).tip
+    res = run_on_rig(LACC(m, 60e3), SimulatedRig(m, load=(0, 0, -0.3)), target, log=tmp_path / "t.h5",
+                     duration=1.0, idle_period=0.05)
+    d = read_run_log(res.log_path)
+    c, io, comp = d.samples["cycle_time"], d.samples["io_time"], d.samples["compute_time"]
+    assert np.isnan(c[0]) and np.isnan(io[0]) and np.all(np.isfinite(c[1:])) and np.all(io[1:] > 0)
+    assert np.all(c[1:] >= io[1:])                       # a cycle contains its rig calls
+    lt = loop_timing(d.samples)
+    assert lt["cycle_time"]["n"] == d.rows - 1 and lt["cycle_time"]["p99"] >= lt["cycle_time"]["median"] > 0
+    assert 0 <= lt["overruns"] < d.rows
+    out = runner.invoke(app, ["log", "show", str(res.log_path)]).output
+    assert "loop timing [ms]: controller median" in out and "overruns" in out

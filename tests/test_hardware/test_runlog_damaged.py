@@ -36,6 +36,7 @@ def write_log(path, rows=40, static=2, kill=False):
         for k in range({static}):
             log.static_state(time=k, tensions=[1.0, 2.0, 3.0], pressure=6e4, tip=[0.17, 0.0, 0.001 * k])
         if {kill}:
+            log.flush()                     # what a running loop's block flushes have written by then
             os.kill(os.getpid(), signal.SIGKILL)
         log.close()
     """)
@@ -127,6 +128,31 @@ def test_killed_writer_log_is_still_readable(logs):
     assert read_static_states(logs["killed"]).n_states == 2
 
 
+@pytest.mark.parametrize("urgent", [False, True])
+def test_a_crash_loses_at_most_the_last_unflushed_block(tmp_path, urgent):
+    """Samples are written in blocks (flush_rows): a writer killed after 37 rows with blocks of 10 leaves 30 —
+    unless a fault event came last, which is flushed at once with everything before it."""
+    p = tmp_path / "blocks.h5"
+    code = textwrap.dedent(f"""
+        import os, signal
+        from hardware.runlog import RunLog
+        log = RunLog({str(p)!r}, n_tendons=3, flush_rows=10, flush_period=1e9)
+        for k in range(37):
+            log.sample(t=0.1 * k, iteration=k, tip=[0.17, 0.0, 0.001 * k], error_norm=1e-3 * k)
+            log.event(0.1 * k, "converged", "a note that waits for the next block")
+        if {urgent}:
+            log.event(3.7, "fault", "drive 2: following error")
+        os.kill(os.getpid(), signal.SIGKILL)
+    """)
+    subprocess.run([sys.executable, "-c", code], cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)},
+                   timeout=TIMEOUT_S, check=False)
+    d = read_run_log(p)
+    assert d.rows == (37 if urgent else 30) and d.ended is None
+    np.testing.assert_allclose(d.samples["iteration"], np.arange(d.rows))
+    assert len(d.events) == (38 if urgent else 29)              # the 30th row flushed before its note
+    assert (d.events[-1][1] == "fault") == urgent
+
+
 def test_cli_log_show_on_a_truncated_log_is_one_error_line(logs, tmp_path):
     bad = truncate(logs["killed"], tmp_path / "truncated.h5", 0.5)
     try:
@@ -200,6 +226,7 @@ def test_resized_rows_are_nan_not_zero(tmp_path):
     p = tmp_path / "torn.h5"
     log = RunLog(p, n_tendons=3)
     log.sample(t=0.0, iteration=0, tip=[0.17, 0.0, 0.0], error_norm=1e-3, tension=[1.0, 2.0, 3.0])
+    log.flush()                                              # the block with the first row is written
     for ds in log.samples.values():                          # the next row: resized everywhere, written nowhere
         ds.resize(ds.shape[0] + 1, axis=0)
     log.f.flush()
@@ -217,6 +244,7 @@ def test_a_torn_static_state_keeps_the_finished_ones(tmp_path, torn_at):
     log = RunLog(p, n_tendons=3)
     for k in range(3):
         log.static_state(time=k, tensions=[1.0, 2.0, 3.0], pressure=6e4, tip=[0.17, 0.0, 0.001 * k])
+    log.flush()                                              # the three states are on disk
     # a fourth state torn at ``torn_at``: the datasets before it written, ``torn_at`` resized only
     order = ["tensions", "pressure", "tip_position", "tip_force", "time"]
     vals = {"tensions": [1.0, 2.0, 3.0], "pressure": 6e4, "tip_position": [0.17, 0.0, 0.004],
