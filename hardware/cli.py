@@ -17,16 +17,26 @@ log_app = typer.Typer(help="Inspect run logs (HDF5) written by 'bellows control'
 
 @log_app.command("show")
 def log_show(path: pathlib.Path = typer.Argument(..., help="run log (.h5)")):
-    """Summary of a run log: rig, controller, samples, errors, static states, last events."""
-    from hardware.runlog import summary
+    """Summary of a run log: rig, controller, samples, errors, static states, last events.  A log left by a
+    killed writer has its open-for-write flags cleared (like 'h5clear -s') so any HDF5 reader opens it."""
+    from hardware.runlog import recover_crashed_log, summary
+    _recover(path, recover_crashed_log)
     typer.echo(summary(path))
+
+
+def _recover(path, recover) -> None:
+    note = recover(path) if path.is_file() else None
+    if note:
+        typer.echo(f"note: {note}", err=True)
 
 
 @log_app.command("export")
 def log_export(path: pathlib.Path = typer.Argument(..., help="run log (.h5)"),
                csv: pathlib.Path = typer.Option(..., "--csv", help="CSV file to write (units in the headers)"),
                force: bool = typer.Option(False, "--force", help="overwrite an existing CSV file")):
-    """Export the samples of a run log as CSV (one column per component, unit in each header)."""
-    from hardware.runlog import export_csv
+    """Export the samples of a run log as CSV (one column per component, unit in each header).  A log left by
+    a killed writer has its open-for-write flags cleared first (like 'h5clear -s')."""
+    from hardware.runlog import export_csv, recover_crashed_log
+    _recover(path, recover_crashed_log)
     out = export_csv(path, csv, force=force)
     typer.echo(f"wrote {out}")

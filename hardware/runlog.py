@@ -40,7 +40,9 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import math
+import os
 import pathlib
+import socket
 import time
 from typing import Optional
 
@@ -138,6 +140,8 @@ class RunLog:
         f.attrs["run"] = json.dumps(to_jsonable(run or {}))
         f.attrs["actuator_toml"] = actuator_toml
         f.attrs["n_tendons"] = self.m
+        # who writes it: a log whose writer is gone can have its open-for-write flags cleared (recover_crashed_log)
+        f.attrs["writer"] = json.dumps({"host": socket.gethostname(), "pid": os.getpid()})
         g = f.create_group("samples")
         self.samples = {}
         for name, (shape, units) in self.fields.items():
@@ -304,6 +308,39 @@ class RunLog:
         else:
             self.close("aborted", f"{exc_type.__name__}: {exc}")
         return False
+
+
+def recover_crashed_log(path) -> Optional[str]:
+    """Clear the HDF5 "open for write" flags of a log whose writer is gone (killed, crashed), like
+    ``h5clear -s``, so that every HDF5 reader opens it, not only SWMR-aware ones (:mod:`hardware.h5status`).
+    The writer is gone when the log names this host and a process id that no longer runs; a log written on
+    another host, or by an older version without the ``writer`` attribute, is left alone.  Returns a note for
+    the user, or None when there was nothing to do (a cleanly closed log, or a live writer)."""
+    import h5py
+    from .h5status import clear_status_flags, status_flags
+    try:
+        if not status_flags(path):
+            return None
+        with h5py.File(path, "r", swmr=True) as f:
+            writer = json.loads(f.attrs.get("writer", "{}"))
+    except (OSError, ValueError, TypeError):
+        return None                                  # unreadable: the reader says why
+    host, pid = writer.get("host"), writer.get("pid")
+    if host is None or pid is None:
+        return (f"{path} is marked open for write and names no writer (an older log): if no run is writing it, "
+                "'h5clear -s' lets non-SWMR readers open it")
+    if host != socket.gethostname():
+        return f"{path} is marked open for write by {host}, another host: not cleared (is that run still going?)"
+    try:
+        os.kill(int(pid), 0)
+        return None                                  # the writer runs: readers use SWMR
+    except ProcessLookupError:
+        pass
+    except PermissionError:
+        return None                                  # a process with that id runs (another user's)
+    clear_status_flags(path)
+    return (f"{path}: its writer (process {pid}) is gone; cleared the file's open-for-write flags (like "
+            "'h5clear -s'), so any HDF5 reader opens it now")
 
 
 def loop_timing(samples: dict) -> dict:

@@ -259,3 +259,38 @@ def test_a_torn_static_state_keeps_the_finished_ones(tmp_path, torn_at):
     assert st.n_states == 3
     np.testing.assert_allclose(st.tip_position[:, 2], [0.0, 0.001, 0.002])
     assert st.meta.get("torn_rows") == [3], st.meta
+
+
+def test_log_show_clears_a_killed_writers_flags_so_any_reader_opens_it(tmp_path):
+    """A SIGKILLed SWMR writer leaves the superblock marked open for write: plain (non-SWMR) HDF5 readers
+    refuse the file.  'bellows log show' clears the flags (like h5clear -s) once the writer is gone; the
+    checksum it rewrites is HDF5's own lookup3 (HDF5 verifies it on open) and the data are intact."""
+    import h5py
+    from hardware.h5status import lookup3, status_flags
+    p = write_log(tmp_path / "killed.h5", rows=12, static=1, kill=True)
+    assert status_flags(p) != 0
+    with pytest.raises(OSError, match="already open for write"):
+        h5py.File(p, "r").close()
+    r = subprocess.run([sys.executable, "-m", "validation.cli", "log", "show", str(p)], cwd=ROOT,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, timeout=TIMEOUT_S)
+    assert r.returncode == 0 and "cleared the file's open-for-write flags" in r.stderr
+    assert status_flags(p) == 0
+    with h5py.File(p, "r") as f:                       # a plain reader now
+        np.testing.assert_allclose(f["samples/iteration"][:], np.arange(12))
+    assert lookup3(b"") == 0xDEADBEEF and lookup3(b"Four score and seven years ago") == 0x17770551   # reference values
+    again = subprocess.run([sys.executable, "-m", "validation.cli", "log", "show", str(p)], cwd=ROOT,
+                           env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True,
+                           timeout=TIMEOUT_S)
+    assert again.returncode == 0 and "cleared" not in again.stderr        # nothing left to do
+
+
+def test_a_live_writers_flags_are_left_alone(tmp_path):
+    from hardware.h5status import status_flags
+    from hardware.runlog import recover_crashed_log
+    log = RunLog(tmp_path / "live.h5", n_tendons=3)             # this process writes it
+    log.sample(t=0.0, iteration=0)
+    log.flush()
+    assert status_flags(log.path) != 0
+    assert recover_crashed_log(log.path) is None and status_flags(log.path) != 0
+    log.close()
+    assert status_flags(log.path) == 0
