@@ -99,10 +99,16 @@ def status_flags(path) -> int:
 
 def clear_status_flags(path) -> bool:
     """Zero the status flags (and rewrite the superblock checksum); True if they were set.  The caller
-    must know that no writer holds the file."""
+    must know that no writer holds the file.  A file shorter than the end-of-file address its superblock
+    records (truncated) is refused (ValueError): it is left as it is for the reader to report."""
     body, end = _superblock(path)
     if body[11] == 0:
         return False
+    o = body[9]
+    eof = int.from_bytes(body[12 + 2 * o:12 + 3 * o], "little")
+    size = pathlib.Path(path).stat().st_size
+    if size < eof:
+        raise ValueError(f"the file is {size} bytes but its superblock says {eof}: truncated, not touching it")
     new = body[:11] + b"\x00" + body[12:]
     with open(pathlib.Path(path), "r+b") as f:
         f.seek(11)

@@ -338,7 +338,10 @@ def recover_crashed_log(path) -> Optional[str]:
         pass
     except PermissionError:
         return None                                  # a process with that id runs (another user's)
-    clear_status_flags(path)
+    try:
+        clear_status_flags(path)
+    except ValueError:
+        return None                                  # truncated or unknown: the reader says why
     return (f"{path}: its writer (process {pid}) is gone; cleared the file's open-for-write flags (like "
             "'h5clear -s'), so any HDF5 reader opens it now")
 
