@@ -41,7 +41,9 @@ def build_rig(cfg: RigConfig, **sim_overrides):
     from .tracking import NatNetTracker
     drives = [Epos4Drive(node_id=d["node_id"], channel=d["channel"], interface=d.get("interface", "socketcan"),
                          bitrate=d.get("bitrate", 1_000_000), counts_per_metre=d["counts"],
-                         zero_length=d["zero_length"], limits=limits) for d in cfg.drives]
+                         zero_length=d["zero_length"], limits=limits, cyclic=d.get("cyclic", False),
+                         sync_period=d.get("sync_period", 0.002), heartbeat_timeout=d.get("heartbeat_timeout", 0.5))
+              for d in cfg.drives]
     forces = [SerialForceSensor(d["port"], channel=d["channel"], baudrate=d.get("baudrate", 115200),
                                 scale=d.get("scale", 1.0), offset=d.get("offset", 0.0),
                                 timeout=limits.sensor_timeout) for d in cfg.force_sensors]

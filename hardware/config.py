@@ -42,6 +42,9 @@ A complete file (every key documented in docs/rig.md)::
     bitrate = 1000000
     counts_per_mm = 2000.0           # encoder counts per mm of tendon length
     zero_length_mm = 160.0           # tendon length at encoder count 0
+    cyclic = false                   # true: cyclic synchronous position over PDO + SYNC (docs/rig.md)
+    sync_period_ms = 2               # SYNC / set-point period (cyclic)
+    heartbeat_timeout_ms = 500       # a drive silent this long is a fault (cyclic)
 
     [[force_sensors]]
     backend = "serial"
@@ -107,7 +110,8 @@ SIMULATION = {"seed": INT, "plant_actuator": STR, "tracker_noise": "length", "tr
               "force_noise": "force", "pressure_noise": "pressure", "length_resolution": "length",
               "length_rate": "speed", "tendon_friction": "force", "tendon_stiffness": "stiffness"}
 DRIVE = {"backend": STR, "node_id": INT, "interface": STR, "channel": STR, "bitrate": INT,
-         "counts": "counts_per_length", "zero_length": "length", "current_limit_A": NUM}
+         "counts": "counts_per_length", "zero_length": "length", "current_limit_A": NUM,
+         "cyclic": BOOL, "sync_period": "time", "heartbeat_timeout": "time"}
 FORCE = {"backend": STR, "port": STR, "baudrate": INT, "channel": INT, "scale": "force_per_count",
          "offset": "force"}
 PRESSURE = {"backend": STR, "port": STR, "baudrate": INT}

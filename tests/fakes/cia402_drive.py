@@ -7,6 +7,12 @@ machine and profile position mode (new-setpoint handshake, target reached), with
 The motor moves at ``counts_per_second`` in a background thread; ``inject_fault(code)`` sets the fault
 bit, stores the error code in 0x603F and sends an EMCY; ``following_error()`` sets statusword bit 13;
 ``ignore_setpoints`` makes it never acknowledge a new setpoint.
+
+Cyclic synchronous position (0x6060 = 8): the PDO mapping the master writes over SDO lands in the node's
+data store; in NMT OPERATIONAL, on every SYNC the fake applies the last RPDO 1 (controlword + target
+position, decoded with the mapping it was given), then sends TPDO 1 (statusword + position) and TPDO 2
+(following error + current) if they are enabled.  The heartbeat runs when 0x1017 is written (canopen's
+``NmtSlave``); ``silence()`` stops heartbeat and TPDOs (a drive that went quiet).
 """
 
 from __future__ import annotations
@@ -47,6 +53,11 @@ class FakeEpos4:
         self.node = self.network.create_node(self.node_id, e4.object_dictionary())
         self.node.add_write_callback(self._on_write)
         self.node.add_read_callback(self._on_read)
+        self.rpdo_data = None
+        self.silent = False
+        self.syncs = 0
+        self.network.subscribe(0x200 + self.node_id, self._on_rpdo)
+        self.network.subscribe(0x80, self._on_sync)
         self._thread = threading.Thread(target=self._motor, daemon=True)
         self._thread.start()
         return self
@@ -134,6 +145,45 @@ class FakeEpos4:
                     d = self.target - self.pos
                     self.pos = self.target if abs(d) <= step else self.pos + step * (1 if d > 0 else -1)
             last = now
+
+    # ------------------------------------------------------------------------------------ cyclic (CSP)
+    def mapping(self, index: int) -> list:
+        """Mapped objects (index, subindex, bits) of the PDO mapping parameter ``index`` in the data store."""
+        n = self.node.sdo[index][0].raw
+        return [((v >> 16), (v >> 8) & 0xFF, v & 0xFF) for v in (self.node.sdo[index][k].raw for k in range(1, n + 1))]
+
+    def _pdo_enabled(self, com: int) -> bool:
+        return not self.node.sdo[com][1].raw & 0x80000000 and self.node.sdo[com][2].raw == e4.SYNC_TRANSMISSION
+
+    def _on_rpdo(self, can_id, data, timestamp):
+        self.rpdo_data = bytes(data)
+
+    def _on_sync(self, can_id, data, timestamp):
+        if self.silent or self.node.nmt.state != "OPERATIONAL":
+            return
+        with self._lock:
+            self.syncs += 1
+            if self.rpdo_data is not None and self._pdo_enabled(e4.RPDO1_COM):
+                off, vals = 0, {}
+                for index, _, bits in self.mapping(e4.RPDO1_MAP):
+                    n = bits // 8
+                    vals[index] = int.from_bytes(self.rpdo_data[off:off + n], "little", signed=index == e4.TARGET)
+                    off += n
+                if e4.CONTROLWORD in vals and vals[e4.CONTROLWORD] != self.cw:
+                    self._controlword(vals[e4.CONTROLWORD])
+                if e4.TARGET in vals and self.mode == e4.CYCLIC_SYNC_POSITION and self.state == "OPERATION ENABLED":
+                    self.target = float(vals[e4.TARGET])
+            sw, pos = self.statusword(), int(round(self.pos))
+            ferr, cur = int(round(self.target - self.pos)), 150 + int(abs(self.target - self.pos) > 0.5) * 500
+        if self._pdo_enabled(e4.TPDO1_COM):
+            self.network.send_message(0x180 + self.node_id, struct.pack("<Hi", sw, pos))
+        if self._pdo_enabled(e4.TPDO2_COM):
+            self.network.send_message(0x280 + self.node_id, struct.pack("<ii", ferr, cur))
+
+    def silence(self) -> None:
+        """The drive goes quiet: no heartbeat, no TPDOs (a cable pulled, a drive reset)."""
+        self.silent = True
+        self.node.nmt.stop_heartbeat()
 
     # ------------------------------------------------------------------------------------ faults
     def inject_fault(self, code: int = 0x8611, emcy: bool = True) -> None:

@@ -20,8 +20,10 @@ from fakes.fixtures import quiet_canopen  # noqa: E402,F401  (fixture)
 
 
 @pytest.fixture
-def fake_bench(tmp_path, quiet_canopen):
-    """The fake instruments running, and a rig file describing them: (path, drives, loadcells, valves, natnet)."""
+def fake_bench(tmp_path, quiet_canopen, request):
+    """The fake instruments running, and a rig file describing them: (path, drives, loadcells, valves, natnet).
+    Indirect parameter ``True``: the drives run cyclic synchronous position over PDO + SYNC."""
+    cyclic = getattr(request, "param", False)
     ch = f"bench-{uuid.uuid4().hex[:8]}"
     drives = [FakeEpos4(node_id=i + 1, channel=ch, initial_counts=165_000) for i in range(3)]
     port = free_udp_port()
@@ -51,6 +53,8 @@ interface = "virtual"
 channel = "{ch}"
 counts_per_mm = 1000
 zero_length_mm = 0
+cyclic = {'true' if cyclic else 'false'}
+sync_period_ms = 10
 ''' for i in range(3)) + "".join(f'''
 [[force_sensors]]
 backend = "serial"
@@ -85,10 +89,15 @@ def bench(fake_bench):
         yield rig, drives, loadcells, valves, nat
 
 
+@pytest.mark.parametrize("fake_bench", [False, True], ids=["profile position over SDO", "CSP over PDO+SYNC"],
+                         indirect=True)
 def test_rig_runs_against_the_fakes(bench):
     rig, drives, loadcells, valves, nat = bench
     time.sleep(0.05)
     assert all(d.state == "OPERATION ENABLED" for d in drives)
+    cyclic = drives[0].mode == e4.CYCLIC_SYNC_POSITION
+    assert all(d.mode == (e4.CYCLIC_SYNC_POSITION if cyclic else e4.PROFILE_POSITION) for d in drives)
+    sdo_writes = [len(d.writes) for d in drives]
     rig.set_pressure(60e3)
     assert valves.setpoint == 60e3
     rig.command([0.166, 0.165, 0.165])
@@ -99,6 +108,8 @@ def test_rig_runs_against_the_fakes(bench):
     assert h["pressure"] == 60e3
     time.sleep(0.05)
     np.testing.assert_allclose(rig.measure(frames=3), [0.17, 0.0, -0.002], atol=1e-7)
+    if cyclic:                            # set-points and read-backs went by PDO: no SDO during the move
+        assert [len(d.writes) for d in drives] == sdo_writes and all(d.syncs > 0 for d in drives)
 
 
 def test_limits_send_nothing_to_the_drives(bench):
