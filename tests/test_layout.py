@@ -73,3 +73,60 @@ def test_building_a_rig_is_one_module_the_others_do_not_need(module, forbidden):
     """hardware.build is the only module that knows both the rig file and the rig classes: no cycle."""
     assert not _relative_imports(ROOT / "hardware" / f"{module}.py") & forbidden
     assert {"config", "rig", "simulated"} <= _relative_imports(ROOT / "hardware" / "build.py")
+
+
+def _sibling_imports(path: pathlib.Path, siblings: set[str]) -> set[str]:
+    """Modules of the same package a module imports, relative (``from .x import``, ``from . import x``) or
+    absolute (``from hardware.x import``, ``import hardware.x``), at module level or inside functions."""
+    import ast
+    pkg, found = path.parent.name, set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.level == 1:
+            found |= {node.module.split(".")[0]} if node.module else {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            parts = node.module.split(".")
+            if parts[0] == pkg:
+                found |= {parts[1]} if len(parts) > 1 else {a.name for a in node.names}
+        elif isinstance(node, ast.Import):
+            found |= {a.name.split(".")[1] for a in node.names
+                      if a.name.split(".")[0] == pkg and "." in a.name}
+    return (found & siblings) - {path.stem}
+
+
+def _find_cycle(graph: dict[str, set[str]]) -> list[str]:
+    """One import cycle of ``graph`` (module → modules it imports) as [a, b, …, a], or [] if there is none."""
+    state: dict[str, int] = {}          # 1: on the current path, 2: done
+    path: list[str] = []
+
+    def visit(u):
+        state[u] = 1
+        path.append(u)
+        for v in sorted(graph.get(u, ())):
+            if state.get(v) == 1:
+                return path[path.index(v):] + [v]
+            if v not in state and (cycle := visit(v)):
+                return cycle
+        state[u] = 2
+        path.pop()
+        return []
+
+    for u in sorted(graph):
+        if u not in state and (cycle := visit(u)):
+            return cycle
+    return []
+
+
+def test_find_cycle_finds_cycles_and_only_cycles():
+    assert _find_cycle({"a": {"b"}, "b": {"c"}, "c": set(), "d": {"a", "c"}}) == []
+    assert _find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _find_cycle({"x": {"y"}, "y": {"z"}, "z": {"y"}}) == ["y", "z", "y"]
+
+
+@pytest.mark.parametrize("package", ["hardware", "controller"])
+def test_modules_of_a_package_import_each_other_in_no_cycle(package):
+    """Within a package the modules form a DAG (imports inside functions counted too): e.g. hardware.config ↔
+    hardware.rig through build_rig would be a cycle."""
+    files = {p.stem: p for p in (ROOT / package).glob("*.py") if p.stem != "__init__"}
+    graph = {name: _sibling_imports(p, set(files)) for name, p in files.items()}
+    assert sum(map(len, graph.values())) >= len(graph) // 2, "the import scan found (almost) no imports"
+    assert _find_cycle(graph) == [], f"{package} modules import each other in a cycle"
