@@ -14,9 +14,13 @@ the run log stores in ``/summary``):
 * **judged** — every period that a load change ended is judged; the last period, which the end of the
   run cut short, is judged only if it is the only period or lasted at least half as long as the longest
   period before it (a load hung just before the end had no time to settle: reported, not judged); a
-  period without samples in its settled part is not judged either.
+  period without samples in its settled part is not judged either, nor is a period **out of reach**: one
+  whose every settled sample was ``reach``-saturated (the load put the target out of the actuator's reach,
+  the controller held the nearest reachable state; no controller can meet a tolerance there).
 * **within tolerance** — the settled tip error is below the controller's tolerance.  The run *met* its
-  tolerance when at least one period was judged and every judged period is within tolerance.
+  tolerance when every judged period is within tolerance and at least one period was judged or out of reach
+  (a run whose loads kept the target out of reach throughout did what it could: met, with its saturation
+  time reported).
 * **saturation time** [s] — the rig time spent in samples where something was at a limit: ``tension``
   (a tension the controller's IK expects within 1 % of the actuator's tension range from a bound, or a
   measured tension at or above 95 % of the rig's tension limit), ``travel`` (a drive within 1 % of the
@@ -56,6 +60,7 @@ class LoadPeriod:
     true_settled_error: float = math.nan   # the same from the simulated truth [m]
     true_settled_max_error: float = math.nan
     judged: bool = False
+    out_of_reach: bool = False             # every settled sample was reach-saturated (not judged)
     within_tolerance: Optional[bool] = None
     note: str = ""
 
@@ -65,7 +70,7 @@ class LoadPeriod:
                 "settled_max_error_m": _f(self.settled_max_error),
                 "true_settled_error_m": _f(self.true_settled_error),
                 "true_settled_max_error_m": _f(self.true_settled_max_error), "judged": self.judged,
-                "within_tolerance": self.within_tolerance, "note": self.note}
+                "out_of_reach": self.out_of_reach, "within_tolerance": self.within_tolerance, "note": self.note}
 
 
 def _f(x) -> Optional[float]:
@@ -96,10 +101,14 @@ class RunSummary:
         return sum(1 for p in self.judged if p.within_tolerance)
 
     @property
+    def out_of_reach(self) -> list:
+        return [p for p in self.periods if p.out_of_reach]
+
+    @property
     def met(self) -> bool:
-        """At least one period judged and every judged period within tolerance."""
+        """Every judged period within tolerance, and at least one period judged or out of reach."""
         j = self.judged
-        return bool(j) and all(p.within_tolerance for p in j)
+        return bool(j or self.out_of_reach) and all(p.within_tolerance for p in j)
 
     def _over(self, attr: str, how) -> float:
         v = [getattr(p, attr) for p in self.judged if math.isfinite(getattr(p, attr))]
@@ -131,7 +140,8 @@ class RunSummary:
     def to_dict(self) -> dict:
         return {"definition": SETTLED_DEFINITION, "tolerance_m": self.tolerance,
                 "load_changes_known": self.load_changes_known, "periods": [p.to_dict() for p in self.periods],
-                "periods_judged": len(self.judged), "periods_within_tolerance": self.periods_within_tolerance,
+                "periods_judged": len(self.judged), "periods_out_of_reach": len(self.out_of_reach),
+                "periods_within_tolerance": self.periods_within_tolerance,
                 "met_tolerance": self.met, "settled_error_median_m": _f(self.settled_error_median),
                 "settled_error_max_m": _f(self.settled_error_max),
                 "settled_peak_error_m": _f(self.settled_peak_error),
@@ -191,6 +201,8 @@ def summarise(times: Sequence[float], errors: Sequence[float], *, tolerance: flo
     e = np.asarray(errors, float)
     te = np.asarray(true_errors, float) if len(true_errors) == len(t) else np.full(len(t), np.nan)
     known = load_changes is not None
+    reach = (np.array(["reach" in r for r in saturation], bool) if len(saturation) == len(t)
+             else np.zeros(len(t), bool))
     cuts = sorted(float(c) for c in (load_changes or ()) if t_start < c < t_end)
     bounds = [t_start, *cuts, max(t_end, t_start)]
     periods = []
@@ -211,6 +223,9 @@ def summarise(times: Sequence[float], errors: Sequence[float], *, tolerance: flo
             p.note = "cut short by the end of the run"
         elif not p.settled_samples:
             p.note = "no samples in its settled half"
+        elif np.all(reach[st]):
+            p.out_of_reach = True
+            p.note = "out of reach: saturated throughout its settled half"
         else:
             p.judged = True
             p.within_tolerance = bool(p.settled_error < tolerance)

@@ -61,8 +61,9 @@ SUMMARY_DEFINITION = (
     "load period = time between two load changes (simulated load profile), or the whole run when the load is "
     "constant, continuous or unknown (hardware); settled part = its second half; settled tip error = median of "
     "the measured tip error over the settled part; the last period, cut short by the end of the run, is judged "
-    "only if it is the only one or lasted at least half as long as the longest earlier period; met = every "
-    "judged period below the tolerance (and at least one judged)")
+    "only if it is the only one or lasted at least half as long as the longest earlier period; a period whose "
+    "every settled sample was reach-saturated (target out of reach under the load) is out of reach, not judged; "
+    "met = every judged period below the tolerance (and at least one judged or out of reach)")
 PERIOD_FIELDS = {"start": "s", "end": "s", "settled_samples": "1", "settled_error": "m", "settled_max_error": "m",
                  "true_settled_error": "m", "true_settled_max_error": "m", "judged": "1", "within_tolerance": "1"}
 _PERIOD_KEYS = {"start": "start_s", "end": "end_s", "settled_samples": "settled_samples",
@@ -516,7 +517,8 @@ def summary(path) -> str:
     if sm:
         f = lambda x: "—" if x is None else f"{x * 1e3:.4f}"          # noqa: E731
         lines.append(f"  load periods: {len(sm['periods'])}, {sm['periods_judged']} judged, "
-                     f"{sm['periods_within_tolerance']} within the tolerance {sm['tolerance_m'] * 1e3:.4f} mm "
+                     + (f"{sm['periods_out_of_reach']} out of reach, " if sm.get('periods_out_of_reach') else "")
+                     + f"{sm['periods_within_tolerance']} within the tolerance {sm['tolerance_m'] * 1e3:.4f} mm "
                      f"(settled = second half of each period)")
         lines.append(f"  settled tip error [mm]: median {f(sm['settled_error_median_m'])}, max "
                      f"{f(sm['settled_error_max_m'])} over the judged periods")

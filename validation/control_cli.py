@@ -92,7 +92,8 @@ def control(
     the run log is created.
 
     Exit status: a --duration-s (hold) run exits 0 when every judged load period settled below the
-    tolerance and 1 when one did not (a last period cut short by the end of the run is not judged); a
+    tolerance and 1 when one did not (a last period cut short by the end of the run is not judged, nor
+    one whose load kept the target out of reach — saturated throughout its settled half); a
     --max-iterations run exits 0 at convergence and 1 without; 2 on an error (a fault, a limit, Ctrl-C:
     the rig is made safe first)."""
     import json
@@ -184,12 +185,19 @@ def control(
             typer.echo(line)
         tol = f"{ctrl.tolerance * 1e3:.3f} mm"
         if res.status == "held" and sm is not None:
-            head = (f"held: all {len(sm.judged)} judged load periods settled below {tol}" if sm.met else
-                    f"held, but {len(sm.judged) - sm.periods_within_tolerance} of {len(sm.judged)} judged load "
-                    f"periods did not settle below {tol}" if sm.judged else
-                    "held, but no load period could be judged (run too short?)")
-            head += f" (settled tip error median {sm.settled_error_median * 1e3:.4f} mm, max " \
-                    f"{sm.settled_error_max * 1e3:.4f} mm); last sample {res.final_error * 1e3:.4f} mm"
+            n_oor = len(sm.out_of_reach)
+            oor = (f"{n_oor} load period(s) out of reach (saturated: the nearest reachable state held)"
+                   if n_oor else "")
+            if sm.met and not sm.judged:
+                head = f"held: {oor}; none judged"
+            else:
+                head = (f"held: all {len(sm.judged)} judged load periods settled below {tol}" if sm.met else
+                        f"held, but {len(sm.judged) - sm.periods_within_tolerance} of {len(sm.judged)} judged load "
+                        f"periods did not settle below {tol}" if sm.judged else
+                        "held, but no load period could be judged (run too short?)")
+                head += (f" (settled tip error median {sm.settled_error_median * 1e3:.4f} mm, max "
+                         f"{sm.settled_error_max * 1e3:.4f} mm)" if sm.judged else "") + (f"; {oor}" if oor else "")
+            head += f"; last sample {res.final_error * 1e3:.4f} mm"
         else:
             head = f"{res.status}: tip error {res.final_error * 1e3:.4f} mm"
         typer.echo(head + f", {res.iterations} corrections, {res.duration:.2f} s rig time"

@@ -64,3 +64,23 @@ def test_saturation_time_counts_until_the_next_sample():
                   saturation=[(), ("tension",), ("tension", "controller"), ("travel",)])
     assert s.saturated_samples == 3 and s.saturation_time == pytest.approx(0.5 + 1.0 + 0.5)
     assert s.saturation == pytest.approx({"tension": 1.5, "travel": 0.5, "controller": 1.0})
+
+
+def test_a_period_out_of_reach_is_not_judged_but_one_saturated_in_part_is():
+    """Period 2 stays at 0.5 mm: with every settled sample reach-saturated it is out of reach (not judged; the
+    run met its tolerance), with one settled sample tracking again it is judged (and fails)."""
+    t, e, t_end = _run()
+    e = e.copy()
+    e[(t >= 7.5) & (t < 10)] = 5e-4
+    sat = [("reach", "tension") if 5.0 <= x < 10 else () for x in t]
+    s = summarise(t, e, tolerance=2e-4, t_start=0.0, t_end=t_end, load_changes=[5.0, 10.0], saturation=sat)
+    p1, p2, _ = s.periods
+    assert p1.judged and p2.out_of_reach and not p2.judged and "out of reach" in p2.note
+    assert s.met and len(s.out_of_reach) == 1 and s.settled_error_max == pytest.approx(1e-4)
+    assert s.to_dict()["periods_out_of_reach"] == 1 and s.saturation["reach"] == pytest.approx(5.0)
+    sat[int(np.argmin(np.abs(t - 9.0)))] = ("tension",)                    # one settled sample not out of reach
+    s = summarise(t, e, tolerance=2e-4, t_start=0.0, t_end=t_end, load_changes=[5.0, 10.0], saturation=sat)
+    assert s.periods[1].judged and not s.periods[1].out_of_reach and not s.met
+    everywhere = [("reach",)] * len(t)                                     # out of reach throughout: met, none judged
+    only = summarise(t, e, tolerance=2e-4, t_start=5.0, t_end=9.95, load_changes=[], saturation=everywhere)
+    assert not only.judged and len(only.out_of_reach) == 1 and only.met

@@ -83,8 +83,10 @@ def test_control_command_keeps_running_at_the_edge_of_the_workspace(model, tmp_p
                         ",".join(f"{v:.6f}" for v in tip), "--pressure-kpa", "30", "--load-profile", "stochastic",
                         "--duration-s", "3", "--fast", "--json"], capture_output=True, text=True, timeout=600,
                        env=env, cwd=tmp_path)
-    assert r.returncode in (0, 1), r.stderr                       # held (1: some period did not settle)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]  # held; out-of-reach periods are no failure
     assert "SATURATED" in r.stderr and "error:" not in r.stderr
     import json
     out = json.loads(r.stdout)
     assert out["status"] == "held" and out["summary"]["saturation_s"]["reach"] > 0
+    sm = out["summary"]
+    assert sm["met_tolerance"] and sm["periods_out_of_reach"] >= 1 and out["exit_status"] == 0
