@@ -14,6 +14,10 @@ cantilever under a tip load (``benchmarks/peer_exudyn.py``; ``pip install -e .[b
 the same cantilever, the warm IK and the LACC step.  Targets for a 1 kHz loop: LACC step ≤ 2×, IK ≤ 1.5×,
 FK ≤ 0.5× the peer's solve.
 
+Last: one ``run_on_rig`` cycle on the simulated rig with and without the run log (interleaved), a log append
+in blocks against a flush per row, and the loop timing budget of a busy cycle (controller, rig I/O, log,
+whole cycle: median and 99th percentile) as the run log records it (docs/rig.md, "Loop timing budget").
+
 Profile of the step (cProfile, n = 6, paper preset, before the compiled loops): ≈ 60 % IK (3–4 Newton
 iterations; per iteration one assembly — 0.14 ms with three taut tendons, their Hessians being most of it —
 and ≈ 0.1 ms of Python around it), ≈ 25 % compliances (a second assembly at the same state and five dense
@@ -141,7 +145,7 @@ def rig_cycle(repeats: int = 50) -> dict:
     from controller import run_on_rig
     from hardware import PlantOptions, SimulatedRig
     from hardware.loads import load_profile
-    from hardware.runlog import RunLog
+    from hardware.runlog import RunLog, loop_timing, read_run_log
     m = Model(presets.paper())
     target = m.fk(TENSIONS, P, (0, 0, 0)).tip
     out = {}
@@ -157,6 +161,17 @@ def rig_cycle(repeats: int = 50) -> dict:
                 cycles[key] += list(np.diff(stamps))
         for key, v in cycles.items():
             out[key] = statistics.median(v) * 1e3
+        # the loop timing budget as the run log records it (docs/rig.md, "Loop timing budget"): busy cycles only
+        # (a step whose error is within tolerance computes nothing and is left out)
+        budget = {k: [] for k in ("compute_time", "io_time", "cycle_time")}
+        for i in range(2):
+            smp = read_run_log(f"{tmp}/b{i}.h5").samples
+            busy = np.asarray(smp["compute_time"], float) > 1e-4
+            for k in budget:
+                budget[k] += list(np.asarray(smp[k], float)[busy])
+        lt = loop_timing(budget)
+        for k in budget:
+            out[f"budget_{k}"], out[f"budget_{k}_p99"] = lt[k]["median"] * 1e3, lt[k]["p99"] * 1e3
         for flush_rows, key in ((1, "log_append_flush_each_row"), (50, "log_append_blocks")):
             with RunLog(f"{tmp}/c{flush_rows}.h5", n_tendons=3, flush_rows=flush_rows) as log:
                 t0 = time.perf_counter()
@@ -167,6 +182,10 @@ def rig_cycle(repeats: int = 50) -> dict:
           f"{out['cycle_with_log']:.2f} with the SWMR log (+{100 * (out['cycle_with_log'] / out['cycle_no_log'] - 1):.0f} %); "
           f"one log append incl. its share of the flushes (mean) {out['log_append_blocks']:.3f} ms in blocks of 50 rows, "
           f"{out['log_append_flush_each_row']:.3f} ms flushing every row")
+    print("loop timing budget of a busy cycle, from the run log (median / p99, ms): controller "
+          f"{out['budget_compute_time']:.2f} / {out['budget_compute_time_p99']:.2f}, rig I/O "
+          f"{out['budget_io_time']:.2f} / {out['budget_io_time_p99']:.2f}, log append {out['log_append_blocks']:.2f}, "
+          f"whole cycle {out['budget_cycle_time']:.2f} / {out['budget_cycle_time_p99']:.2f}")
     return out
 
 
