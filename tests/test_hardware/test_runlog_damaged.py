@@ -261,9 +261,10 @@ def test_a_torn_static_state_keeps_the_finished_ones(tmp_path, torn_at):
     assert st.meta.get("torn_rows") == [3], st.meta
 
 
-def test_log_show_clears_a_killed_writers_flags_so_any_reader_opens_it(tmp_path):
+@pytest.mark.parametrize("command", ["show", "export"])
+def test_log_show_clears_a_killed_writers_flags_so_any_reader_opens_it(tmp_path, command):
     """A SIGKILLed SWMR writer leaves the superblock marked open for write: plain (non-SWMR) HDF5 readers
-    refuse the file.  'bellows log show' clears the flags (like h5clear -s) once the writer is gone; the
+    refuse the file.  'bellows log show' (and 'log export') clears the flags (like h5clear -s) once the writer is gone; the
     checksum it rewrites is HDF5's own lookup3 (HDF5 verifies it on open) and the data are intact."""
     import h5py
     from hardware.h5status import lookup3, status_flags
@@ -271,9 +272,13 @@ def test_log_show_clears_a_killed_writers_flags_so_any_reader_opens_it(tmp_path)
     assert status_flags(p) != 0
     with pytest.raises(OSError, match="already open for write"):
         h5py.File(p, "r").close()
-    r = subprocess.run([sys.executable, "-m", "validation.cli", "log", "show", str(p)], cwd=ROOT,
+    csv = tmp_path / "killed.csv"
+    args = ["log", "show", str(p)] if command == "show" else ["log", "export", str(p), "--csv", str(csv)]
+    r = subprocess.run([sys.executable, "-m", "validation.cli", *args], cwd=ROOT,
                        env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, timeout=TIMEOUT_S)
     assert r.returncode == 0 and "cleared the file's open-for-write flags" in r.stderr
+    if command == "export":
+        assert len(csv.read_text().splitlines()) == 1 + 12                # header + the 12 rows written
     assert status_flags(p) == 0
     with h5py.File(p, "r") as f:                       # a plain reader now
         np.testing.assert_allclose(f["samples/iteration"][:], np.arange(12))
