@@ -65,11 +65,13 @@ SUMMARY_DEFINITION = (
     "every settled sample was reach-saturated (target out of reach under the load) is out of reach, not judged; "
     "met = every judged period below the tolerance (and at least one judged or out of reach)")
 PERIOD_FIELDS = {"start": "s", "end": "s", "settled_samples": "1", "settled_error": "m", "settled_max_error": "m",
-                 "true_settled_error": "m", "true_settled_max_error": "m", "judged": "1", "within_tolerance": "1"}
+                 "true_settled_error": "m", "true_settled_max_error": "m", "judged": "1", "within_tolerance": "1",
+                 "out_of_reach": "1"}
 _PERIOD_KEYS = {"start": "start_s", "end": "end_s", "settled_samples": "settled_samples",
                 "settled_error": "settled_error_m", "settled_max_error": "settled_max_error_m",
                 "true_settled_error": "true_settled_error_m", "true_settled_max_error": "true_settled_max_error_m",
-                "judged": "judged", "within_tolerance": "within_tolerance"}
+                "judged": "judged", "within_tolerance": "within_tolerance",
+                "out_of_reach": "out_of_reach"}
 
 
 def _sample_fields(m: int) -> dict:

@@ -81,7 +81,7 @@ def test_control_command_keeps_running_at_the_edge_of_the_workspace(model, tmp_p
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
     r = subprocess.run([sys.executable, "-m", "validation.cli", "control", "--rig", "sim", "--target-mm",
                         ",".join(f"{v:.6f}" for v in tip), "--pressure-kpa", "30", "--load-profile", "stochastic",
-                        "--duration-s", "3", "--fast", "--json"], capture_output=True, text=True, timeout=600,
+                        "--duration-s", "3", "--fast", "--json", "--log", "run.h5"], capture_output=True, text=True, timeout=600,
                        env=env, cwd=tmp_path)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]  # held; out-of-reach periods are no failure
     assert "SATURATED" in r.stderr and "error:" not in r.stderr
@@ -90,3 +90,6 @@ def test_control_command_keeps_running_at_the_edge_of_the_workspace(model, tmp_p
     assert out["status"] == "held" and out["summary"]["saturation_s"]["reach"] > 0
     sm = out["summary"]
     assert sm["met_tolerance"] and sm["periods_out_of_reach"] >= 1 and out["exit_status"] == 0
+    with h5py.File(tmp_path / "run.h5", "r") as f:                # the log's period table says so too
+        oor, judged = f["summary/periods/out_of_reach"][:], f["summary/periods/judged"][:]
+    assert oor.sum() == sm["periods_out_of_reach"] and not np.any((oor == 1) & (judged == 1))
