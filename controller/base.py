@@ -40,6 +40,9 @@ class StepReport:
     ik_iterations : Newton iterations of the IK solve (or function evaluations of the bounded IK)
     backtracks : how often the load step was halved because the IK became infeasible
     saturated : the IK target was out of reach (tension limits) and the nearest reachable state was commanded
+    reach_gap : when saturated, how far the IK target is out of reach: ‖tip of the commanded state − IK target‖
+        [m] under the load the step assumed; else 0.  For LACC (a load estimate) the part of the tip error no
+        controller could remove; for VF-CC the load assumed is its virtual force, so only an indication
     """
     error: np.ndarray
     error_norm: float
@@ -54,6 +57,7 @@ class StepReport:
     backtracks: int = 0
     notes: list = field(default_factory=list)
     saturated: bool = False
+    reach_gap: float = 0.0
 
     def to_dict(self) -> dict:
         out = {}

@@ -183,7 +183,7 @@ class LACC(Controller):
         notes: list = []
         Cp, A = None, ()
         backtracks = 0
-        saturated = False
+        saturated, gap = False, 0.0
         if self.mode == "lacc":
             # the innovation: measured tip minus the tip the model expects for the last command under F̂
             # (the target itself unless that command was saturated — anti-windup, module docstring)
@@ -224,14 +224,17 @@ class LACC(Controller):
             if self.on_infeasible == "saturate":
                 eq, saturated, note = self._reach(self.command_target, self._F)
                 if saturated:
+                    gap = float(np.linalg.norm(eq.tip - self.command_target))
                     self.command_target = eq.tip.copy()      # back-calculation: the IK target does not wind up
                     notes.append(note)
             else:
                 eq = self.model.ik(self.command_target, self.pressure, self._F, q0=self.state.q,
                                    tensions0=self.state.tensions)
         self._offset = eq.tip - self.target if (saturated and self.mode == "lacc") else np.zeros(3)
+        if saturated and self.mode == "lacc":
+            gap = float(np.linalg.norm(self._offset))
         self.state = eq
         cmd = eq.tendon_lengths.copy()
         return StepReport(e, en, False, cmd, self.estimate, self.mode, time.perf_counter() - t0, compliance=Cp,
                           active=A, ik_iterations=eq.iterations, backtracks=backtracks, notes=notes,
-                          saturated=saturated)
+                          saturated=saturated, reach_gap=gap)

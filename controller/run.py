@@ -55,7 +55,8 @@ class RunResult:
     """Outcome of :func:`run_on_rig` (SI).  ``status``: converged | not converged | held (duration runs) |
     fault | interrupted; ``errors``: measured ‖p_m − p_d‖ per sample [m]; ``true_errors``: the same from
     the simulated truth (empty on hardware); ``times``: the samples' rig time [s]; ``saturation``: per
-    sample, what was at a limit; ``summary``: the whole-run :class:`~controller.summary.RunSummary`
+    sample, what was at a limit; ``reach_gaps``: per sample, how far the controller's IK target was out of
+    reach [m] (0 when it was not saturated); ``summary``: the whole-run :class:`~controller.summary.RunSummary`
     (settled error per load period, saturation time, faults; also written to the run log);
     ``log_path``: the run log or None."""
     controller: str
@@ -72,6 +73,7 @@ class RunResult:
     log_path: Optional[pathlib.Path] = None
     times: list = field(default_factory=list)
     saturation: list = field(default_factory=list)
+    reach_gaps: list = field(default_factory=list)
     summary: Optional[RunSummary] = None
 
     @property
@@ -200,6 +202,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                    "command": rep.command, "position": readings["positions"], "tension": readings["tensions"],
                    "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time,
                    "saturated": float(getattr(rep, "saturated", False)), "io_time": prev_io,
+                   "reach_gap": float(getattr(rep, "reach_gap", 0.0)),
                    "cycle_time": cycle_time}
             if simulated:
                 row["true_tip"], row["true_load"] = truth, rig.load(t)
@@ -210,6 +213,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
             result.errors.append(rep.error_norm)
             result.times.append(float(t))
             result.saturation.append(_saturated(rig, controller, readings, rep))
+            result.reach_gaps.append(float(getattr(rep, "reach_gap", 0.0)))
             result.estimate = np.asarray(rep.estimate, float).copy()
             if status is not None:
                 status({"t": t - t_start, "iteration": k, "error_m": rep.error_norm, "mode": rep.mode,
@@ -317,7 +321,7 @@ def _summarise(rig, controller: Controller, result: RunResult, t_start, t_end, n
     return summarise(result.times, result.errors, tolerance=controller.tolerance,
                      t_start=t_end if t_start is None else t_start, t_end=t_end,
                      true_errors=result.true_errors, saturation=result.saturation, load_changes=changes,
-                     faults=faults, corrections=result.iterations)
+                     faults=faults, corrections=result.iterations, reach_gaps=result.reach_gaps)
 
 
 def _finish(rig, runlog, own_log, opened_here, result: RunResult, t_start, controller, n_events) -> None:

@@ -16,7 +16,10 @@ the run log stores in ``/summary``):
   period before it (a load hung just before the end had no time to settle: reported, not judged); a
   period without samples in its settled part is not judged either, nor is a period **out of reach**: one
   whose every settled sample was ``reach``-saturated (the load put the target out of the actuator's reach,
-  the controller held the nearest reachable state; no controller can meet a tolerance there).
+  the controller held the nearest reachable state; no controller can meet a tolerance there).  Its *reach
+  gap* — the median over the settled half of how far the controller's IK target was out of reach under
+  the load it assumed — is reported beside its settled error (LACC: the settled error comes close to it
+  when the nearest reachable state is held; VF-CC assumes its virtual force, so its gap is an indication).
 * **within tolerance** — the settled tip error is below the controller's tolerance.  The run *met* its
   tolerance when every judged period is within tolerance and at least one period was judged or out of reach
   (a run whose loads kept the target out of reach throughout did what it could: met, with its saturation
@@ -61,6 +64,7 @@ class LoadPeriod:
     true_settled_max_error: float = math.nan
     judged: bool = False
     out_of_reach: bool = False             # every settled sample was reach-saturated (not judged)
+    reach_gap: float = math.nan            # out of reach: median of the controller's reach gap there [m]
     within_tolerance: Optional[bool] = None
     note: str = ""
 
@@ -70,7 +74,8 @@ class LoadPeriod:
                 "settled_max_error_m": _f(self.settled_max_error),
                 "true_settled_error_m": _f(self.true_settled_error),
                 "true_settled_max_error_m": _f(self.true_settled_max_error), "judged": self.judged,
-                "out_of_reach": self.out_of_reach, "within_tolerance": self.within_tolerance, "note": self.note}
+                "out_of_reach": self.out_of_reach, "reach_gap_m": _f(self.reach_gap),
+                "within_tolerance": self.within_tolerance, "note": self.note}
 
 
 def _f(x) -> Optional[float]:
@@ -163,7 +168,8 @@ class RunSummary:
         out = ["run summary (settled = second half of each load period; settled error = its median tip error)",
                f"  load periods        {len(self.periods)} ({src}); {len(j)} judged, "
                f"{self.periods_within_tolerance} within the tolerance {tol:.3f} mm"
-               + (f"; {len(not_judged)} not judged ({'; '.join(sorted({p.note for p in not_judged}))})"
+               + (f"; {len(not_judged)} not judged "
+                  f"({'; '.join(sorted({'out of reach' if p.out_of_reach else p.note for p in not_judged}))})"
                   if not_judged else ""),
                f"  settled tip error   median {mm(self.settled_error_median)} mm, max "
                f"{mm(self.settled_error_max)} mm over the judged periods (largest settled sample "
@@ -192,10 +198,11 @@ class RunSummary:
 def summarise(times: Sequence[float], errors: Sequence[float], *, tolerance: float, t_start: float,
               t_end: float, true_errors: Sequence[float] = (), saturation: Sequence = (),
               load_changes: Optional[Sequence[float]] = None, faults: Sequence[str] = (),
-              corrections: int = 0) -> RunSummary:
+              corrections: int = 0, reach_gaps: Sequence[float] = ()) -> RunSummary:
     """Summarise a run from its samples: ``times`` [s] (rig clock), measured ``errors`` [m], optional
     ``true_errors`` [m] (simulated rig), ``saturation`` (per sample: the reasons something was at a limit,
-    empty when nothing was), the run's ``t_start``/``t_end`` [s], the load change times [s] (None: unknown
+    empty when nothing was), ``reach_gaps`` (per sample: how far the controller's IK target was out of reach
+    [m], 0 when it was not), the run's ``t_start``/``t_end`` [s], the load change times [s] (None: unknown
     — the whole run is one period).  See the module docstring for the definitions."""
     t = np.asarray(times, float)
     e = np.asarray(errors, float)
@@ -203,6 +210,7 @@ def summarise(times: Sequence[float], errors: Sequence[float], *, tolerance: flo
     known = load_changes is not None
     reach = (np.array(["reach" in r for r in saturation], bool) if len(saturation) == len(t)
              else np.zeros(len(t), bool))
+    gaps = np.asarray(reach_gaps, float) if len(reach_gaps) == len(t) else np.full(len(t), np.nan)
     cuts = sorted(float(c) for c in (load_changes or ()) if t_start < c < t_end)
     bounds = [t_start, *cuts, max(t_end, t_start)]
     periods = []
@@ -225,7 +233,9 @@ def summarise(times: Sequence[float], errors: Sequence[float], *, tolerance: flo
             p.note = "no samples in its settled half"
         elif np.all(reach[st]):
             p.out_of_reach = True
-            p.note = "out of reach: saturated throughout its settled half"
+            p.reach_gap = float(np.median(gaps[st]))
+            p.note = ("out of reach: saturated throughout its settled half" if not math.isfinite(p.reach_gap) else
+                      f"out of reach by {p.reach_gap * 1e3:.3f} mm: saturated throughout its settled half")
         else:
             p.judged = True
             p.within_tolerance = bool(p.settled_error < tolerance)

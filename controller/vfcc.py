@@ -88,4 +88,5 @@ class VFCC(Controller):
         self.state = eq
         return StepReport(e, en, False, eq.tendon_lengths.copy(), self.estimate, "vfcc",
                           time.perf_counter() - t0, ik_iterations=eq.iterations, notes=[note] if note else [],
-                          saturated=saturated)
+                          saturated=saturated,
+                          reach_gap=float(np.linalg.norm(eq.tip - self.target)) if saturated else 0.0)

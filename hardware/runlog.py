@@ -66,19 +66,20 @@ SUMMARY_DEFINITION = (
     "met = every judged period below the tolerance (and at least one judged or out of reach)")
 PERIOD_FIELDS = {"start": "s", "end": "s", "settled_samples": "1", "settled_error": "m", "settled_max_error": "m",
                  "true_settled_error": "m", "true_settled_max_error": "m", "judged": "1", "within_tolerance": "1",
-                 "out_of_reach": "1"}
+                 "out_of_reach": "1", "reach_gap": "m"}
 _PERIOD_KEYS = {"start": "start_s", "end": "end_s", "settled_samples": "settled_samples",
                 "settled_error": "settled_error_m", "settled_max_error": "settled_max_error_m",
                 "true_settled_error": "true_settled_error_m", "true_settled_max_error": "true_settled_max_error_m",
                 "judged": "judged", "within_tolerance": "within_tolerance",
-                "out_of_reach": "out_of_reach"}
+                "out_of_reach": "out_of_reach", "reach_gap": "reach_gap_m"}
 
 
 def _sample_fields(m: int) -> dict:
     return {"t": ((), "s"), "iteration": ((), "1"), "tip": ((3,), "m"), "error": ((3,), "m"),
             "error_norm": ((), "m"), "command": ((m,), "m"), "position": ((m,), "m"), "tension": ((m,), "N"),
             "pressure": ((), "Pa"), "estimate": ((3,), "N"), "compute_time": ((), "s"), "true_tip": ((3,), "m"),
-            "true_load": ((3,), "N"), "saturated": ((), "1"), "io_time": ((), "s"), "cycle_time": ((), "s")}
+            "true_load": ((3,), "N"), "saturated": ((), "1"), "io_time": ((), "s"), "cycle_time": ((), "s"),
+            "reach_gap": ((), "m")}
 
 
 def versions() -> dict:

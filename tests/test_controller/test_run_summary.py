@@ -73,9 +73,12 @@ def test_a_period_out_of_reach_is_not_judged_but_one_saturated_in_part_is():
     e = e.copy()
     e[(t >= 7.5) & (t < 10)] = 5e-4
     sat = [("reach", "tension") if 5.0 <= x < 10 else () for x in t]
-    s = summarise(t, e, tolerance=2e-4, t_start=0.0, t_end=t_end, load_changes=[5.0, 10.0], saturation=sat)
+    gaps = np.where((t >= 5.0) & (t < 10), np.where(t < 8.0, 4e-4, 6e-4), 0.0)   # settled half: 7.5–10 s
+    s = summarise(t, e, tolerance=2e-4, t_start=0.0, t_end=t_end, load_changes=[5.0, 10.0], saturation=sat,
+                  reach_gaps=gaps)
     p1, p2, _ = s.periods
-    assert p1.judged and p2.out_of_reach and not p2.judged and "out of reach" in p2.note
+    assert p1.judged and p2.out_of_reach and not p2.judged and "out of reach by 0.600 mm" in p2.note
+    assert p2.reach_gap == pytest.approx(6e-4) and math.isnan(p1.reach_gap)   # 5 of 25 settled samples at 0.4 mm
     assert s.met and len(s.out_of_reach) == 1 and s.settled_error_max == pytest.approx(1e-4)
     assert s.to_dict()["periods_out_of_reach"] == 1 and s.saturation["reach"] == pytest.approx(5.0)
     sat[int(np.argmin(np.abs(t - 9.0)))] = ("tension",)                    # one settled sample not out of reach

@@ -56,8 +56,14 @@ def test_saturated_while_out_of_reach_then_tracking_again(model, target, make, t
     assert e[t > 7.0].max() < 2e-4                               # and again after the load went
     assert res.summary.saturation["reach"] > 1.0
     with h5py.File(res.log_path, "r") as f:
-        col = f["samples/saturated"][:]
+        col, gap = f["samples/saturated"][:], f["samples/reach_gap"][:]
     assert col.sum() == sat.sum()
+    assert np.all(gap[col == 0] == 0) and np.all(gap[col == 1] > 0)     # a gap exactly while saturated
+    if isinstance(ctrl, LACC):
+        # LACC estimates the load, so its saturated tip is as far from the target as the IK target is out of
+        # reach under the 0.5 N lateral load (VF-CC's gap is under its virtual force, not the load)
+        settled = sat & (t > 3.5) & (t < 5.0)
+        np.testing.assert_allclose(e[settled], gap[settled], atol=2e-4)
 
 
 def test_lacc_estimate_does_not_wind_up_while_saturated(model, target):
@@ -93,3 +99,8 @@ def test_control_command_keeps_running_at_the_edge_of_the_workspace(model, tmp_p
     with h5py.File(tmp_path / "run.h5", "r") as f:                # the log's period table says so too
         oor, judged = f["summary/periods/out_of_reach"][:], f["summary/periods/judged"][:]
     assert oor.sum() == sm["periods_out_of_reach"] and not np.any((oor == 1) & (judged == 1))
+    # out of reach, the tip holds the nearest reachable state: its settled error is the reach gap (how far
+    # the IK target was out of reach), to within the usual tracking bound
+    for p in (p for p in sm["periods"] if p["out_of_reach"]):
+        assert p["reach_gap_m"] > sm["tolerance_m"]
+        assert abs(p["settled_error_m"] - p["reach_gap_m"]) < sm["tolerance_m"], p
