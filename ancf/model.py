@@ -468,6 +468,13 @@ class Model:
             f"Hessian {what}has a negative eigenvalue), not a usable state; perturb the start (q0), apply the "
             f"load in steps from a stable state, or lower the load", solver=solver, min_eigenvalue=lam_min)
 
+    def modes(self, eq: "Equilibrium", count: int = 6):
+        """The ``count`` lowest vibration modes about the equilibrium ``eq`` — frequencies [Hz] and mass-
+        normalised shapes (:func:`ancf.dynamics.modes`; locked tendons as constraints when ``eq`` comes from
+        :meth:`fk_locked`)."""
+        from .dynamics import modes
+        return modes(self, eq, count)
+
     def inadmissibility(self, q) -> Optional[str]:
         """None when the full coordinates ``q`` (ndof,) are in the model's domain, else a text naming the
         first admissibility rule they violate and where (rules: :mod:`ancf.assembly`)."""
