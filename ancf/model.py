@@ -468,12 +468,40 @@ class Model:
             f"Hessian {what}has a negative eigenvalue), not a usable state; perturb the start (q0), apply the "
             f"load in steps from a stable state, or lower the load", solver=solver, min_eigenvalue=lam_min)
 
-    def modes(self, eq: "Equilibrium", count: int = 6):
-        """The ``count`` lowest vibration modes about the equilibrium ``eq`` — frequencies [Hz] and mass-
-        normalised shapes (:func:`ancf.dynamics.modes`; locked tendons as constraints when ``eq`` comes from
-        :meth:`fk_locked`)."""
+    def modes(self, eq: "Equilibrium", count: int = 6, damping=None):
+        """The ``count`` lowest vibration modes about the equilibrium ``eq`` — frequencies [Hz] (undamped,
+        ``.frequencies_hz``), damping ratios (``.damping_ratios``, from ``damping``: None — the actuator's
+        coefficients, a dict {alpha, beta, axial} or a ratio ζ of the first mode) and mass-normalised shapes
+        (:func:`ancf.dynamics.modes`; locked tendons as constraints when ``eq`` comes from :meth:`fk_locked`)."""
         from .dynamics import modes
-        return modes(self, eq, count)
+        return modes(self, eq, count, damping)
+
+    def simulate(self, t_end: float, dt: float, q0=None, v0=None, *, tensions=None, lengths=None,
+                 pressure=0.0, pressure_tau: Optional[float] = None, pressure0: Optional[float] = None,
+                 tip_force=(0.0, 0.0, 0.0), damping=None, rho_inf: float = 0.9,
+                 tendon_penalty: Optional[float] = None, check_limits: bool = True, max_halvings: int = 8,
+                 max_iter: int = 12, progress=None):
+        """Transient response over [0, ``t_end``] [s] with steps ≤ ``dt`` [s] (:mod:`ancf.dynamics.transient`,
+        docs/dynamics.md) → :class:`~ancf.dynamics.Simulation` (``.t``, ``.q``, ``.tip`` [m], ``.energy`` [J], …).
+
+        Loads — each a constant, a function of t [s], or a table ``(times, values)``: ``tensions`` [N] (m,)
+        *or* ``lengths`` [m] (m,) (tendons held by motors: a one-sided spring of the actuator's
+        ``tendon_stiffness``, or of ``tendon_penalty`` [N/m] (default 1e5) for inextensible tendons; slack
+        allowed); ``pressure`` [Pa] (the supply's command when ``pressure_tau`` [s] is given: p' = (p_cmd − p)/τ
+        from ``pressure0``, default the command at t = 0); ``tip_force`` [N] (3,).  ``q0`` (ndof,): the start
+        (default: the static equilibrium under the loads at t = 0; required with ``lengths``), ``v0`` (ndof,)
+        [m/s] its velocity (default 0).  ``damping``: None — the actuator's (``rayleigh_alpha`` [1/s],
+        ``rayleigh_beta`` [s], ``axial_damping`` [N s]); a dict with those keys (alpha, beta, axial); a number
+        ζ ∈ [0, 1] — stiffness-proportional Rayleigh damping with ratio ζ at the first mode about q0 (0: none).
+        ``rho_inf`` ∈ [0, 1]: the integrator's high-frequency spectral radius (1: no numerical dissipation).
+        Fails fast (InputError/LimitError) on a load outside the limits anywhere on the time grid; raises
+        ConvergenceError / CollapsedStateError at the time a step fails after ``max_halvings`` halvings.
+        Ctrl-C returns the rows done so far with ``interrupted=True``."""
+        from .dynamics.transient import simulate
+        return simulate(self, t_end, dt, q0, v0, tensions=tensions, lengths=lengths, pressure=pressure,
+                        pressure_tau=pressure_tau, pressure0=pressure0, tip_force=tip_force, damping=damping,
+                        rho_inf=rho_inf, tendon_penalty=tendon_penalty, check_limits=check_limits,
+                        max_halvings=max_halvings, max_iter=max_iter, progress=progress)
 
     def inadmissibility(self, q) -> Optional[str]:
         """None when the full coordinates ``q`` (ndof,) are in the model's domain, else a text naming the

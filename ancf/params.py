@@ -44,6 +44,9 @@ UNITS: dict[str, dict[str, float]] = {
     "density": {"kg_per_m3": 1.0, "g_per_cm3": 1e3},
     "dimensionless": {"": 1.0},
     "stiffness": {"N_per_m": 1.0, "N_per_mm": 1e3},
+    "rate": {"per_s": 1.0},
+    "time": {"s": 1.0, "ms": 1e-3},
+    "force_time": {"N_s": 1.0},
 }
 
 # field name -> dimension, for the top level of an actuator TOML file
@@ -55,6 +58,7 @@ TOP_FIELDS = {
     "tension_min": "force", "tension_max": "force", "pressure_min": "pressure", "pressure_max": "pressure",
     "free_base_stretch": None, "pressure_area_slope": "dimensionless",
     "tendon_stiffness": "stiffness",
+    "rayleigh_alpha": "rate", "rayleigh_beta": "time", "axial_damping": "force_time",
 }
 STIFFNESS_FIELDS = {"law": None, "a": "force", "b": "force", "D_a": "length", "EA": "force",
                     "EI": "bending_stiffness", "EA_coeffs": "force", "EI_coeffs": "bending_stiffness"}
@@ -80,6 +84,9 @@ PLAUSIBLE: dict[str, tuple[float, float, bool]] = {
     "EI": (1e-9, 1e6, False),                  # N m²
     "a": (-1e9, 1e9, True),
     "b": (-1e9, 1e9, True),
+    "rayleigh_alpha": (1e-6, 1e4, True),       # 0, or 1e-6 … 1e4 1/s
+    "rayleigh_beta": (1e-9, 1.0, True),        # 0, or 1 ns … 1 s
+    "axial_damping": (1e-6, 1e6, True),        # 0, or 1e-6 … 1e6 N s
 }
 INT_FIELDS = ("n_elements", "quadrature_points")
 BOOL_FIELDS = ("free_base_stretch",)
@@ -240,6 +247,10 @@ class ActuatorParams(BaseModel):
     free_base_stretch : bool       leave |r_x| at the base free (default: clamped to 1)
     tendon_stiffness : float|None  series stiffness k_s of each tendon path (rope, sensor, screw) [N/m];
                                    None: inextensible.  Locked tendons obey l(q) − T/k_s = l⁰ (rest length)
+    rayleigh_alpha : float         mass-proportional damping α [1/s] (C = α M + β K₀; docs/dynamics.md)
+    rayleigh_beta : float          stiffness-proportional damping β [s] (K₀: the tangent at the start state)
+    axial_damping : float          Kelvin–Voigt axial strain-rate damping c_a [N s]: axial force c_a ε̇,
+                                   ε = ½(λ² − 1); the retardation time is c_a / EA
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=False)
@@ -265,6 +276,9 @@ class ActuatorParams(BaseModel):
     pressure_max: float = 120e3
     free_base_stretch: bool = False
     tendon_stiffness: Optional[float] = None
+    rayleigh_alpha: float = 0.0
+    rayleigh_beta: float = 0.0
+    axial_damping: float = 0.0
 
     @field_validator("tendon_stiffness")
     @classmethod
@@ -274,7 +288,8 @@ class ActuatorParams(BaseModel):
         return v
 
     @field_validator("length", "D_eff", "pressure_area_slope", "line_mass", "tip_mass", "tool_offset",
-                     "tension_min", "tension_max", "pressure_min", "pressure_max", mode="before")
+                     "tension_min", "tension_max", "pressure_min", "pressure_max", "rayleigh_alpha",
+                     "rayleigh_beta", "axial_damping", mode="before")
     @classmethod
     def _real(cls, v, info):
         return _real_number(v, info.field_name)
@@ -308,11 +323,12 @@ class ActuatorParams(BaseModel):
         return v
 
     @field_validator("length", "D_eff", "line_mass", "tip_mass", "tool_offset", "tension_min", "tension_max",
-                     "pressure_min", "pressure_max")
+                     "pressure_min", "pressure_max", "rayleigh_alpha", "rayleigh_beta", "axial_damping")
     @classmethod
     def _magnitude(cls, v, info):
         unit = {"line_mass": "kg/m", "tip_mass": "kg", "tension_min": "N", "tension_max": "N",
-                "pressure_min": "Pa", "pressure_max": "Pa"}.get(info.field_name, "m")
+                "pressure_min": "Pa", "pressure_max": "Pa", "rayleigh_alpha": "1/s", "rayleigh_beta": "s",
+                "axial_damping": "N s"}.get(info.field_name, "m")
         return _plausible(v, info.field_name, unit)
 
     @field_validator("n_elements")
@@ -337,7 +353,8 @@ class ActuatorParams(BaseModel):
                              "0.5 < λ < 1.5)")
         return v
 
-    @field_validator("line_mass", "tip_mass", "tool_offset", "tension_min", "pressure_min")
+    @field_validator("line_mass", "tip_mass", "tool_offset", "tension_min", "pressure_min", "rayleigh_alpha",
+                     "rayleigh_beta", "axial_damping")
     @classmethod
     def _nonneg(cls, v):
         if not (v >= 0 and math.isfinite(v)):
@@ -496,6 +513,9 @@ class ActuatorParams(BaseModel):
             f"pressure_max_Pa = {self.pressure_max!r}",
             f"free_base_stretch = {'true' if self.free_base_stretch else 'false'}",
             *([f"tendon_stiffness_N_per_m = {self.tendon_stiffness!r}"] if self.tendon_stiffness else []),
+            *([f"rayleigh_alpha_per_s = {self.rayleigh_alpha!r}"] if self.rayleigh_alpha else []),
+            *([f"rayleigh_beta_s = {self.rayleigh_beta!r}"] if self.rayleigh_beta else []),
+            *([f"axial_damping_N_s = {self.axial_damping!r}"] if self.axial_damping else []),
             "", "[stiffness]",
             f'law = "{self.stiffness.kind}"']
         s = self.stiffness

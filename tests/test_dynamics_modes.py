@@ -116,3 +116,39 @@ def test_the_documented_paper_preset_frequencies():
         f_held = m.modes(m.fk((0, 0, 0), p), 1).frequencies[0]
         f_locked = m.modes(m.fk_locked(m.fk((1, 1, 1), p).tendon_lengths, p), 1).frequencies[0]
         assert f_held == pytest.approx(float(held), abs=0.006) and f_locked == pytest.approx(float(locked), abs=0.006)
+
+
+def _roots(f, brackets):
+    import scipy.optimize as so
+    return [so.brentq(f, a, b) for a, b in brackets]
+
+
+def test_uniform_cantilever_with_a_tip_mass_closed_forms():
+    """Bending: 1 + cos β cosh β + r β (cos β sinh β − sin β cosh β) = 0, f = β²/(2π L²) √(EI/m'),
+    r = M/(m'L); axial: β tan β = 1/r, f = β √(EA/m') / (2π L) (the axial rod with free_base_stretch)."""
+    mp, r, EA = 0.2, 0.5, 767.2
+    M = r * mp * L
+    bend = _roots(lambda b: 1 + np.cos(b) * np.cosh(b) + r * b * (np.cos(b) * np.sinh(b) - np.sin(b) * np.cosh(b)),
+                  [(0.5, 2.5), (3.0, 6.0)])
+    f_bend = [b ** 2 / (2 * np.pi * L ** 2) * np.sqrt(EI / mp) for b in bend]
+    m = beam(8, EA=1e5, line_mass=mp, tip_mass=M)
+    f = m.modes(straight(m), 4).frequencies
+    assert f[0] == pytest.approx(f_bend[0], rel=1e-5) and f[2] == pytest.approx(f_bend[1], rel=1e-4)
+    ax = _roots(lambda b: b * np.tan(b) - 1 / r, [(0.1, np.pi / 2 - 1e-9)])[0]
+    f_ax = ax / (2 * np.pi * L) * np.sqrt(EA / mp)
+    ma = beam(8, EA=EA, line_mass=mp, tip_mass=M, free_base_stretch=True)
+    assert axial_frequencies(ma)[0] == pytest.approx(f_ax, rel=1e-6)
+
+
+def test_damping_ratios_of_rayleigh_damping_are_exact():
+    """ζ_k = α/(2ω_k) + β ω_k/2 for C = α M + β K; a ratio ζ given alone sets the first mode's."""
+    m = Model(presets.paper())
+    eq = m.fk((2.0, 0.0, 0.0), 30e3)
+    r = m.modes(eq, 4, damping={"alpha": 0.8, "beta": 2e-3})
+    w = 2 * np.pi * r.frequencies_hz
+    assert np.allclose(r.damping_ratios, 0.8 / (2 * w) + 2e-3 * w / 2, rtol=1e-9)
+    r = m.modes(eq, 3, damping=0.04)
+    assert r.damping_ratios[0] == pytest.approx(0.04, rel=1e-9) and r.damping_ratios[2] > 0.04
+    assert np.all(m.modes(eq, 2, damping=0.0).damping_ratios == 0)
+    with pytest.raises(InputError, match="unknown keys"):
+        m.modes(eq, 2, damping={"zeta": 0.1})

@@ -1,7 +1,9 @@
-"""Dynamics of the reduced model (docs/dynamics.md): the consistent mass matrix (:mod:`.mass`) and modal
-analysis about an equilibrium (:mod:`.modes`).  Time integration is not here yet."""
+"""Dynamics of the reduced model (docs/dynamics.md): the consistent mass matrix (:mod:`.mass`), damping
+(:mod:`.damping`), modal analysis about an equilibrium (:mod:`.modes`) and time integration (generalized-α,
+:mod:`.integrator`; the equations of motion and energy bookkeeping in :mod:`.transient`)."""
 
 from .mass import consistent_mass, tip_mass_matrix
 from .modes import ModalResult, modes
+from .transient import Simulation, simulate
 
-__all__ = ["consistent_mass", "tip_mass_matrix", "ModalResult", "modes"]
+__all__ = ["consistent_mass", "tip_mass_matrix", "ModalResult", "modes", "Simulation", "simulate"]

@@ -17,6 +17,7 @@ vanish in a linear (modal) analysis).  Its rotary inertia is not included.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from .. import kinematics as kin
 
@@ -39,3 +40,58 @@ def tip_mass_matrix(q: np.ndarray, tool_offset: float, tip_mass: float) -> np.nd
     """m J_pᵀ J_p (ndof, ndof) [kg] of a point mass ``tip_mass`` [kg] at the tool point of state q."""
     Jp = kin.tip_position_jacobian(q, tool_offset)
     return tip_mass * Jp.T @ Jp
+
+
+# --------------------------------------------------------------------------- the tool point's inertia in time
+@njit(cache=True)
+def _tip_force_c(s, vs, xr, xs, h, m, out):
+    """m J_pᵀ p̈ on (r_{n+1}, r_x,{n+1}) written to ``out`` (6,) — complex arithmetic for the complex step.
+    p̈ = x_r + h (Dt x_s + ∇²t[v_s, v_s]), Dt = (I − t tᵀ)/|s|, ∇²t[u, u] = −[2 (t·u)(u − t (t·u))
+    + t (|u|² − (t·u)²)] / |s|²."""
+    s2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2]
+    sn = np.sqrt(s2)
+    t = s / sn
+    tx = t[0] * xs[0] + t[1] * xs[1] + t[2] * xs[2]
+    tu = t[0] * vs[0] + t[1] * vs[1] + t[2] * vs[2]
+    uu = vs[0] * vs[0] + vs[1] * vs[1] + vs[2] * vs[2]
+    A = xr + h * ((xs - t * tx) / sn - (2 * tu * (vs - t * tu) + t * (uu - tu * tu)) / s2)
+    tA = t[0] * A[0] + t[1] * A[1] + t[2] * A[2]
+    for c in range(3):
+        out[c] = m * A[c]
+        out[3 + c] = m * h * (A[c] - t[c] * tA) / sn
+
+
+@njit(cache=True)
+def tool_point_inertia(s, vs, xr, xs, h, m):
+    """The tool-point mass m at offset h in a transient run (:mod:`ancf.dynamics.transient`).
+
+    s, vs (3,): the tip slope r_x,{n+1} and its rate; xr, xs (3,): the accelerations of r_{n+1} and r_x,{n+1}.
+    Returns (f (6,) [N] the d'Alembert force m J_pᵀ p̈ on the tip node's 6 coordinates, ∂f/∂s (6, 3),
+    ∂f/∂v_s (6, 3) — by the complex step, exact to round-off —, and the mass block m J_locᵀ J_loc (6, 6),
+    J_loc = [I, h Dt(s)] = ∂f/∂(x_r, x_s))."""
+    eps = 1e-30
+    f = np.empty(6, np.complex128)
+    sc = s.astype(np.complex128)
+    vc = vs.astype(np.complex128)
+    xrc = xr.astype(np.complex128)
+    xsc = xs.astype(np.complex128)
+    _tip_force_c(sc, vc, xrc, xsc, h, m, f)
+    out = f.real.copy()
+    Ds = np.empty((6, 3))
+    Dv = np.empty((6, 3))
+    for j in range(3):
+        sp = sc.copy()
+        sp[j] += 1j * eps
+        _tip_force_c(sp, vc, xrc, xsc, h, m, f)
+        Ds[:, j] = f.imag / eps
+        vp = vc.copy()
+        vp[j] += 1j * eps
+        _tip_force_c(sc, vp, xrc, xsc, h, m, f)
+        Dv[:, j] = f.imag / eps
+    sn = np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
+    J = np.zeros((3, 6))
+    for c in range(3):
+        J[c, c] = 1.0
+        for d in range(3):
+            J[c, 3 + d] = h * ((1.0 if c == d else 0.0) - s[c] * s[d] / (sn * sn)) / sn
+    return out, Ds, Dv, m * (J.T @ J)

@@ -26,23 +26,36 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import InputError, UnstableEquilibriumError
+from .damping import axial_damping
 from .mass import consistent_mass, tip_mass_matrix
 
 
 @dataclass
 class ModalResult:
-    """frequencies [Hz] (k,), ascending; omega2 [1/s²] (k,) the eigenvalues ω²; shapes (k, ndof): mode shapes
-    in full coordinates (δq; mass-normalised: φᵀ M φ = 1 [kg]); tip_shapes (k, 3) [m]: the tool point's motion
-    in each shape; locked: indices of the tendons held as constraints (empty: tensions held)."""
+    """frequencies [Hz] (k,), ascending (undamped); omega2 [1/s²] (k,) the eigenvalues ω²; shapes (k, ndof):
+    mode shapes in full coordinates (δq; mass-normalised: φᵀ M φ = 1 [kg]); tip_shapes (k, 3) [m]: the tool
+    point's motion in each shape; locked: indices of the tendons held as constraints (empty: tensions held);
+    damping_ratios (k,) [-]: ζ_k = φ_kᵀ C φ_k / (2 ω_k) with the damping C of :mod:`.damping` (exact for
+    Rayleigh damping, first order in the damping for the axial Kelvin–Voigt part); damping: the coefficients
+    used {alpha [1/s], beta [s], axial [N s]}."""
     frequencies: np.ndarray
     omega2: np.ndarray
     shapes: np.ndarray
     tip_shapes: np.ndarray
     locked: tuple = ()
+    damping_ratios: np.ndarray = None
+    damping: dict = None
+
+    @property
+    def frequencies_hz(self) -> np.ndarray:
+        """The natural frequencies [Hz] (k,), ascending (same as ``frequencies``)."""
+        return self.frequencies
 
 
-def modes(model, eq, count: int = 6) -> ModalResult:
-    """The ``count`` lowest modes of ``model`` about its equilibrium ``eq`` (module docstring).  InputError
+def modes(model, eq, count: int = 6, damping=None) -> ModalResult:
+    """The ``count`` lowest modes of ``model`` about its equilibrium ``eq`` (module docstring).  ``damping``:
+    None — the actuator's coefficients; a dict {alpha [1/s], beta [s], axial [N s]}; a number ζ — the ratio
+    of the first mode (stiffness-proportional), as in :meth:`ancf.Model.simulate`.  InputError
     when the actuator has no mass to vibrate or ``count`` is out of range; UnstableEquilibriumError about an
     unstable equilibrium (it has no vibration modes: a negative ω²)."""
     p = model.params
@@ -85,4 +98,19 @@ def modes(model, eq, count: int = 6) -> ModalResult:
     else:
         shapes = (model._P @ dz).T
     Jp = model.tip_jacobian(q)
-    return ModalResult(np.sqrt(w2) / (2 * np.pi), w2, shapes, shapes @ Jp.T, A if Z is not None or A else ())
+    Ks = 0.5 * (K + K.T)
+    Ms = 0.5 * (Mz + Mz.T)
+    from .transient import resolve_damping
+    coeffs = resolve_damping(model, damping, Ks, Ms)
+    C = coeffs["alpha"] * Ms + coeffs["beta"] * Ks
+    if coeffs["axial"] > 0:
+        Cax = model.reduce_mat(axial_damping(q, np.zeros(model.ndof), model.n, model._N, model._wq,
+                                             coeffs["axial"])[2])
+        C = C + (Cax if Z is None else Z.T @ Cax @ Z)
+    omega = np.sqrt(w2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zeta = np.where(omega > 0, np.einsum("ik,ij,jk->k", phi, C, phi) / (2 * omega), np.inf)
+    if not np.any(C):
+        zeta = np.zeros(count)
+    return ModalResult(omega / (2 * np.pi), w2, shapes, shapes @ Jp.T, A if Z is not None or A else (),
+                       zeta, coeffs)
