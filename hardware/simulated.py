@@ -17,6 +17,11 @@ its own model:
 * ``length_rate`` [m/s] — motor speed; moves take max|Δl| / rate seconds and, in timed runs, the
   actuator passes through the intermediate states.
 * ``length_offset`` (m,) [m] — calibration error of the tendon-length zero (added to every command).
+* ``dynamics`` — integrate the actuator in time between controller steps instead of jumping to the locked
+  equilibrium (:mod:`hardware.sim_dynamics`): inertia, motors at ``length_rate`` (at most, and by default,
+  the safety limits' ``speed_max``: never an instant move), ``damping`` (a ratio of the first mode, default 0.05,
+  or {alpha, beta, axial}), the pressure supply's time constant ``pressure_tau`` [s], integration step
+  ``dynamics_step`` [s].
 * ``tendon_friction`` [N] and ``tendon_stiffness`` [N/m] — friction in the routing as a tension loss f_c
   between motor and actuator, acting through the series elasticity of tendon and sheath (flagged
   interpretation).  With inextensible tendons a tension loss cannot change a *locked-length* equilibrium
@@ -66,6 +71,10 @@ class PlantOptions:
     force_noise_std: float = 0.0
     pressure_noise_std: float = 0.0
     seed: int = 0
+    dynamics: bool = False
+    damping: Union[float, dict] = 0.05
+    pressure_tau: float = 0.0
+    dynamics_step: float = 1e-3
 
     def __post_init__(self):
         for nm in ("noise_std", "length_resolution", "tendon_friction", "tracker_latency", "force_noise_std",
@@ -77,6 +86,20 @@ class PlantOptions:
             v = getattr(self, nm)
             if isinstance(v, (bool, str)) or not (v > 0) or np.isnan(v):
                 raise InputError(f"PlantOptions.{nm} must be > 0 (inf allowed), got {v!r}")
+        if not isinstance(self.dynamics, bool):
+            raise InputError(f"PlantOptions.dynamics must be True or False, got {self.dynamics!r}")
+        for nm, hi in (("pressure_tau", 100.0), ("dynamics_step", 0.1)):
+            v = getattr(self, nm)
+            if isinstance(v, (bool, str)) or not (np.isfinite(v) and 0 <= v <= hi) or (nm == "dynamics_step" and v == 0):
+                raise InputError(f"PlantOptions.{nm} must be in {'(0' if nm == 'dynamics_step' else '[0'}, {hi:g}] s, "
+                                 f"got {v!r}")
+        if not isinstance(self.damping, dict) and (isinstance(self.damping, (bool, str))
+                                                   or not (np.isfinite(self.damping) and 0 <= self.damping <= 1)):
+            raise InputError(f"PlantOptions.damping must be a ratio in [0, 1] or a dict {{alpha, beta, axial}}, "
+                             f"got {self.damping!r}")
+        if self.dynamics and self.tendon_friction > 0:
+            raise InputError("PlantOptions: tendon friction is not modelled in the dynamic plant (dynamics=True); "
+                             "set tendon_friction=0")
         if self.params is not None and not isinstance(self.params, ActuatorParams):
             raise InputError(f"PlantOptions.params must be ActuatorParams, got {type(self.params).__name__}")
 
@@ -117,6 +140,12 @@ class _Plant:
         self.solves = 0
         self.faults: dict = {}
         self.load_fn: Callable = lambda t: np.zeros(3)
+        self.rate = options.length_rate       # motor speed [m/s] (a dynamic plant never moves them at once)
+        self.dyn = None
+        if options.dynamics:
+            from .sim_dynamics import DynamicActuator
+            self.dyn = DynamicActuator(model, options.tendon_stiffness, options.damping, options.pressure_tau,
+                                       options.dynamics_step)
 
     def quantise(self, lengths):
         r = self.options.length_resolution
@@ -133,18 +162,34 @@ class _Plant:
         if self.lengths is None:
             return 0.0
         dl = float(np.max(np.abs(self.target - self.lengths)))
-        return 0.0 if dl == 0 else dl / self.options.length_rate
+        return 0.0 if dl == 0 else dl / self.rate
 
     def advance(self, dt: float) -> None:
+        """Move the motors for ``dt`` seconds (and, for a dynamic plant, integrate the actuator over them)."""
+        t0 = self.time
+        if self.dyn is not None and self.dyn.state is None:
+            self._start_dynamics()
+        self._move(dt)
+        if self.dyn is not None:
+            self.dyn.advance(t0, self.time, self.lengths_at, self.supply_pressure, self.load)
+
+    def _start_dynamics(self) -> None:
+        self.dyn.start(self.lengths.copy(), self.pressure, self.load(self.time), self._static(), self.time)
+
+    @property
+    def supply_pressure(self) -> float:
+        return self.pressure
+
+    def _move(self, dt: float) -> None:
         """Move the motors for ``dt`` seconds.  The history gets a record at the start, at each tendon's
         arrival and at the end, so lengths between records are exactly linear in time (tracker latency)."""
         if self.hist and not np.array_equal(self.hist[-1][1], self.lengths) or not self.hist:
             self.record()
-        if math.isinf(self.options.length_rate):
+        if math.isinf(self.rate):
             self.lengths = self.target.copy()
             self.time += dt
         else:
-            rate = self.options.length_rate
+            rate = self.rate
             t_end = self.time + dt
             arrivals = sorted({float(x) for x in np.abs(self.target - self.lengths) / rate if 0 < x < dt})
             for stop in [self.time + a for a in arrivals] + [t_end]:
@@ -180,21 +225,36 @@ class _Plant:
         finally:
             self.solves += 1
 
-    def equilibrium(self, t: Optional[float] = None) -> Equilibrium:
-        """True locked equilibrium at time t (default now; earlier times use the motor history)."""
+    def _history_at(self, t: Optional[float]):
+        """(motor lengths, pull directions, time) at rig time t (None: now; linear between records)."""
+        if t is None or t >= self.time or not self.hist:
+            return self.lengths, self.dir, self.time
+        times = [h[0] for h in self.hist]
+        i = max(bisect.bisect_right(times, t) - 1, 0)
+        t0, l0, dirs = self.hist[i]
+        if i + 1 < len(self.hist) and self.hist[i + 1][0] > t0 and t > t0:
+            t1, l1, _ = self.hist[i + 1]
+            return l0 + (l1 - l0) * (min(t, t1) - t0) / (t1 - t0), dirs, t      # linear between records
+        return l0, dirs, t
+
+    def lengths_at(self, t: float) -> np.ndarray:
+        """Motor lengths (m,) [m] at rig time t."""
+        return self._history_at(t)[0]
+
+    def equilibrium(self, t: Optional[float] = None):
+        """The actuator at time t (default now; earlier times use the history): the true locked equilibrium,
+        or for a dynamic plant its state (:class:`hardware.sim_dynamics.DynamicState`)."""
         if self.lengths is None:
             raise InputError("simulated rig: no tendon lengths commanded yet")
-        if t is None or t >= self.time or not self.hist:
-            lengths, dirs, t = self.lengths, self.dir, self.time
-        else:
-            times = [h[0] for h in self.hist]
-            i = max(bisect.bisect_right(times, t) - 1, 0)
-            t0, l0, dirs = self.hist[i]
-            if i + 1 < len(self.hist) and self.hist[i + 1][0] > t0 and t > t0:
-                t1, l1, _ = self.hist[i + 1]
-                lengths = l0 + (l1 - l0) * (t - t0) / (t1 - t0)      # linear between records (see advance)
-            else:
-                lengths = l0
+        if self.dyn is not None:
+            if self.dyn.state is None:
+                self._start_dynamics()
+            return self.dyn.at(t)
+        return self._static(t)
+
+    def _static(self, t: Optional[float] = None) -> Equilibrium:
+        """True locked equilibrium at time t (default now; earlier times use the motor history)."""
+        lengths, dirs, t = self._history_at(t)
         F = self.load(t)
         key = (lengths.tobytes(), dirs.tobytes(), F.tobytes(), self.pressure)
         if key in self.cache:
@@ -309,7 +369,10 @@ class SimPressure(PressureSupply):
     def read(self) -> float:
         f = self.p.fault("pressure_overshoot")
         s = self.p.options.pressure_noise_std
-        return self.p.pressure + (f["delta"] if f else 0.0) + (self.p.rng.normal(0.0, s) if s > 0 else 0.0)
+        p = self.p.pressure
+        if self.p.dyn is not None and self.p.dyn.state is not None:
+            p = self.p.dyn.state.pressure                  # the chamber, behind the supply's time constant
+        return p + (f["delta"] if f else 0.0) + (self.p.rng.normal(0.0, s) if s > 0 else 0.0)
 
     def hold(self) -> None:
         pass                                       # valves closed: the chamber keeps its air
@@ -367,7 +430,8 @@ class SimulatedRig(Rig):
     model_or_params : the *plant's* model or parameters (``options.params``, if given, wins)
     pressure : initial chamber pressure p [Pa] (a controller run sets its own through the supply)
     load : tip load F [N], (3,) constant or a callable ``F(t)`` of the rig clock t [s]
-    options : :class:`PlantOptions`;  seed : overrides ``options.seed``
+    options : :class:`PlantOptions`;  seed : overrides ``options.seed``;  dynamics : overrides
+        ``options.dynamics`` (True: the actuator is integrated in time, :mod:`hardware.sim_dynamics`)
     limits : :class:`~hardware.limits.SafetyLimits` (default: travel 0.6–1.4 × length, 30 N, 160 kPa)
     on_fault_pressure : "hold" | "vent"
     """
@@ -377,8 +441,12 @@ class SimulatedRig(Rig):
     def __init__(self, model_or_params: Union[Model, ActuatorParams], pressure: float = 0.0,
                  load: LoadLike = (0.0, 0.0, 0.0), options: Optional[PlantOptions] = None, *,
                  seed: Optional[int] = None, limits: Optional[SafetyLimits] = None, on_fault_pressure: str = "hold",
-                 name: str = "simulated rig", config: Optional[dict] = None):
+                 name: str = "simulated rig", config: Optional[dict] = None, dynamics: Optional[bool] = None):
         options = options or PlantOptions()
+        if dynamics is not None:
+            if not isinstance(options, PlantOptions):
+                raise InputError(f"options must be PlantOptions, got {type(options).__name__}")
+            options = PlantOptions(**{**options.__dict__, "dynamics": dynamics})
         if not isinstance(options, PlantOptions):
             raise InputError(f"options must be PlantOptions, got {type(options).__name__}")
         if seed is not None:
@@ -400,6 +468,8 @@ class SimulatedRig(Rig):
         self.pace = 0.0            # > 0: the rig clock runs at most ``pace`` × the wall clock (1 = real time)
         m = model.m
         speed = options.length_rate if math.isfinite(options.length_rate) else limits.speed_max
+        if options.dynamics:
+            self._plant.rate = min(speed, limits.speed_max)   # an instant move would jerk the tendons
         super().__init__([SimDrive(self._plant, i) for i in range(m)],
                          [SimForceSensor(self._plant, i) for i in range(m)], SimPressure(self._plant),
                          SimTracker(self._plant), limits=limits, on_fault_pressure=on_fault_pressure,
@@ -425,7 +495,14 @@ class SimulatedRig(Rig):
 
     @time.setter
     def time(self, t: float) -> None:
-        self._plant.time = float(t)
+        t = float(t)
+        dyn = self._plant.dyn
+        if dyn is not None and dyn.state is not None:
+            if t < self._plant.time:
+                raise InputError(f"a dynamic plant cannot go back in time (from {self._plant.time:g} s to {t:g} s)")
+            self._advance_time(t - self._plant.time)          # integrate up to t
+            return
+        self._plant.time = t
 
     def set_load(self, load: LoadLike) -> None:
         """Hidden tip load [N]: a (3,) vector or a callable of time t [s] returning one."""
@@ -448,8 +525,8 @@ class SimulatedRig(Rig):
         """True tip load at time t [s] (default: now) [N]."""
         return self._plant.load(t)
 
-    def equilibrium(self) -> Equilibrium:
-        """The plant's true locked equilibrium now."""
+    def equilibrium(self):
+        """The plant's true locked equilibrium now (a dynamic plant: its state — q, v, tip, tensions)."""
         return self._plant.equilibrium()
 
     def true_tip(self) -> np.ndarray:

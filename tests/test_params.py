@@ -89,3 +89,20 @@ def test_preset_lookup(tmp_path):
     assert presets.get(str(f)).name == "mine"
     with pytest.raises(ConfigError, match="unknown preset"):
         presets.get("nope")
+
+
+def test_damping_coefficients_in_the_actuator_file():
+    """rayleigh_alpha [1/s], rayleigh_beta [s or ms], axial_damping [N s]: read in their units, written back in
+    SI, implausible magnitudes (a unit mistake) and negative values refused."""
+    base = presets.paper().to_toml()
+    text = base.replace("tip_mass_kg", "rayleigh_alpha_per_s = 2.5\nrayleigh_beta_ms = 4\naxial_damping_N_s = 0.3\ntip_mass_kg")
+    p = ActuatorParams.from_toml_string(text)
+    assert (p.rayleigh_alpha, p.rayleigh_beta, p.axial_damping) == (2.5, pytest.approx(4e-3), 0.3)
+    assert ActuatorParams.from_toml_string(p.to_toml()) == p
+    assert "rayleigh_beta_s = 0.004" in p.to_toml()
+    with pytest.raises(ConfigError, match="implausible"):
+        ActuatorParams.from_toml_string(base.replace("tip_mass_kg", "rayleigh_beta_s = 40\ntip_mass_kg"))
+    with pytest.raises(ConfigError, match="needs an explicit unit"):
+        ActuatorParams.from_toml_string(base.replace("tip_mass_kg", "axial_damping = 0.3\ntip_mass_kg"))
+    with pytest.raises((ConfigError, ValidationError)):
+        presets.paper().replace(rayleigh_alpha=-1.0)

@@ -13,6 +13,7 @@ import typer
 
 from ancf import cli as ancf_cli
 from ancf import clitools
+from ancf.dynamics import cli as dynamics_cli
 from fem_reference.cli import app as fem_app
 from hardware import cli as rig_cli
 from validation import control_cli, identify_cli
@@ -23,6 +24,7 @@ app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM refe
                   rich_markup_mode=None,   # help texts state units as "[kPa]": no markup parsing
                   context_settings=clitools.HELP_SETTINGS)   # whole command summaries in --help
 ancf_cli.register(app)                                       # demo | fk | ik | locked | compliance | params
+dynamics_cli.register(app)                                   # modes | simulate
 app.add_typer(paper_app, name="paper", help="Reproduce the paper's studies, beside the paper's numbers.")
 identify_cli.register(app)                                   # identify | validate | report | calibrate
 app.add_typer(fem_app, name="fem", help="3-D hyperelastic FEM reference of the bellows.")

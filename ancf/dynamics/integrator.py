@@ -93,8 +93,10 @@ def alpha_step(s: StepState, h: float, c: AlphaCoefficients, system: System, *, 
 
     try:
         a1, z1, v1, out = evaluate(x)
-    except StepFailed:                      # the predictor left the domain: start from zero acceleration
-        x = np.zeros_like(x)
+    except StepFailed:
+        # the predictor left the model's domain: start Newton from the last state instead (z_{n+1} = z_n,
+        # an admissible point), and let the backtracking below keep its iterates admissible
+        x = ((s.z - z_pred) / (h * h * c.beta) - a_const) / k
         a1, z1, v1, out = evaluate(x)
     for it in range(1, max_iter + 1):
         r, M, Kt, Ct, scale = out
@@ -114,7 +116,7 @@ def alpha_step(s: StepState, h: float, c: AlphaCoefficients, system: System, *, 
             return StepState(z_pred + h * h * c.beta * a1, v_pred + h * c.gamma * a1, x, a1), it
         # backtrack along the Newton direction while the trial state leaves the model's domain
         lam = 1.0
-        for _ in range(6):
+        for _ in range(10):
             try:
                 a1, z1, v1, out = evaluate(x - lam * dx)
                 x = x - lam * dx

@@ -40,6 +40,8 @@ class Signal:
                                          ).reshape(self.shape)
 
     def __call__(self, t: float) -> np.ndarray:
+        if self.constant:
+            return self._f(t)                # checked once, when it was given
         return self._check(self._f(t), t)
 
     def _check(self, v, t) -> np.ndarray:

@@ -38,7 +38,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..errors import CollapsedStateError, ConvergenceError, InputError, LimitError, check_scalar
+from ..errors import CollapsedStateError, ConvergenceError, InputError, LimitError, check_finite, check_scalar
 from .damping import axial_damping
 from .integrator import AlphaCoefficients, StepFailed, StepState, alpha_step
 from .mass import consistent_mass, tool_point_inertia
@@ -87,12 +87,16 @@ def resolve_damping(model, damping, K0: np.ndarray, Mz: np.ndarray) -> dict:
     if damping is None:
         return {"alpha": p.rayleigh_alpha, "beta": p.rayleigh_beta, "axial": p.axial_damping}
     if isinstance(damping, dict):
-        unknown = set(damping) - {"alpha", "beta", "axial"}
+        unknown = set(damping) - {"alpha", "beta", "axial", "stiffness"}
         if unknown:
-            raise InputError(f"damping: unknown keys {sorted(unknown)}; use alpha [1/s], beta [s], axial [N s]")
+            raise InputError(f"damping: unknown keys {sorted(unknown)}; use alpha [1/s], beta [s], axial [N s] "
+                             "(and optionally stiffness: the (nz, nz) matrix β multiplies)")
         out = {"alpha": 0.0, "beta": 0.0, "axial": 0.0}
         for k, v in damping.items():
-            out[k] = check_scalar(f"damping[{k!r}]", v, low=0.0, high=1e6)
+            if k == "stiffness":
+                out[k] = check_finite("damping['stiffness']", v, (model.nz, model.nz))
+            else:
+                out[k] = check_scalar(f"damping[{k!r}]", v, low=0.0, high=1e6)
         return out
     zeta = check_scalar("damping", damping, low=0.0, high=1.0)
     if zeta == 0.0:
@@ -248,6 +252,9 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
     Mz0 = red_m(mass_full(q_start)[0])
     coeffs = resolve_damping(model, damping, K0, Mz0)
     alpha_d, beta_d, c_ax = coeffs["alpha"], coeffs["beta"], coeffs["axial"]
+    if "stiffness" in coeffs:                    # a fixed matrix for β (e.g. a plant's, across many runs)
+        K0 = coeffs.pop("stiffness")
+        K0 = 0.5 * (K0 + K0.T)
     if beta_d > 0:
         lam = np.linalg.eigvalsh(K0)[0]
         if lam < -1e-9 * max(np.abs(np.diag(K0)).max(), 1e-300):
@@ -303,10 +310,15 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
         return system
 
     # energy parts of a state: Π(q; T, p, F) = E0 + T·l − p V − F·p_end + ½ k Σ max(0, l − l0)²
+    s1 = model._N[:, 1, :]                                   # slope shape values (nq, 4)
+    eidx = np.arange(model.n)[:, None] * 6 + np.arange(12)[None, :]
+    vc = model._vc
+
     def parts(q):
         e0 = model._evaluate(q, None, 0.0, (0.0, 0.0, 0.0), False, 1.0, "values")
-        e1 = model._evaluate(q, None, 1.0, (0.0, 0.0, 0.0), False, 1.0, False)
-        return e0.energy, e0.lengths, e0.energy - e1.energy, model._tip(q)
+        lam = np.linalg.norm(np.einsum("kj,ejc->ekc", s1, q[eidx].reshape(model.n, 4, 3)), axis=-1)
+        V = float(np.sum(model._wq * sum(c * lam ** (j + 1) for j, c in enumerate(vc))))   # ∫ A(λ) λ dx
+        return e0.energy, e0.lengths, V, model._tip(q)
 
     def potential(pt, T, pr, F, l0):
         E0, lq, V, pe = pt
@@ -377,7 +389,7 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
                 T1 = None if length_mode else T_sig(t1)
                 check_loads(t1, T=T1, pr=pr1, l0=l01)
                 try:
-                    st_new, k = alpha_step(st, hh, coeff, make_system(t1, T1, pr1, F1, l01), rtol=1e-14, atol=0.0,
+                    st_new, k = alpha_step(st, hh, coeff, make_system(t1, T1, pr1, F1, l01), rtol=1e-14, atol=0.0, vtol=1e-7,
                                            max_iter=max_iter)
                 except StepFailed as exc:
                     if level >= max_halvings:

@@ -1,0 +1,262 @@
+"""``bellows modes | simulate``: the reduced model's dynamics on the command line (docs/dynamics.md).
+
+``modes``: natural frequencies [Hz], damping ratios and mode shapes about an equilibrium (tensions held,
+or tendons locked with ``--locked``), a table, ``modes.json`` and a figure of the shapes (``modes.png``).
+
+``simulate``: the step response from the equilibrium of ``--start-tensions-n`` to ``--tensions-n`` (applied
+as a step, or a linear ramp over ``--ramp-ms``) at ``--pressure-kpa``, with a progress bar; writes
+``simulation.csv`` (one row per step, units in the header), ``simulation.json`` (summary) and
+``simulation.png`` (tip motion and energy).  Ctrl-C stops and still writes the rows done.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import pathlib
+from typing import Optional
+
+import numpy as np
+import typer
+from rich.markup import escape
+from rich.table import Table
+
+from ..cli import FORCE_HELP, NO_LIMITS_HELP, PRESET_HELP, _model, console, parse_vector, warm_up
+from ..errors import InputError
+from ..export import write_json
+from ..outputs import prepare_output_dir
+
+MODES_FILES = ("modes.png", "modes.json")
+SIM_FILES = ("simulation.csv", "simulation.json", "simulation.png")
+
+
+def _damping(ratio: Optional[float]):
+    """--damping-ratio: None keeps the actuator file's coefficients."""
+    return None if ratio is None else ratio
+
+
+def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of the equilibrium."),
+          pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+          tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] of the equilibrium (world frame)."),
+          locked: bool = typer.Option(False, "--locked", help="Tendons locked at the equilibrium's lengths "
+                                      "(motors holding position) instead of tensions held."),
+          count: int = typer.Option(6, help="Number of modes."),
+          damping_ratio: Optional[float] = typer.Option(None, help="Damping ratio of the first mode "
+                                                        "(stiffness-proportional); default: the actuator file's "
+                                                        "damping coefficients."),
+          preset: str = typer.Option("paper", help=PRESET_HELP),
+          out: Optional[pathlib.Path] = typer.Option(None, help="Folder for modes.png and modes.json."),
+          force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+          no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP),
+          as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Vibration modes about an equilibrium: frequencies [Hz], damping ratios and shapes."""
+    folder = None if out is None else prepare_output_dir(out, MODES_FILES, force=force)
+    model = _model(preset, None)
+    T = parse_vector(tensions_n, model.m, "--tensions-n")
+    F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    warm_up()
+    eq = model.fk(T, pressure_kpa * 1e3, F, check_limits=not no_limits)
+    if locked:
+        eq = model.fk_locked(eq.tendon_lengths, pressure_kpa * 1e3, F, q0=eq.q, tensions0=eq.tensions,
+                             check_limits=not no_limits)
+    r = model.modes(eq, count, damping=_damping(damping_ratio))
+    rows = [{"mode": k + 1, "frequency_Hz": float(f), "damping_ratio": float(z), "kind": _kind(r.tip_shapes[k]),
+             "tip_shape_mm": (r.tip_shapes[k] / max(np.linalg.norm(r.tip_shapes[k]), 1e-300)).tolist()}
+            for k, (f, z) in enumerate(zip(r.frequencies_hz, r.damping_ratios))]
+    summary = {"preset": model.params.name, "tensions_N": T.tolist(), "pressure_kPa": pressure_kpa,
+               "tip_force_N": F.tolist(), "tendons": "locked" if locked else "tensions held",
+               "damping": r.damping, "tip_mm": (eq.tip * 1e3).tolist(), "modes": rows}
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+        write_json(folder / "modes.json", summary)
+        save_modes_png(folder / "modes.png", model, eq, r,
+                       f"modes of '{model.params.name}' at T = {tensions_n} N, p = {pressure_kpa:g} kPa "
+                       f"({summary['tendons']})")
+    if as_json:
+        typer.echo(json.dumps(summary, indent=2))
+        return
+    t = Table(title=escape(f"modes at T = {tensions_n} N, p = {pressure_kpa:g} kPa — {summary['tendons']} "
+                           f"('{model.params.name}')"))
+    for c in ("mode", "f [Hz]", "ζ [-]", "kind", "tip direction"):
+        t.add_column(escape(c), justify="right" if c != "kind" else "left")
+    for row in rows:
+        t.add_row(str(row["mode"]), f"{row['frequency_Hz']:.3f}", f"{row['damping_ratio']:.4f}", row["kind"],
+                  " ".join(f"{x:+.2f}" for x in row["tip_shape_mm"]))
+    console.print(t)
+    if folder is not None:
+        console.print(f"wrote {folder / 'modes.png'} and {folder / 'modes.json'}")
+
+
+def _kind(tip_shape: np.ndarray) -> str:
+    """'axial' when the tool point moves mostly along the base axis x, else 'bending'."""
+    n = np.linalg.norm(tip_shape)
+    return "axial" if n > 0 and abs(tip_shape[0]) > 0.9 * n else "bending"
+
+
+def _finish(fig, title: str, path) -> pathlib.Path:
+    """Title, layout, save at 100 dpi and close a figure."""
+    import matplotlib.pyplot as plt
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = pathlib.Path(path)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def save_modes_png(path, model, eq, r, title: str) -> pathlib.Path:
+    """One panel per mode: the equilibrium's centreline (grey) and the shape at ± a visible amplitude
+    (tip motion 12 % of the length), side (x–z) and top (x–y) views."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    k = len(r.frequencies_hz)
+    fig, axes = plt.subplots(2, k, figsize=(2.6 * k + 1, 5.2), squeeze=False)
+    c0 = model.centreline(eq.q) * 1e3
+    for j in range(k):
+        amp = 0.12 * model.params.length / max(np.linalg.norm(r.tip_shapes[j]), 1e-300)
+        for row, (a, b, name) in enumerate(((0, 2, "x–z"), (0, 1, "x–y"))):
+            ax = axes[row, j]
+            ax.plot(c0[:, a], c0[:, b], color="0.6", lw=2)
+            for sgn, col in ((1, "C0"), (-1, "C3")):
+                try:
+                    c = model.centreline(eq.q + sgn * amp * r.shapes[j]) * 1e3
+                except InputError:
+                    continue
+                ax.plot(c[:, a], c[:, b], color=col, lw=1.5)
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.grid(alpha=0.3)
+            ax.set_xlabel("x [mm]", fontsize=8)
+            ax.set_ylabel(f"{name[-1]} [mm]", fontsize=8)
+            ax.tick_params(labelsize=7)
+            if row == 0:
+                ax.set_title(f"mode {j + 1}: {r.frequencies_hz[j]:.2f} Hz\n({_kind(r.tip_shapes[j])})", fontsize=9)
+    return _finish(fig, title, path)
+
+
+def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] applied at t = 0."),
+             start_tensions_n: str = typer.Option("0,0,0", help="Tensions [N] of the start equilibrium."),
+             pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa] (constant)."),
+             tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] (constant; also in the start state)."),
+             ramp_ms: float = typer.Option(0.0, help="Ramp the tensions linearly over this time [ms]; 0: a step."),
+             t_end_s: float = typer.Option(1.0, help="Simulated time [s]."),
+             dt_ms: float = typer.Option(1.0, help="Time step [ms] (the output interval)."),
+             damping_ratio: Optional[float] = typer.Option(None, help="Damping ratio of the first mode "
+                                                           "(stiffness-proportional); default: the actuator "
+                                                           "file's coefficients."),
+             rho_inf: float = typer.Option(0.9, help="Integrator's high-frequency spectral radius (1: none "
+                                           "of its numerical dissipation)."),
+             preset: str = typer.Option("paper", help=PRESET_HELP),
+             out: pathlib.Path = typer.Option(pathlib.Path("bellows_sim"), help="Output folder."),
+             force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+             no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP)):
+    """Step response in time: from the start equilibrium to new tensions (tip motion, energy)."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    folder = prepare_output_dir(out, SIM_FILES, force=force)
+    model = _model(preset, None)
+    T1 = parse_vector(tensions_n, model.m, "--tensions-n")
+    T0 = parse_vector(start_tensions_n, model.m, "--start-tensions-n")
+    F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    if not ramp_ms >= 0:
+        raise InputError(f"--ramp-ms must be ≥ 0, got {ramp_ms:g}")
+    if not (dt_ms > 0 and t_end_s > 0):
+        raise InputError(f"--dt-ms and --t-end-s must be > 0, got {dt_ms:g} ms and {t_end_s:g} s")
+    warm_up()
+    p = pressure_kpa * 1e3
+    start = model.fk(T0, p, F, check_limits=not no_limits)
+    ramp = ramp_ms * 1e-3
+    tensions = (lambda t: T0 + (T1 - T0) * min(t / ramp, 1.0)) if ramp > 0 else T1
+    with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.fields[t]:.3f} / {task.total:.3f} s"),
+                  TimeRemainingColumn(), console=console, transient=True) as bar:
+        task = bar.add_task("sim", total=t_end_s, t=0.0)
+        sim = model.simulate(t_end_s, dt_ms * 1e-3, q0=start.q, tensions=tensions, pressure=p, tip_force=F,
+                             damping=_damping(damping_ratio), rho_inf=rho_inf, check_limits=not no_limits,
+                             progress=lambda t, te: bar.update(task, completed=t, t=t))
+    folder.mkdir(parents=True, exist_ok=True)
+    write_simulation_csv(folder / "simulation.csv", sim)
+    final = model.fk(T1, p, F, q0=sim.q[-1], check_limits=not no_limits) if not sim.interrupted else None
+    summary = {"preset": model.params.name, "start_tensions_N": T0.tolist(), "tensions_N": T1.tolist(),
+               "ramp_ms": ramp_ms, "pressure_kPa": pressure_kpa, "tip_force_N": F.tolist(),
+               "t_end_s": float(sim.t[-1]), "dt_s": sim.dt, "steps": len(sim.t) - 1, "damping": sim.damping,
+               "rho_inf": sim.rho_inf, "interrupted": sim.interrupted, "wall_time_s": sim.wall_time,
+               "real_time_factor": sim.real_time_factor,
+               "tip_start_mm": (sim.tip[0] * 1e3).tolist(), "tip_end_mm": (sim.tip[-1] * 1e3).tolist(),
+               "static_tip_mm": None if final is None else (final.tip * 1e3).tolist(),
+               "overshoot_mm": None if final is None else _overshoot(sim, start.tip, final.tip) * 1e3,
+               "energy_drift_J": float(sim.energy[-1] + sim.dissipated[-1] - sim.energy[0]),
+               "events": sim.events[:50]}
+    write_json(folder / "simulation.json", summary)
+    save_simulation_png(folder / "simulation.png", sim, None if final is None else final.tip,
+                        f"'{model.params.name}': T {start_tensions_n} → {tensions_n} N at {pressure_kpa:g} kPa")
+    state = "interrupted at" if sim.interrupted else "done:"
+    console.print(escape(f"{state} {sim.t[-1]:.3f} s simulated in {sim.wall_time:.2f} s "
+                         f"({sim.real_time_factor:.1f}× real time, step {sim.dt * 1e3:g} ms)"))
+    if final is not None:
+        console.print(escape(f"tip {' '.join(f'{x:.2f}' for x in sim.tip[-1] * 1e3)} mm at the end; static "
+                             f"equilibrium {' '.join(f'{x:.2f}' for x in final.tip * 1e3)} mm; overshoot "
+                             f"{summary['overshoot_mm']:.2f} mm"))
+    console.print(f"wrote {folder / 'simulation.csv'}, {folder / 'simulation.json'} and {folder / 'simulation.png'}")
+
+
+def _overshoot(sim, tip0, tip1) -> float:
+    """How far [m] the tip went beyond the final static position, along the start → final direction."""
+    d = tip1 - tip0
+    n = float(np.linalg.norm(d))
+    if n == 0:
+        return 0.0
+    return max(0.0, float(((sim.tip - tip0) @ (d / n)).max()) - n)
+
+
+def write_simulation_csv(path, sim) -> pathlib.Path:
+    """One row per output time: t [s], tip [mm], tensions [N], pressure [kPa], energies [J]."""
+    m = sim.tensions.shape[1]
+    header = (["t_s", "tip_x_mm", "tip_y_mm", "tip_z_mm"] + [f"T{i + 1}_N" for i in range(m)]
+              + ["pressure_kPa", "kinetic_J", "energy_J", "dissipated_J", "newton_iterations"])
+    tmp = pathlib.Path(path).with_suffix(".csv.tmp")
+    with open(tmp, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for i in range(len(sim.t)):
+            w.writerow([f"{sim.t[i]:.6g}", *(f"{x * 1e3:.6f}" for x in sim.tip[i]),
+                        *(f"{x:.6g}" for x in sim.tensions[i]), f"{sim.pressure[i] / 1e3:.6g}",
+                        f"{sim.kinetic[i]:.6e}", f"{sim.energy[i]:.9e}", f"{sim.dissipated[i]:.6e}",
+                        int(sim.newton_iterations[i])])
+    tmp.replace(path)
+    return pathlib.Path(path)
+
+
+def save_simulation_png(path, sim, static_tip, title: str) -> pathlib.Path:
+    """Tip coordinates [mm] over time (dashed: the static equilibrium of the final loads), and the energy
+    balance (kinetic, dissipated, energy + dissipated − its start)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    for c, name in enumerate("xyz"):
+        a1.plot(sim.t, sim.tip[:, c] * 1e3 - (0 if c else sim.tip[0, 0] * 1e3), label=f"{name}" + (" − x₀" if c == 0 else ""),
+                color=f"C{c}")
+        if static_tip is not None:
+            a1.axhline(static_tip[c] * 1e3 - (0 if c else sim.tip[0, 0] * 1e3), color=f"C{c}", ls="--", lw=0.8)
+    a1.set_xlabel("t [s]"), a1.set_ylabel("tip [mm]"), a1.grid(alpha=0.3), a1.legend(fontsize=8)
+    a1.set_title("tip motion (dashed: static equilibrium)", fontsize=9)
+    a2.plot(sim.t, sim.kinetic, label="kinetic")
+    a2.plot(sim.t, sim.dissipated, label="dissipated")
+    a2.plot(sim.t, sim.energy + sim.dissipated - sim.energy[0], label="energy + dissipated − start (the integrator's own loss)")
+    a2.set_xlabel("t [s]"), a2.set_ylabel("energy [J]"), a2.grid(alpha=0.3), a2.legend(fontsize=8)
+    a2.set_title("energy", fontsize=9)
+    return _finish(fig, title, path)
+
+
+SHORT_HELP = {
+    "modes": "Vibration modes about an equilibrium: frequencies, damping, shapes.",
+    "simulate": "Step response in time: tip motion and energy.",
+}
+
+
+def register(app: typer.Typer) -> None:
+    """Attach ``modes`` and ``simulate`` to the root ``bellows`` app."""
+    for fn in (modes, simulate):
+        app.command(fn.__name__, short_help=SHORT_HELP[fn.__name__])(fn)

@@ -1,0 +1,108 @@
+"""Speed of the transient model (Model.simulate) beside a compiled peer, and its real-time factor.
+
+Run:  python benchmarks/bench_dynamics.py [--repeats 5]
+
+1. **The same cable in Exudyn** (``benchmarks/peer_exudyn.py``: ObjectANCFCable, generalized-α, the same
+   ρ∞ = 0.9 and fixed step): a clamped-free cable (n = 6, L = 0.16 m, EA = 1000 N, EI = 0.005 N m²,
+   m' = 0.3 kg/m) released straight under gravity — a large swing (the tip drops ~85 mm) — for 0.5 s at
+   dt = 0.5 ms and 2 ms.  Both are timed interleaved in the same run; medians and their ratio, and the
+   largest difference between the two tip trajectories (the two cables' strain measures differ at O(ε):
+   docs/dynamics.md).
+2. **The `paper` actuator at the step that resolves its first bending frequency to 1 %** (generalized-α
+   shortens the period by about (ωh)²/12: h = √0.12 / ω₁), 2 s: a free vibration (released from the
+   equilibrium under an extra 0.3 N vertical tip force, T₁ = 2 N at 30 kPa, undamped) and a step response
+   (T₁ 0 → 2 N at 30 kPa, 5 % damping — the step excites every mode, and the first steps are subdivided):
+   wall time and the real-time factor (simulated / wall time).  The target is ≥ 20×.
+3. **The step response at dt = 1 ms** (a 1 kHz loop's step): real-time factor (> 1: the dynamic plant keeps
+   up).
+
+The machines are shared: read ratios of interleaved runs, not absolute times.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import pathlib
+import statistics
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).parent))
+
+from ancf import Model, StiffnessLaw, presets  # noqa: E402
+from ancf.params import Tendon  # noqa: E402
+
+L, EA, EI, MP = 0.16, 1000.0, 0.005, 0.3
+
+
+def cable_model(n: int = 6) -> Model:
+    """The peer's cable in our model: constant law, no tip mass, tendons at 1 mm that carry nothing."""
+    return Model(presets.paper().replace(
+        stiffness=StiffnessLaw.constant(EA=EA, EI=EI), line_mass=MP, tip_mass=0.0, tool_offset=0.0,
+        n_elements=n, tendons=tuple(Tendon(distance=1e-3, angle=a) for a in (0.0, 2 * math.pi / 3, 4 * math.pi / 3))))
+
+
+def ours_cable(m: Model, t_end: float, dt: float):
+    return m.simulate(t_end, dt, q0=m.q_ref, tensions=(0, 0, 0), damping=0.0, check_limits=False)
+
+
+def main(repeats: int = 5) -> dict:
+    try:
+        import peer_exudyn
+        have_peer = peer_exudyn.available()
+    except ImportError:
+        have_peer = False
+    out = {}
+    m = cable_model()
+    ours_cable(m, 0.01, 1e-3)                                   # compile / load kernels
+    print("1. swinging cable, n = 6, 0.5 s (medians of %d)" % repeats)
+    print(f"   {'dt [ms]':>8} {'ours [s]':>10} {'Exudyn [s]':>11} {'ratio':>7} {'max |Δtip| [mm]':>16}")
+    for dt in (0.5e-3, 2e-3):
+        ts, tp = [], []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            sim = ours_cable(m, 0.5, dt)
+            ts.append(time.perf_counter() - t0)
+            if have_peer:
+                r = peer_exudyn.simulate_cantilever(6, L, EA, EI, MP, t_end=0.5, dt=dt)
+                tp.append(r["solve_s"])
+        s_ours = statistics.median(ts)
+        if have_peer:
+            s_peer = statistics.median(tp)
+            k = min(len(sim.tip), len(r["tip"]))
+            diff = float(np.abs(sim.tip[:k] - r["tip"][:k]).max()) * 1e3
+            print(f"   {dt * 1e3:8.2f} {s_ours:10.3f} {s_peer:11.3f} {s_ours / s_peer:7.2f} {diff:16.3f}")
+            out[f"cable_{dt}"] = {"ours_s": s_ours, "exudyn_s": s_peer, "ratio": s_ours / s_peer, "max_diff_mm": diff}
+        else:
+            print(f"   {dt * 1e3:8.2f} {s_ours:10.3f} {'(no exudyn)':>11}")
+            out[f"cable_{dt}"] = {"ours_s": s_ours}
+
+    pm = Model(presets.paper())
+    eq = pm.fk((2.0, 0.0, 0.0), 30e3)
+    f1 = pm.modes(eq, 1).frequencies_hz[0]
+    start = pm.fk((0.0, 0.0, 0.0), 30e3)
+    h1 = math.sqrt(0.12) / (2 * math.pi * f1)
+    lifted = pm.fk((2.0, 0.0, 0.0), 30e3, (0.0, 0.0, 0.3), q0=eq.q)
+    print(f"2./3. 'paper', 2 s at 30 kPa (first bending mode {f1:.3f} Hz)")
+    print(f"   {'dt [ms]':>8} {'wall [s]':>9} {'× real time':>12} {'Newton its/step':>16}")
+    runs = (("free vibration, 1 % of f1", h1, lifted.q, 0.0), ("step response, 1 % of f1", h1, start.q, 0.05),
+            ("step response, 1 kHz loop", 1e-3, start.q, 0.05))
+    for name, dt, q0, zeta in runs:
+        ws, its = [], []
+        for _ in range(repeats):
+            sim = pm.simulate(2.0, dt, q0=q0, tensions=(2, 0, 0), pressure=30e3, damping=zeta)
+            ws.append(sim.wall_time)
+            its.append(float(sim.newton_iterations[1:].mean()))
+        w = statistics.median(ws)
+        print(f"   {dt * 1e3:8.2f} {w:9.3f} {2.0 / w:12.1f} {statistics.median(its):16.2f}   ({name})")
+        out[name] = {"dt_s": dt, "wall_s": w, "real_time_factor": 2.0 / w}
+    return out
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    main(ap.parse_args().repeats)
