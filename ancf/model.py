@@ -491,8 +491,10 @@ class Model:
         from ``pressure0``, default the command at t = 0); ``tip_force`` [N] (3,).  ``q0`` (ndof,): the start
         (default: the static equilibrium under the loads at t = 0; required with ``lengths``), ``v0`` (ndof,)
         [m/s] its velocity (default 0).  ``damping``: None — the actuator's (``rayleigh_alpha`` [1/s],
-        ``rayleigh_beta`` [s], ``axial_damping`` [N s]); a dict with those keys (alpha, beta, axial); a number
-        ζ ∈ [0, 1] — stiffness-proportional Rayleigh damping with ratio ζ at the first mode about q0 (0: none).
+        ``rayleigh_beta`` [s], ``axial_damping`` [N s]); a dict with those keys (alpha, beta, axial; optionally
+        ``stiffness``, the (nz, nz) matrix β multiplies, default the tangent at q0); a number ζ ∈ [0, 1] —
+        stiffness-proportional Rayleigh damping with ratio ζ at the first mode about q0 (0: none; about another
+        equilibrium: :func:`ancf.dynamics.rayleigh_about`).
         ``rho_inf`` ∈ [0, 1]: the integrator's high-frequency spectral radius (1: no numerical dissipation).
         Fails fast (InputError/LimitError) on a load outside the limits anywhere on the time grid; raises
         ConvergenceError / CollapsedStateError at the time a step fails after ``max_halvings`` halvings.

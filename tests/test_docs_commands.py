@@ -42,6 +42,7 @@ SHORTER = [
     (r"^(bellows paper compare)(?!.*--samples)", r"\1 --samples 200 --seeds 0 --presets paper --no-control"),
     (r"^(bellows control --rig sim)(?!.*--duration-s)(?!.*--max-iterations)", r"\1 --duration-s 6"),
     (r"^(bellows control --rig sim)(?!.*--fast)", r"\1 --fast"),
+    (r"^(bellows paper dynamic)(?!.*--frequencies-hz)", r"\1 --frequencies-hz 2"),  # one load frequency
 ]
 # FEM sweeps: slow
 FEM_SWEEP = re.compile(r"^bellows (report|validate|calibrate)\b|^bellows identify\b(?!.*--measurements)")

@@ -45,7 +45,10 @@ def test_simulate_command_writes_the_run(tmp_path):
     assert len(rows) == 61 and float(rows[-1]["t_s"]) == pytest.approx(0.3)
     summary = json.loads((tmp_path / "s" / "simulation.json").read_text())
     model = Model(presets.paper())
-    sim = model.simulate(0.3, 5e-3, q0=model.fk((0, 0, 0), 30e3).q, tensions=(2, 0, 0), pressure=30e3, damping=0.1)
+    from ancf.dynamics import rayleigh_about
+    settled = model.fk((2, 0, 0), 30e3)
+    sim = model.simulate(0.3, 5e-3, q0=model.fk((0, 0, 0), 30e3).q, tensions=(2, 0, 0), pressure=30e3,
+                         damping=rayleigh_about(model, settled, 0.1))      # the ratio about the settled state
     assert np.allclose([float(rows[-1][f"tip_{c}_mm"]) for c in "xyz"], sim.tip[-1] * 1e3, atol=1e-5)
     assert np.allclose(summary["tip_end_mm"], sim.tip[-1] * 1e3, atol=1e-9)
     assert summary["static_tip_mm"] == pytest.approx(model.fk((2, 0, 0), 30e3).tip * 1e3, abs=1e-6)

@@ -215,13 +215,14 @@ def test_ctrl_c_keeps_the_rows_done(model, bent):
 def test_any_admissible_load_step_gives_a_finite_run_or_a_typed_error(T, p, Fz, zeta):
     m = Model(presets.paper())
     try:
-        sim = m.simulate(0.1, 5e-3, q0=m.fk((0, 0, 0), p).q, tensions=T, pressure=p, tip_force=(0, 0, Fz),
+        sim = m.simulate(0.1, 2e-3, q0=m.fk((0, 0, 0), p).q, tensions=T, pressure=p, tip_force=(0, 0, Fz),
                          damping=zeta)
     except BellowsError:
         return
     assert np.all(np.isfinite(sim.q)) and np.all(np.isfinite(sim.energy))
-    # constant loads: no blow-up — energy is created only by the scheme's error (at most ~5 % of the motion's
-    # energy for a violent load step at 5 ms, shrinking like dt²: the nonlinear generalized-α is not strictly
-    # dissipative), and the damping only takes energy out
+    # constant loads: no blow-up — energy is created only by the scheme's error, mostly in the first step of
+    # a violent load step from rest (T = (0, 0, 2) N at 0 kPa: 18 % of the motion's peak kinetic energy at
+    # 5 ms, 0.2 % at 1 ms — like dt²; the nonlinear generalized-α is not strictly dissipative); the damping
+    # only takes energy out
     assert sim.energy.max() <= sim.energy[0] + 0.1 * sim.kinetic.max() + 1e-12
     assert np.all(np.diff(sim.dissipated) >= 0)

@@ -15,6 +15,7 @@ import sys
 import time
 from typing import Optional
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.markup import escape
@@ -346,8 +347,63 @@ def calibrate_cmd(
                   + f"; wrote {path}")
 
 
+def damping_cmd(record: pathlib.Path = typer.Argument(..., help="A free decay: simulation.csv of `bellows "
+                                                     "simulate`, or a run log (.h5)."),
+                start_s: Optional[float] = typer.Option(None, help="Fit from this time [s] (skip the release)."),
+                end_s: Optional[float] = typer.Option(None, help="Fit up to this time [s]."),
+                true_tip: bool = typer.Option(False, "--true-tip", help="Run log of a simulated rig: fit its "
+                                              "noise-free tip instead of the tracker's."),
+                tendons: Optional[str] = typer.Option(None, help="How the tendons were held, for the model's "
+                                                      "frequency beside the measured one: 'held' (constant "
+                                                      "tension) or 'locked' (motors); default: held for a "
+                                                      "CSV, locked for a run log."),
+                preset: str = typer.Option("paper", help="The actuator (preset or .toml) whose first mode is "
+                                           "compared."),
+                as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Damping from a free decay: natural frequency and damping ratio with 95 % intervals, as Rayleigh
+    coefficients for the actuator file, beside the model's first mode (docs/dynamics.md)."""
+    from ancf import Model, presets
+    from .identify_dynamics import fit_free_decay, read_decay
+
+    if tendons not in (None, "held", "locked"):
+        raise InputError(f"--tendons must be 'held' or 'locked', got {tendons!r}")
+    t, tip, info = read_decay(record, true_tip=true_tip)
+    fit = fit_free_decay(t, tip, t_start=start_s, t_end=end_s)
+    out = {"record": str(record), **fit.to_dict()}
+    model = Model(presets.get(preset))
+    tendons = tendons or ("held" if record.suffix.lower() == ".csv" else "locked")
+    if info.get("tensions") is not None and info.get("pressure") is not None and len(info["tensions"]) == model.m:
+        T = np.maximum(np.asarray(info["tensions"], float), 0.0)
+        eq = model.fk(T, info["pressure"], check_limits=False)
+        if tendons == "locked":
+            eq = model.fk_locked(eq.tendon_lengths, info["pressure"], q0=eq.q, tensions0=eq.tensions,
+                                 check_limits=False)
+        out["model_frequency_hz"] = float(model.modes(eq, 1).frequencies_hz[0])
+        out["model_state"] = {"tensions_N": T.tolist(), "pressure_kPa": info["pressure"] / 1e3, "tendons": tendons}
+    if as_json:
+        typer.echo(json.dumps(to_jsonable(out), indent=2))
+        return
+    lo, hi = fit.frequency_ci
+    t_ = Table(title=escape(f"free decay of {record} ({fit.samples} samples, {fit.t_start:.3g}–{fit.t_end:.3g} s, "
+                            f"residual {fit.residual_rms * 1e3:.3g} mm RMS)"))
+    for c in ("quantity", "value", f"{fit.confidence:.0%} interval"):
+        t_.add_column(escape(c))
+    t_.add_row("natural frequency [Hz]", f"{fit.frequency_hz:.4f}", f"{lo:.4f} … {hi:.4f}")
+    t_.add_row("damping ratio ζ", f"{fit.damping_ratio:.5f}", f"{fit.damping_ratio_ci[0]:.5f} … {fit.damping_ratio_ci[1]:.5f}")
+    t_.add_row("rayleigh_alpha_per_s (α = 2ζω)", f"{fit.alpha_per_s:.5g}", f"{fit.alpha_ci[0]:.5g} … {fit.alpha_ci[1]:.5g}")
+    t_.add_row("rayleigh_beta_s (β = 2ζ/ω)", f"{fit.beta_s:.5g}", f"{fit.beta_ci[0]:.5g} … {fit.beta_ci[1]:.5g}")
+    if "model_frequency_hz" in out:
+        t_.add_row(f"model's first mode [Hz] ({tendons})", f"{out['model_frequency_hz']:.4f}",
+                   f"measured/model {fit.frequency_hz / out['model_frequency_hz']:.4f}")
+    console.print(t_)
+    console.print(escape("  α damps every mode at the rate ζω of this one; β damps higher modes more. A measured "
+                         "frequency far from the model's is a mass or stiffness question, not a damping one."))
+
+
 def register(app: typer.Typer) -> None:
-    """Attach ``identify``, ``validate``, ``report`` and ``calibrate`` to the root ``bellows`` app."""
+    """Attach ``identify``, ``validate``, ``report``, ``calibrate`` and ``identify-damping`` to the root
+    ``bellows`` app."""
+    app.command("identify-damping")(damping_cmd)
     app.command("identify")(identify_cmd)
     app.command("validate")(validate_cmd)
     app.command("report")(report_cmd)

@@ -1,4 +1,4 @@
-"""``bellows paper workspace | stiffness | convergence | loads | table1 | ablation | loading | all | compare``.
+"""``bellows paper workspace | stiffness | convergence | loads | table1 | ablation | loading | dynamic | all | compare``.
 
 Each subcommand runs on ``--preset`` (default ``paper``), writes ``<study>.json`` and figures (PNG, SVG)
 to ``--out`` (default ``bellows_out/paper``; existing results are kept unless ``--force``) and prints a
@@ -184,6 +184,40 @@ def _control_command(name: str, summary: str):
 
 for _name, _summary in CONTROL_COMMANDS.items():
     app.command(_name)(_control_command(_name, _summary))
+
+
+@app.command("dynamic")
+def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2", help="Cyclic load frequencies [Hz]."),
+            cycles: int = typer.Option(3, help="Load cycles per frequency (the first is not judged)."),
+            mass_g: float = typer.Option(80.0, help="Cyclic tip mass [g] (paper: 80)."),
+            motor_rate_mm_s: float = typer.Option(5.0, help="Motor speed [mm/s] (the loop's travel time)."),
+            settle_ms: float = typer.Option(100.0, help="Wait after each move before measuring [ms]."),
+            compute_ms: float = typer.Option(10.0, help="Controller step time on the rig clock [ms]."),
+            latency_ms: float = typer.Option(20.0, help="Actuation latency per move [ms]."),
+            damping_ratio: float = typer.Option(0.1, help="Damping ratio of the dynamic plant's first mode."),
+            preset: str = typer.Option("paper", help=PRESET_HELP),
+            out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Cyclic loading at rising frequency: quasi-static LACC on the static vs the dynamic plant
+    (docs/dynamics.md).  Writes dynamic_loading.json and dynamic_loading.png."""
+    from .dynamic_studies import dynamic_loading
+    con = _console(as_json)
+    with _scheduler_errors(None):
+        params = paper.resolve_params(preset)
+        freqs = _floats(frequencies_hz, "--frequencies-hz")
+        out = prepare_output_dir(out, ("dynamic_loading.json", "dynamic_loading.png"), force=force)
+        with con.status("running the cyclic loads on both plants") as st:
+            res = dynamic_loading(frequencies=freqs, cycles=cycles, cyclic_mass=mass_g * 1e-3,
+                                  motor_rate=motor_rate_mm_s * 1e-3, settle_time=settle_ms * 1e-3,
+                                  compute_time=compute_ms * 1e-3, actuation_latency=latency_ms * 1e-3,
+                                  damping=damping_ratio, params=params, out=out,
+                                  progress=lambda f, n: st.update(f"{f:g} Hz, {n} plant done"))
+    if as_json:
+        _echo_json(res)
+    else:
+        paper.print_control_study("dynamic", res, con)
+    con.print(f"wrote {out}/dynamic_loading.json and dynamic_loading.png")
 
 
 @app.command("all")

@@ -4,6 +4,6 @@
 
 from .mass import consistent_mass, tip_mass_matrix
 from .modes import ModalResult, modes
-from .transient import Simulation, simulate
+from .transient import Simulation, rayleigh_about, simulate
 
-__all__ = ["consistent_mass", "tip_mass_matrix", "ModalResult", "modes", "Simulation", "simulate"]
+__all__ = ["consistent_mass", "tip_mass_matrix", "ModalResult", "modes", "Simulation", "simulate", "rayleigh_about"]

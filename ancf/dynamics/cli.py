@@ -24,6 +24,7 @@ from rich.table import Table
 from ..cli import FORCE_HELP, NO_LIMITS_HELP, PRESET_HELP, _model, console, parse_vector, warm_up
 from ..errors import InputError
 from ..export import write_json
+from .transient import rayleigh_about
 from ..outputs import prepare_output_dir
 
 MODES_FILES = ("modes.png", "modes.json")
@@ -142,9 +143,9 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
              ramp_ms: float = typer.Option(0.0, help="Ramp the tensions linearly over this time [ms]; 0: a step."),
              t_end_s: float = typer.Option(1.0, help="Simulated time [s]."),
              dt_ms: float = typer.Option(1.0, help="Time step [ms] (the output interval)."),
-             damping_ratio: Optional[float] = typer.Option(None, help="Damping ratio of the first mode "
-                                                           "(stiffness-proportional); default: the actuator "
-                                                           "file's coefficients."),
+             damping_ratio: Optional[float] = typer.Option(None, help="Damping ratio of the first mode about "
+                                                           "the final equilibrium (stiffness-proportional); "
+                                                           "default: the actuator file's coefficients."),
              rho_inf: float = typer.Option(0.9, help="Integrator's high-frequency spectral radius (1: none "
                                            "of its numerical dissipation)."),
              preset: str = typer.Option("paper", help=PRESET_HELP),
@@ -166,17 +167,21 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
     warm_up()
     p = pressure_kpa * 1e3
     start = model.fk(T0, p, F, check_limits=not no_limits)
+    settled = model.fk(T1, p, F, q0=start.q, check_limits=not no_limits)
+    # a ratio is the first mode's about the state the response settles on (not the start, which the step
+    # leaves at once)
+    damping = None if damping_ratio is None else rayleigh_about(model, settled, damping_ratio)
     ramp = ramp_ms * 1e-3
     tensions = (lambda t: T0 + (T1 - T0) * min(t / ramp, 1.0)) if ramp > 0 else T1
     with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.fields[t]:.3f} / {task.total:.3f} s"),
                   TimeRemainingColumn(), console=console, transient=True) as bar:
         task = bar.add_task("sim", total=t_end_s, t=0.0)
         sim = model.simulate(t_end_s, dt_ms * 1e-3, q0=start.q, tensions=tensions, pressure=p, tip_force=F,
-                             damping=_damping(damping_ratio), rho_inf=rho_inf, check_limits=not no_limits,
+                             damping=damping, rho_inf=rho_inf, check_limits=not no_limits,
                              progress=lambda t, te: bar.update(task, completed=t, t=t))
     folder.mkdir(parents=True, exist_ok=True)
     write_simulation_csv(folder / "simulation.csv", sim)
-    final = model.fk(T1, p, F, q0=sim.q[-1], check_limits=not no_limits) if not sim.interrupted else None
+    final = settled
     summary = {"preset": model.params.name, "start_tensions_N": T0.tolist(), "tensions_N": T1.tolist(),
                "ramp_ms": ramp_ms, "pressure_kPa": pressure_kpa, "tip_force_N": F.tolist(),
                "t_end_s": float(sim.t[-1]), "dt_s": sim.dt, "steps": len(sim.t) - 1, "damping": sim.damping,

@@ -109,6 +109,24 @@ def resolve_damping(model, damping, K0: np.ndarray, Mz: np.ndarray) -> dict:
     return {"alpha": 0.0, "beta": 2.0 * zeta / math.sqrt(w2), "axial": 0.0}
 
 
+def rayleigh_about(model, eq, ratio: float) -> dict:
+    """Stiffness-proportional damping with ratio ``ratio`` at the first mode about the equilibrium ``eq``
+    (tensions held): ``{"alpha": 0, "beta": 2ζ/ω₁, "axial": 0, "stiffness": K}`` with K (nz, nz) the tangent
+    at ``eq``, the matrix β multiplies for the whole run — e.g. the equilibrium a step response settles on,
+    where a ratio given as a number would be taken about the (moving) start state."""
+    zeta = check_scalar("ratio", ratio, low=0.0, high=1.0)
+    ev = model.evaluate(eq.q, eq.tensions, eq.pressure, eq.tip_force)
+    K = model.reduce_mat(ev.K)
+    K = 0.5 * (K + K.T)
+    M = consistent_mass(model.n, model._N, model._wq, model.params.line_mass)
+    if model.params.tip_mass > 0:
+        from .mass import tip_mass_matrix
+        M = M + tip_mass_matrix(eq.q, model.params.tool_offset, model.params.tip_mass)
+    out = resolve_damping(model, zeta, K, model.reduce_mat(M))
+    out["stiffness"] = K
+    return out
+
+
 def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None, lengths=None,
              pressure=0.0, pressure_tau: Optional[float] = None, pressure0: Optional[float] = None,
              tip_force=(0.0, 0.0, 0.0), damping=None, rho_inf: float = 0.9,
