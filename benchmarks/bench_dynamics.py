@@ -32,8 +32,8 @@ import numpy as np
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 
-from ancf import Model, StiffnessLaw, presets  # noqa: E402
-from ancf.params import Tendon  # noqa: E402
+from ancf import Model, StiffnessLaw, presets
+from ancf.params import Tendon
 
 L, EA, EI, MP = 0.16, 1000.0, 0.005, 0.3
 

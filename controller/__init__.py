@@ -30,10 +30,11 @@ from .plant import Plant
 from .loop import EpisodeResult, TimedResult, run_iterations, run_timed
 from .run import RunResult, run_on_rig
 from .feedforward import OpenLoopResult, run_open_loop
+from .shaping import zv_shaper
 
 __all__ = ["ControllerError", "NotConvergedError", "Controller", "StepReport", "LACC", "COMPLIANCE_METHODS",
            "VFCC", "Plant", "PlantOptions", "SimulatedPlant", "EpisodeResult", "TimedResult", "run_iterations",
-           "run_timed", "RunResult", "run_on_rig", "OpenLoopResult", "run_open_loop"]
+           "run_timed", "RunResult", "run_on_rig", "OpenLoopResult", "run_open_loop", "zv_shaper"]
 
 
 def __getattr__(name):

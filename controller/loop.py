@@ -171,10 +171,23 @@ class TimedResult:
                 "idle_checks": self.idle_checks}
 
 
+def _ringing(seen: list, since: float) -> float:
+    """Peak-to-peak size [m] of what is left of the tip positions measured since ``since`` [s] after taking
+    out a straight line in time: the oscillation (ringing) about the load-driven drift."""
+    rows = [(t, p) for t, p in seen if t >= since - 1e-12]
+    t = np.array([r[0] for r in rows])
+    P = np.array([r[1] for r in rows])
+    A = np.column_stack([np.ones_like(t), t - t[0]])
+    resid = P - A @ np.linalg.lstsq(A, P, rcond=None)[0]
+    return float(np.linalg.norm(resid.max(axis=0) - resid.min(axis=0)))
+
+
 def run_timed(controller: Controller, plant: Plant, target, *, duration: float,
               compute_time: Union[str, float] = "measured", compute_scale: float = 1.0,
-              actuation_latency: float = 0.0, settle_time: float = 0.0, idle_period: float = 1.0 / 30,
-              sample_dt: float = 0.05, initial_load=(0.0, 0.0, 0.0)) -> TimedResult:
+              actuation_latency: float = 0.0, settle_time: Union[float, str] = 0.0, idle_period: float = 1.0 / 30,
+              sample_dt: float = 0.05, initial_load=(0.0, 0.0, 0.0), still_window: Optional[float] = None,
+              still_tol: Optional[float] = None, settle_max: float = 2.0,
+              shaper: Optional[tuple] = None) -> TimedResult:
     """Event-driven closed loop over ``duration`` seconds under the plant's load profile F(t).
 
     compute_time : "measured" (the real wall-clock time of each controller step × ``compute_scale``) or a
@@ -189,12 +202,33 @@ def run_timed(controller: Controller, plant: Plant, target, *, duration: float,
     idle_period = number("idle_period", idle_period, strict=True)
     compute_scale = number("compute_scale", compute_scale)
     actuation_latency = number("actuation_latency", actuation_latency)
-    settle_time = number("settle_time", settle_time)
+    still = isinstance(settle_time, str) and settle_time == "still"
+    if not still:
+        settle_time = number("settle_time", settle_time)
     if not (compute_time == "measured" or (isinstance(compute_time, (int, float)) and not isinstance(compute_time, bool)
                                            and 0 <= compute_time < float("inf"))):
         raise InputError(f"compute_time must be 'measured' or a time >= 0 s, got {compute_time!r}")
+    settle_max = number("settle_max", settle_max, strict=True)
+    if shaper is not None:
+        if not (isinstance(shaper, tuple) and len(shaper) == 2):
+            raise InputError(f"shaper must be (A1, delay [s]) from controller.shaping.zv_shaper, got {shaper!r}")
+        a1, delay = number("shaper A1", shaper[0], strict=True), number("shaper delay [s]", shaper[1])
+        if a1 > 1:
+            raise InputError(f"shaper A1 must be in (0, 1], got {a1:g}")
     plant.time = 0.0
-    plant.command(controller.start(pd, initial_load))
+    lengths0 = controller.start(pd, initial_load)
+    plant.command(lengths0)
+    if still:
+        if still_window is None:
+            model = controller.model
+            try:
+                eq = model.fk_locked(lengths0, controller.pressure, initial_load)
+                still_window = 1.0 / float(model.modes(eq, 1).frequencies_hz[0])
+            except BellowsError as exc:
+                raise InputError(f"settle_time='still' needs still_window [s]: the model's first mode is not "
+                                 f"available ({exc})") from None
+        still_window = number("still_window", still_window, strict=True)
+        still_tol = controller.tolerance if still_tol is None else number("still_tol", still_tol, strict=True)
     ts, loads, errs, ests = [], [], [], []
     next_sample = [0.0]
 
@@ -221,11 +255,29 @@ def run_timed(controller: Controller, plant: Plant, target, *, duration: float,
             continue
         ctimes.append(rep.compute_time)
         pass_time(c)                                  # the old lengths hold while the solver runs
+        if shaper is not None:
+            # zero-vibration input shaping: the move in two parts, the second half a damped period later,
+            # so that the ringing the first part starts is cancelled by the second (controller/shaping.py)
+            last = getattr(plant, "commanded", None)
+            last = np.asarray(rep.command if last is None else last, float)
+            move = plant.command(last + a1 * (np.asarray(rep.command, float) - last))
+            pass_time(max(delay, move + actuation_latency))
         move = plant.command(rep.command)
         pass_time(move + actuation_latency)           # motors travel (rate-limited)
-        pass_time(settle_time)
+        if still:
+            t0, poll = plant.time, still_window / 10
+            seen = [(plant.time, plant.measure())]
+            while plant.time - t0 < settle_max:
+                pass_time(poll)
+                seen.append((plant.time, plant.measure()))
+                if plant.time - t0 >= still_window - 1e-12 and _ringing(seen, plant.time - still_window) < still_tol:
+                    break
+            waited = plant.time - t0
+        else:
+            pass_time(settle_time)
+            waited = settle_time
         corrections += 1
-        cycles.append((t_meas, c, move + actuation_latency, settle_time))
+        cycles.append((t_meas, c, move + actuation_latency, waited))
     n = len(ts)
     return TimedResult(controller.name, np.array(ts), np.array(loads).reshape(n, 3), np.array(errs).reshape(n, 3),
                        np.array(ests).reshape(n, 3), cycles, corrections, ctimes, idle)

@@ -118,6 +118,7 @@ class DynamicActuator:
             return self.history[0]
         a, b = self.history[i], self.history[min(i + 1, len(self.history) - 1)]
         w = 0.0 if b.t == a.t else (t - a.t) / (b.t - a.t)
-        mix = lambda x, y: x + w * (y - x)                                            # noqa: E731
+        def mix(x, y):
+            return x + w * (y - x)
         return DynamicState(t, mix(a.q, b.q), mix(a.v, b.v), mix(a.tip, b.tip), mix(a.tensions, b.tensions),
                             mix(a.pressure, b.pressure))

@@ -25,7 +25,7 @@ import numpy as np
 
 from ancf import Model, presets
 from ancf.errors import InputError
-from controller import LACC, run_timed
+from controller import LACC, run_timed, zv_shaper
 from hardware import PlantOptions, SimulatedRig
 
 from .control_studies import (G, LOADING_DIRECTION, PAPER_CYCLIC_MASS, PRESSURE, PathLike, _fmt_table, _pyplot,
@@ -53,10 +53,13 @@ def _uncontrolled(model, pressure, lengths, load, times, options) -> np.ndarray:
 def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.0), cycles: int = 3,
                     pressure: float = PRESSURE, tensions=None, cyclic_mass: float = PAPER_CYCLIC_MASS,
                     damping: float = 0.1, motor_rate: float = 5e-3, actuation_latency: float = 0.02,
-                    settle_time: float = 0.1, compute_time: float = 0.01, dynamics_step: float = 2e-3,
-                    params=None, out: PathLike = None, progress=None) -> dict:
+                    settle_time=0.1, compute_time: float = 0.01, dynamics_step: float = 2e-3,
+                    shaping: bool = False, params=None, out: PathLike = None, progress=None) -> dict:
     """Cyclic tip loading (``cyclic_mass`` [kg], 0 → m → 0 as 1 − cos) at each of ``frequencies`` [Hz] for
     ``cycles`` cycles, LACC in the loop, on the static and the dynamic plant (module docstring).
+
+    ``shaping``: also run the dynamic plant with every move ZV-shaped at the model's first locked mode and
+    the plant's damping ratio (:mod:`controller.shaping`; columns ``shaped_*``).
 
     Returns ``{"rows": [{frequency_Hz, static_max_mm, dynamic_max_mm, static_rms_mm, dynamic_rms_mm,
     uncontrolled_static_mm, uncontrolled_dynamic_mm, corrections_static, corrections_dynamic}], "table",
@@ -86,39 +89,45 @@ def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.
         load = _cyclic(cyclic_mass, f)
         duration = cycles / f
         row = {"frequency_Hz": f}
-        for name, opts in (("static", static_opts), ("dynamic", dyn_opts)):
+        plants = [("static", static_opts, None), ("dynamic", dyn_opts, None)]
+        if shaping:
+            plants.append(("shaped", dyn_opts, zv_shaper(f1, damping)))
+        for name, opts, shaper in plants:
             rig = SimulatedRig(model, pressure, load=load, options=opts)
             r = run_timed(LACC(model, pressure), rig, target, duration=duration, compute_time=compute_time,
                           actuation_latency=actuation_latency, settle_time=settle_time,
-                          sample_dt=min(0.01, 0.02 / f))
+                          sample_dt=min(0.01, 0.02 / f), shaper=shaper)
             judged = r.t >= 1.0 / f
             en = r.error_norm[judged]
             row[f"{name}_max_mm"] = float(en.max()) * 1e3
             row[f"{name}_rms_mm"] = float(np.sqrt(np.mean(en ** 2))) * 1e3
             row[f"corrections_{name}"] = int(r.corrections)
-            tips = _uncontrolled(model, pressure, lengths0, load, r.t, opts)
-            row[f"uncontrolled_{name}_mm"] = float(np.linalg.norm(tips - tips[0], axis=1)[judged].max()) * 1e3
-            series[(f, name)] = (r.t, r.error_norm, np.linalg.norm(tips - tips[0], axis=1))
+            if name != "shaped":
+                tips = _uncontrolled(model, pressure, lengths0, load, r.t, opts)
+                row[f"uncontrolled_{name}_mm"] = float(np.linalg.norm(tips - tips[0], axis=1)[judged].max()) * 1e3
+            series[(f, name)] = (r.t, r.error_norm)
             if progress is not None:
                 progress(f, name)
         rows.append(row)
-    header = ["load [Hz]", "LACC static", "LACC dynamic", "LACC dyn. RMS", "free static", "free dynamic",
-              "corrections s/d"]
+    header = ["load [Hz]", "LACC static", "LACC dynamic", "LACC dyn. RMS", *(["dynamic, ZV"] if shaping else []),
+              "free static", "free dynamic", "corrections s/d" + ("/ZV" if shaping else "")]
     table = _fmt_table(header, [[f"{r['frequency_Hz']:g}", f"{r['static_max_mm']:.3f}", f"{r['dynamic_max_mm']:.3f}",
-                                 f"{r['dynamic_rms_mm']:.3f}", f"{r['uncontrolled_static_mm']:.2f}",
-                                 f"{r['uncontrolled_dynamic_mm']:.2f}",
-                                 f"{r['corrections_static']}/{r['corrections_dynamic']}"] for r in rows])
+                                 f"{r['dynamic_rms_mm']:.3f}", *([f"{r['shaped_max_mm']:.3f}"] if shaping else []),
+                                 f"{r['uncontrolled_static_mm']:.2f}", f"{r['uncontrolled_dynamic_mm']:.2f}",
+                                 f"{r['corrections_static']}/{r['corrections_dynamic']}"
+                                 + (f"/{r['corrections_shaped']}" if shaping else "")] for r in rows])
     table += ("\ntip errors after the first cycle [mm] (max, and RMS where said); free: the motors held at the "
               "unloaded IK lengths"
               f"\nfirst locked bending mode {f1:.2f} Hz; {cyclic_mass * 1e3:.0f} g cyclic load; loop: compute "
               f"{compute_time * 1e3:g} ms + motors at {motor_rate * 1e3:g} mm/s + {actuation_latency * 1e3:g} ms "
-              f"+ settle {settle_time * 1e3:g} ms; dynamic plant ζ = {damping:g}")
+              + (f"+ settle {settle_time * 1e3:g} ms" if settle_time != "still" else "+ wait for a still tip")
+              + f"; dynamic plant ζ = {damping:g}")
     res = {"rows": rows, "table": table, "first_mode_Hz": f1, "wall_s": time.perf_counter() - t_wall,
            "settings": {"pressure_Pa": pressure, "tensions_N": tensions, "target_m": target,
                         "cyclic_mass_kg": cyclic_mass, "cycles": cycles, "damping_ratio": damping,
                         "motor_rate_m_per_s": motor_rate, "actuation_latency_s": actuation_latency,
                         "settle_time_s": settle_time, "compute_time_s": compute_time,
-                        "dynamics_step_s": dynamics_step, "actuator": params.name}}
+                        "dynamics_step_s": dynamics_step, "shaping": shaping, "actuator": params.name}}
     fig = None
     if out is not None:
         plt = _pyplot()
@@ -126,15 +135,18 @@ def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.
         fs = [r["frequency_Hz"] for r in rows]
         a.loglog(fs, [r["static_max_mm"] for r in rows], "o-", label="LACC, static plant")
         a.loglog(fs, [r["dynamic_max_mm"] for r in rows], "s-", label="LACC, dynamic plant")
+        if shaping:
+            a.loglog(fs, [r["shaped_max_mm"] for r in rows], "^-", label="LACC, dynamic plant, ZV-shaped moves")
         a.loglog(fs, [r["uncontrolled_static_mm"] for r in rows], "o:", color="0.5", label="uncontrolled, static")
         a.loglog(fs, [r["uncontrolled_dynamic_mm"] for r in rows], "s:", color="0.3", label="uncontrolled, dynamic")
         a.set_xlabel("load frequency [Hz]"), a.set_ylabel("max tip error after the first cycle [mm]")
         a.grid(alpha=0.3, which="both"), a.legend(fontsize=8)
         a.set_title(f"{cyclic_mass * 1e3:.0f} g cyclic load; first locked mode {f1:.2f} Hz", fontsize=9)
         fmax = fs[-1]
-        for name, style in (("static", "C0-"), ("dynamic", "C1-")):
-            t, e, _ = series[(fmax, name)]
-            b.plot(t, e * 1e3, style, label=f"LACC, {name} plant")
+        for name, style in (("static", "C0-"), ("dynamic", "C1-"), ("shaped", "C2-")):
+            if (fmax, name) in series:
+                t, e = series[(fmax, name)]
+                b.plot(t, e * 1e3, style, label=f"LACC, {'dynamic plant, ZV-shaped moves' if name == 'shaped' else name + ' plant'}")
         b.set_xlabel("t [s]"), b.set_ylabel("tip error [mm]"), b.grid(alpha=0.3), b.legend(fontsize=8)
         b.set_title(f"at {fmax:g} Hz", fontsize=9)
         fig.tight_layout()

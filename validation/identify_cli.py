@@ -403,7 +403,7 @@ def damping_cmd(record: pathlib.Path = typer.Argument(..., help="A free decay: s
 def register(app: typer.Typer) -> None:
     """Attach ``identify``, ``validate``, ``report``, ``calibrate`` and ``identify-damping`` to the root
     ``bellows`` app."""
-    app.command("identify-damping")(damping_cmd)
+    app.command("identify-damping", short_help="Damping ratio and frequency from a free decay, with intervals.")(damping_cmd)
     app.command("identify")(identify_cmd)
     app.command("validate")(validate_cmd)
     app.command("report")(report_cmd)

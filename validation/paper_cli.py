@@ -186,7 +186,7 @@ for _name, _summary in CONTROL_COMMANDS.items():
     app.command(_name)(_control_command(_name, _summary))
 
 
-@app.command("dynamic")
+@app.command("dynamic", short_help="Cyclic loads 0.125–2 Hz: quasi-static LACC on a static vs a dynamic plant.")
 def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2", help="Cyclic load frequencies [Hz]."),
             cycles: int = typer.Option(3, help="Load cycles per frequency (the first is not judged)."),
             mass_g: float = typer.Option(80.0, help="Cyclic tip mass [g] (paper: 80)."),
@@ -195,6 +195,8 @@ def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2", help="Cycli
             compute_ms: float = typer.Option(10.0, help="Controller step time on the rig clock [ms]."),
             latency_ms: float = typer.Option(20.0, help="Actuation latency per move [ms]."),
             damping_ratio: float = typer.Option(0.1, help="Damping ratio of the dynamic plant's first mode."),
+            shaping: bool = typer.Option(False, "--shaping", help="Also run the dynamic plant with ZV-shaped "
+                                         "moves (input shaping at the model's first locked mode)."),
             preset: str = typer.Option("paper", help=PRESET_HELP),
             out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
             force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -211,7 +213,7 @@ def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2", help="Cycli
             res = dynamic_loading(frequencies=freqs, cycles=cycles, cyclic_mass=mass_g * 1e-3,
                                   motor_rate=motor_rate_mm_s * 1e-3, settle_time=settle_ms * 1e-3,
                                   compute_time=compute_ms * 1e-3, actuation_latency=latency_ms * 1e-3,
-                                  damping=damping_ratio, params=params, out=out,
+                                  damping=damping_ratio, shaping=shaping, params=params, out=out,
                                   progress=lambda f, n: st.update(f"{f:g} Hz, {n} plant done"))
     if as_json:
         _echo_json(res)

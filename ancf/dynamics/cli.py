@@ -31,11 +31,6 @@ MODES_FILES = ("modes.png", "modes.json")
 SIM_FILES = ("simulation.csv", "simulation.json", "simulation.png")
 
 
-def _damping(ratio: Optional[float]):
-    """--damping-ratio: None keeps the actuator file's coefficients."""
-    return None if ratio is None else ratio
-
-
 def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of the equilibrium."),
           pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
           tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] of the equilibrium (world frame)."),
@@ -60,7 +55,7 @@ def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of t
     if locked:
         eq = model.fk_locked(eq.tendon_lengths, pressure_kpa * 1e3, F, q0=eq.q, tensions0=eq.tensions,
                              check_limits=not no_limits)
-    r = model.modes(eq, count, damping=_damping(damping_ratio))
+    r = model.modes(eq, count, damping=damping_ratio)   # None: the actuator file's coefficients
     rows = [{"mode": k + 1, "frequency_Hz": float(f), "damping_ratio": float(z), "kind": _kind(r.tip_shapes[k]),
              "tip_shape_mm": (r.tip_shapes[k] / max(np.linalg.norm(r.tip_shapes[k]), 1e-300)).tolist()}
             for k, (f, z) in enumerate(zip(r.frequencies_hz, r.damping_ratios))]

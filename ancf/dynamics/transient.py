@@ -290,7 +290,7 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
         Mz_const[-6:-3, -6:-3] += mtip * np.eye(3)
     tip_moves_mass = mtip > 0 and hoff > 0
     Ct_const = np.zeros((nz, nz)) if C_R is None else C_R
-    ev_lengths = True if length_mode else False
+    ev_lengths = bool(length_mode)
 
     def make_system(t1, T1_fixed, pr1, F1, l01):
         def system(z1, v1, x):

@@ -57,6 +57,10 @@ CASES = {
                       "hardware.build:build_rig"),
     "log export --csv": (["log", "export", "{d}/no_such_run.h5", "--csv", "{d}/s.csv"], "s.csv",
                          "hardware.runlog:read_run_log"),
+    "modes": (["modes", "--out", "{d}"], "modes.png", "ancf.dynamics.cli:warm_up"),
+    "simulate": (["simulate", "--tensions-n", "1,0,0", "--out", "{d}"], "simulation.csv", "ancf.dynamics.cli:warm_up"),
+    "paper dynamic": (["paper", "dynamic", "--out", "{d}"], "dynamic_loading.json",
+                      "validation.dynamic_studies:dynamic_loading"),
 }
 
 
