@@ -109,7 +109,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                idle_period: float = 0.1, initial_load=(0.0, 0.0, 0.0), sim_compute_time="measured",
                average_frames: int = 1, record_static: bool = True, applied_load=None,
                status: Optional[Callable[[dict], None]] = None,
-               run_info: Optional[dict] = None) -> RunResult:
+               run_info: Optional[dict] = None, shaper: Optional[tuple] = None) -> RunResult:
     """Run ``controller`` on ``rig`` towards ``target`` (3,) [m]; see the module docstring.
 
     log : path of the run log (``.h5``; refused if it exists unless ``force``), an open
@@ -124,6 +124,9 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         or a callable of the rig time t [s]; it becomes the static states' ``tip_force`` (None: unknown, NaN).
         The controller never sees it.
     status : called with a dict after every sample (for a status line)
+    shaper : (A₁, delay [s]) of :func:`controller.shaping.zv_shaper`: every correction is sent as A₁ of the
+        move, then the whole move ``delay`` later — a plant with inertia is left without ringing at the mode
+        the shaper was made for (docs/dynamics.md); None: moves as commanded
     """
     if not isinstance(controller, Controller):
         raise InputError(f"run_on_rig needs a Controller, got {type(controller).__name__}")
@@ -144,6 +147,12 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         raise InputError(f"average_frames must be an integer >= 1, got {average_frames!r}")
     if applied_load is not None and not callable(applied_load):
         applied_load = check_finite("applied_load [N]", applied_load, (3,))
+    if shaper is not None:
+        if not (isinstance(shaper, tuple) and len(shaper) == 2):
+            raise InputError(f"shaper must be (A1, delay [s]) from controller.zv_shaper, got {shaper!r}")
+        a1, delay = number("shaper A1", shaper[0]), number("shaper delay [s]", shaper[1])
+        if not 0 < a1 <= 1:
+            raise InputError(f"shaper A1 must be in (0, 1], got {a1:g}")
     from hardware.errors import DriveFault, HardwareError, RunAborted
     from hardware.runlog import RunLog
 
@@ -249,6 +258,12 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                                  f"(tolerance {controller.tolerance * 1e3:.4f} mm)")
                 break
             t_cmd, t_io = rig.clock.now(), time.perf_counter()
+            if shaper is not None and rig.commanded is not None:
+                # ZV input shaping: A₁ of the move now, all of it half a damped period later
+                last = np.asarray(rig.commanded, float)
+                rig.command(last + a1 * (np.asarray(rep.command, float) - last),
+                            expected_tensions=controller.state.tensions)
+                rig.advance(delay)
             rig.command(rep.command, expected_tensions=controller.state.tensions)
             rig.advance(None)
             if rig.clock.now() <= t_cmd:

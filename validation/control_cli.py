@@ -76,6 +76,14 @@ def control(
     max_iterations: Optional[int] = typer.Option(None, "--max-iterations",
                                                  help="stop after this many corrections or at convergence "
                                                       "(instead of holding)"),
+    dynamics: bool = typer.Option(False, "--dynamics", help="simulated rig: integrate the actuator in time "
+                                  "(inertia, ringing) instead of jumping to its equilibrium (docs/dynamics.md)"),
+    plant_damping_ratio: Optional[float] = typer.Option(None, "--plant-damping-ratio",
+                                                        help="simulated rig with --dynamics: damping ratio of its "
+                                                             "first mode (default 0.05)"),
+    shaping_damping_ratio: Optional[float] = typer.Option(
+        None, "--shaping-damping-ratio", help="shape every move (ZV input shaping) at the model's first locked "
+        "mode with this damping ratio (identified with `bellows identify-damping`); default: no shaping"),
     realtime: bool = typer.Option(True, "--realtime/--fast", help="simulated rig: pace the simulation to the "
                                                                   "wall clock (--fast: as fast as it computes)"),
     log: Optional[pathlib.Path] = typer.Option(None, "--log", help="run log to write (.h5)"),
@@ -130,7 +138,13 @@ def control(
     cfg = RigConfig(name="simulated rig") if rig == "sim" else RigConfig.from_toml(rig)
     simulated = cfg.backend == "sim"
     sim_only = {"--load-profile": load_profile != "none", "--load-mass-g": load_mass_g is not None,
-                "--seed": seed is not None, "--mismatch": mismatch, "--fast": not realtime}
+                "--seed": seed is not None, "--mismatch": mismatch, "--fast": not realtime, "--dynamics": dynamics,
+                "--plant-damping-ratio": plant_damping_ratio is not None}
+    if plant_damping_ratio is not None and not dynamics:
+        raise InputError("--plant-damping-ratio is the dynamic plant's: it needs --dynamics")
+    if mismatch and dynamics:
+        raise InputError("--mismatch includes tendon friction, which the dynamic plant does not model: use one "
+                         "of --mismatch, --dynamics")
     if not simulated and any(sim_only.values()):
         raise InputError(f"{', '.join(k for k, v in sim_only.items() if v)}: only for a simulated rig "
                          f"(the rig file says backend = 'hardware')")
@@ -149,6 +163,10 @@ def control(
             mm = PlantOptions.mismatched(base=cfg.actuator_params())
             overrides.update({k: getattr(mm, k) for k in ("params", "noise_std", "length_resolution", "length_rate",
                                                           "tendon_friction", "tendon_stiffness")})
+    if simulated and dynamics:
+        overrides["dynamics"] = True
+        if plant_damping_ratio is not None:
+            overrides["damping"] = plant_damping_ratio
     the_rig = build_rig(cfg, **overrides)
     if simulated and realtime:
         the_rig.pace = 1.0
@@ -156,6 +174,15 @@ def control(
     p = pressure_kpa * 1e3
     ctrl = (LACC(model, p, compliance=compliance or "exact", tolerance=tolerance_mm * 1e-3) if controller == "lacc"
             else VFCC(model, p, tolerance=tolerance_mm * 1e-3))
+    shaper = None
+    if shaping_damping_ratio is not None:
+        from controller import zv_shaper
+        if not 0 <= shaping_damping_ratio < 1:
+            raise InputError(f"--shaping-damping-ratio must be in [0, 1), got {shaping_damping_ratio:g}")
+        start = model.ik(target, p)                          # the mode of the start state, tendons locked
+        locked = model.fk_locked(start.tendon_lengths, p, q0=start.q, tensions0=start.tensions)
+        f1 = float(model.modes(locked, 1).frequencies_hz[0])
+        shaper = zv_shaper(f1, shaping_damping_ratio)
     duration = duration_s if duration_s is not None else (None if max_iterations is not None else math.inf)
     where = f"; run log: {log}" if log else ""
     typer.echo(f"{ctrl.name} on {the_rig.name} ({'simulated' if simulated else 'hardware'}): target "
@@ -168,7 +195,8 @@ def control(
                          max_iterations=max_iterations, status=_status_printer(),
                          # the simulated experiment knows the load it applies: its static states record it
                          applied_load=the_rig.load if simulated else None,
-                         run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": load_profile})
+                         run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": load_profile},
+                         shaper=shaper)
     except RunAborted as exc:
         _end_status_line()
         raise RunAborted(f"{exc}") from None
