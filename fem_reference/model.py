@@ -773,6 +773,12 @@ class BellowsModel:
                 C = C - (Jp @ Z) @ np.linalg.solve(g.T @ Z, g.T @ Y)
         return C
 
+    def modes(self, res: BellowsResult | None = None, count: int = 4, tendons: str = "held"):
+        """The ``count`` lowest vibration modes about ``res`` (default: unloaded) — frequencies [Hz], reduced
+        and cap shapes; tendons "held" or "locked" (:mod:`fem_reference.dynamics`)."""
+        from .dynamics import modes
+        return modes(self, self.solve() if res is None else res, count, tendons)
+
     def equivalent_rod(self, res: BellowsResult | None = None) -> dict:
         """Equivalent-rod parameters from the condensed cap tangent about ``res`` (default: unloaded).
 
