@@ -479,15 +479,16 @@ class Model:
     def simulate(self, t_end: float, dt: float, q0=None, v0=None, *, tensions=None, lengths=None,
                  pressure=0.0, pressure_tau: Optional[float] = None, pressure0: Optional[float] = None,
                  tip_force=(0.0, 0.0, 0.0), damping=None, rho_inf: float = 0.9,
-                 tendon_penalty: Optional[float] = None, check_limits: bool = True, max_halvings: int = 8,
-                 max_iter: int = 12, progress=None):
+                 tendon_penalty: Optional[float] = None, holding_force: Optional[float] = None,
+                 check_limits: bool = True, max_halvings: int = 8, max_iter: int = 12, progress=None):
         """Transient response over [0, ``t_end``] [s] with steps ≤ ``dt`` [s] (:mod:`ancf.dynamics.transient`,
         docs/dynamics.md) → :class:`~ancf.dynamics.Simulation` (``.t``, ``.q``, ``.tip`` [m], ``.energy`` [J], …).
 
         Loads — each a constant, a function of t [s], or a table ``(times, values)``: ``tensions`` [N] (m,)
         *or* ``lengths`` [m] (m,) (tendons held by motors: a one-sided spring of the actuator's
         ``tendon_stiffness``, or of ``tendon_penalty`` [N/m] (default 1e5) for inextensible tendons; slack
-        allowed); ``pressure`` [Pa] (the supply's command when ``pressure_tau`` [s] is given: p' = (p_cmd − p)/τ
+        allowed; ``holding_force`` [N]: the motors' force limit — beyond it a motor gives way and the tension
+        stays at the limit); ``pressure`` [Pa] (the supply's command when ``pressure_tau`` [s] is given: p' = (p_cmd − p)/τ
         from ``pressure0``, default the command at t = 0); ``tip_force`` [N] (3,).  ``q0`` (ndof,): the start
         (default: the static equilibrium under the loads at t = 0; required with ``lengths``), ``v0`` (ndof,)
         [m/s] its velocity (default 0).  ``damping``: None — the actuator's (``rayleigh_alpha`` [1/s],
@@ -502,7 +503,8 @@ class Model:
         from .dynamics.transient import simulate
         return simulate(self, t_end, dt, q0, v0, tensions=tensions, lengths=lengths, pressure=pressure,
                         pressure_tau=pressure_tau, pressure0=pressure0, tip_force=tip_force, damping=damping,
-                        rho_inf=rho_inf, tendon_penalty=tendon_penalty, check_limits=check_limits,
+                        rho_inf=rho_inf, tendon_penalty=tendon_penalty, holding_force=holding_force,
+                        check_limits=check_limits,
                         max_halvings=max_halvings, max_iter=max_iter, progress=progress)
 
     def inadmissibility(self, q) -> Optional[str]:

@@ -4,7 +4,8 @@ With ``PlantOptions(dynamics=True)`` the simulated rig no longer jumps to the lo
 motor lengths: it integrates the reduced model's equations of motion (:meth:`ancf.Model.simulate`,
 docs/dynamics.md) over every interval the rig clock advances —
 
-* tendons held by the motors at their (rate-limited, linearly interpolated) lengths l_m(t), as one-sided
+* tendons held by the motors at their lengths l_m(t) (rate-limited, linear between records, behind the
+  position loop's lag when ``motor_bandwidth`` is finite; a motor gives way at ``motor_force_max``), as one-sided
   springs T = k max(0, l(q) − l_m): k the series stiffness of the plant's tendons (the actuator's
   ``tendon_stiffness`` and ``PlantOptions.tendon_stiffness`` in series) or, for inextensible tendons, a stiff
   spring (:data:`TENDON_PENALTY`, 1e6 N/m: 5 µm of stretch at 5 N); slack tendons go slack;
@@ -52,7 +53,8 @@ class DynamicState:
 class DynamicActuator:
     """State and integration of the dynamic plant (module docstring)."""
 
-    def __init__(self, model: Model, series_stiffness: float, damping, pressure_tau: float, step: float):
+    def __init__(self, model: Model, series_stiffness: float, damping, pressure_tau: float, step: float,
+                 holding_force: Optional[float] = None):
         p = model.params
         compliance = (0.0 if not math.isfinite(series_stiffness) else 1.0 / series_stiffness) + \
             (0.0 if not p.tendon_stiffness else 1.0 / p.tendon_stiffness)
@@ -61,6 +63,7 @@ class DynamicActuator:
         self.damping_option = damping
         self.damping: Optional[dict] = None
         self.tau = float(pressure_tau)
+        self.holding_force = holding_force           # the motors' force limit [N] (None: they never give way)
         self.step = float(step)
         # the integrator's spectral radius: 0.6 damps the stiff tendon springs' modes (kHz), which would
         # otherwise pump energy at every slack/taut switch (measured: a 0.3 N load step blew up at ρ∞ = 0.9);
@@ -99,7 +102,7 @@ class DynamicActuator:
             dt, min(self.step, dt), q0=s.q, v0=s.v, lengths=lambda t: lengths_at(t0 + t),
             pressure=p_set, pressure_tau=self.tau if self.tau > 0 else None,
             pressure0=s.pressure if self.tau > 0 else None, tip_force=lambda t: load_at(t0 + t),
-            damping=self.damping, rho_inf=self.rho_inf, check_limits=False)
+            damping=self.damping, rho_inf=self.rho_inf, holding_force=self.holding_force, check_limits=False)
         for i in range(1, len(sim.t)):
             self.history.append(DynamicState(t0 + float(sim.t[i]), sim.q[i], sim.v[i], sim.tip[i],
                                              sim.tensions[i], float(sim.pressure[i])))

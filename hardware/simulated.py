@@ -19,7 +19,9 @@ its own model:
 * ``length_offset`` (m,) [m] — calibration error of the tendon-length zero (added to every command).
 * ``dynamics`` — integrate the actuator in time between controller steps instead of jumping to the locked
   equilibrium (:mod:`hardware.sim_dynamics`): inertia, motors at ``length_rate`` (at most, and by default,
-  the safety limits' ``speed_max``: never an instant move), ``damping`` (a ratio of the first mode, default 0.05,
+  the safety limits' ``speed_max``: never an instant move) behind a position loop of ``motor_bandwidth``
+  [Hz] (a first-order lag; inf: ideal) that gives way at ``motor_force_max`` [N] (the current limit; inf:
+  never), ``damping`` (a ratio of the first mode, default 0.05,
   or {alpha, beta, axial}), the pressure supply's time constant ``pressure_tau`` [s], integration step
   ``dynamics_step`` [s].
 * ``tendon_friction`` [N] and ``tendon_stiffness`` [N/m] — friction in the routing as a tension loss f_c
@@ -75,6 +77,8 @@ class PlantOptions:
     damping: Union[float, dict] = 0.05
     pressure_tau: float = 0.0
     dynamics_step: float = 1e-3
+    motor_bandwidth: float = math.inf
+    motor_force_max: float = math.inf
 
     def __post_init__(self):
         for nm in ("noise_std", "length_resolution", "tendon_friction", "tracker_latency", "force_noise_std",
@@ -97,6 +101,10 @@ class PlantOptions:
                                                    or not (np.isfinite(self.damping) and 0 <= self.damping <= 1)):
             raise InputError(f"PlantOptions.damping must be a ratio in [0, 1] or a dict {{alpha, beta, axial}}, "
                              f"got {self.damping!r}")
+        for nm in ("motor_bandwidth", "motor_force_max"):
+            v = getattr(self, nm)
+            if isinstance(v, (bool, str)) or not (v > 0) or np.isnan(v):
+                raise InputError(f"PlantOptions.{nm} must be > 0 (inf: ideal), got {v!r}")
         if self.dynamics and self.tendon_friction > 0:
             raise InputError("PlantOptions: tendon friction is not modelled in the dynamic plant (dynamics=True); "
                              "set tendon_friction=0")
@@ -140,12 +148,18 @@ class _Plant:
         self.solves = 0
         self.faults: dict = {}
         self.load_fn: Callable = lambda t: np.zeros(3)
+        for nm in ("motor_bandwidth", "motor_force_max"):
+            if math.isfinite(getattr(options, nm)) and not options.dynamics:
+                raise InputError(f"PlantOptions.{nm} is a motor property of the dynamic plant: it needs dynamics=True")
         self.rate = options.length_rate       # motor speed [m/s] (a dynamic plant never moves them at once)
         self.dyn = None
         if options.dynamics:
             from .sim_dynamics import DynamicActuator
             self.dyn = DynamicActuator(model, options.tendon_stiffness, options.damping, options.pressure_tau,
-                                       options.dynamics_step)
+                                       options.dynamics_step,
+                                       None if math.isinf(options.motor_force_max) else options.motor_force_max)
+        self.motor_y: Optional[np.ndarray] = None     # motor positions behind their position loop (dynamic)
+        self.motor_t = 0.0
 
     def quantise(self, lengths):
         r = self.options.length_resolution
@@ -171,10 +185,28 @@ class _Plant:
             self._start_dynamics()
         self._move(dt)
         if self.dyn is not None:
-            self.dyn.advance(t0, self.time, self.lengths_at, self.supply_pressure, self.load)
+            self.dyn.advance(t0, self.time, self.motor_at, self.supply_pressure, self.load)
+            self.motor_y, self.motor_t = self.motor_at(self.time), self.time
 
     def _start_dynamics(self) -> None:
         self.dyn.start(self.lengths.copy(), self.pressure, self.load(self.time), self._static(), self.time)
+        self.motor_y, self.motor_t = self.lengths.copy(), self.time
+
+    def motor_at(self, t: float) -> np.ndarray:
+        """Motor positions (m,) [m] at rig time t ≥ the last advance's start: the commanded (rate-limited,
+        piecewise-linear) profile u through the position loop's first-order lag ẏ = ω (u − y), solved exactly
+        on each linear piece: y(b) = u(b) − s/ω + (y(a) − u(a) + s/ω) e^{−ω(b − a)}, s its slope."""
+        bw = self.options.motor_bandwidth
+        if self.motor_y is None or math.isinf(bw):
+            return self.lengths_at(t)
+        w = 2 * math.pi * bw
+        knots = sorted({self.motor_t, t, *(h[0] for h in self.hist if self.motor_t < h[0] < t)})
+        y = self.motor_y.copy()
+        for a, b in zip(knots[:-1], knots[1:]):
+            ua, ub = self.lengths_at(a), self.lengths_at(b)
+            sl = (ub - ua) / (b - a)
+            y = ub - sl / w + (y - ua + sl / w) * math.exp(-w * (b - a))
+        return y
 
     @property
     def supply_pressure(self) -> float:
@@ -312,7 +344,8 @@ class SimDrive(TendonDrive):
         self.check()
         if self.p.lengths is None or np.isnan(self.p.lengths[self.i]):
             return float("nan")
-        return float(self.p.lengths[self.i] - self.p.offset[self.i])
+        y = self.p.lengths if self.p.motor_y is None else self.p.motor_y      # the encoder: behind its loop
+        return float(y[self.i] - self.p.offset[self.i])
 
     def target_reached(self) -> bool:
         return self.p.lengths is not None and self.p.lengths[self.i] == self.p.target[self.i]

@@ -226,3 +226,22 @@ def test_any_admissible_load_step_gives_a_finite_run_or_a_typed_error(T, p, Fz, 
     # only takes energy out
     assert sim.energy.max() <= sim.energy[0] + 0.1 * sim.kinetic.max() + 1e-12
     assert np.all(np.diff(sim.dissipated) >= 0)
+
+
+def test_a_motor_gives_way_at_its_holding_force():
+    """Held tendons with a holding_force: a tip load that would need 5.4 N on tendon 1 gets 2.5 N — the
+    motor gives way (an event) — and the run ends on the equilibrium of tensions (2.5, 0, 0) under the load,
+    with energy + dissipated conserved."""
+    m = Model(presets.paper().replace(tendon_stiffness=2000.0))
+    eq = m.fk((2.0, 1.0, 1.0), P30)
+    l0 = m.rest_lengths(eq)
+    F = np.array([0.0, 0.0, -1.5])
+    sim = m.simulate(2.0, 5e-3, q0=eq.q, lengths=l0, pressure=P30, tip_force=lambda t: F * min(t / 0.3, 1),
+                     damping={"alpha": 20.0}, holding_force=2.5)
+    assert m.fk_locked(l0, P30, F).tensions[0] > 5.0                      # what a stiff motor would hold
+    assert np.allclose(sim.tensions[-1], (2.5, 0, 0), atol=1e-9)
+    assert np.linalg.norm(sim.tip[-1] - m.fk((2.5, 0, 0), P30, F).tip) < 1e-6
+    assert any(e["kind"] == "overpowered" and e["tendon"] == 0 for e in sim.events)
+    assert np.ptp(sim.energy + sim.dissipated) < 2e-3 * sim.dissipated[-1]
+    with pytest.raises(InputError, match="holding_force"):
+        m.simulate(0.1, 1e-3, q0=eq.q, tensions=(1, 0, 0), holding_force=2.0)

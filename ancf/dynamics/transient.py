@@ -130,7 +130,8 @@ def rayleigh_about(model, eq, ratio: float) -> dict:
 def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None, lengths=None,
              pressure=0.0, pressure_tau: Optional[float] = None, pressure0: Optional[float] = None,
              tip_force=(0.0, 0.0, 0.0), damping=None, rho_inf: float = 0.9,
-             tendon_penalty: Optional[float] = None, check_limits: bool = True, max_halvings: int = 8,
+             tendon_penalty: Optional[float] = None, holding_force: Optional[float] = None,
+             check_limits: bool = True, max_halvings: int = 8,
              max_iter: int = 12, progress: Optional[Callable[[float, float], None]] = None) -> Simulation:
     """Integrate the model in time (module docstring); see :meth:`ancf.Model.simulate` for the arguments."""
     wall0 = _time.perf_counter()
@@ -168,6 +169,12 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
     else:
         T_sig = Signal("tensions", tensions, (m,), "N")
         k_pen = 0.0
+    if holding_force is not None:
+        if not length_mode:
+            raise InputError("holding_force is the motors' force limit for tendons held by length (lengths=)")
+        holding_force = check_scalar("holding_force", holding_force, low=1e-6, high=1e5, unit="N")
+    F_hold = math.inf if holding_force is None else holding_force
+    s_hold = F_hold / k_pen if length_mode else math.inf         # the stretch at which a motor gives way
     pc_sig = Signal("pressure", pressure, (), "Pa")
     F_sig = Signal("tip_force", tip_force, (3,), "N")
     tau = None if pressure_tau is None else check_scalar("pressure_tau", pressure_tau, low=1e-6, high=1e4,
@@ -250,8 +257,12 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
         if not length_mode:
             return T_sig(t), None
         lq = model._evaluate(q, None, 0.0, (0.0, 0.0, 0.0), False, 1.0, "values").lengths
-        T = k_pen * np.maximum(lq - l0, 0.0)
+        T = np.minimum(k_pen * np.maximum(lq - l0, 0.0), F_hold)
         return T, lq
+
+    def springy(T):
+        """Tendons whose tension follows their stretch (taut, below the motors' holding force)."""
+        return (T > 0) & (T < F_hold)
 
     # Rayleigh stiffness at the start: the linearisation's stiffness under the start loads
     q_start = model._to_full(z)
@@ -262,7 +273,7 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
         raise InputError(f"q0 is outside the model's domain: {model.inadmissibility(q_start)}")
     K0 = red_m(ev0.K)
     if length_mode:
-        taut = T_start > 0
+        taut = springy(T_start)
         if np.any(taut):
             JA = red_v(ev0.J_l)[taut]
             K0 = K0 + k_pen * JA.T @ JA
@@ -320,7 +331,7 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
                 Ct = Ct.copy()
                 Ct[-6:, -3:] += Dvs
             if length_mode:
-                taut = T1 > 0
+                taut = springy(T1)
                 if np.any(taut):
                     JA = red_v(ev.J_l)[taut]
                     Kt = Kt + k_pen * JA.T @ JA
@@ -342,7 +353,10 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
         E0, lq, V, pe = pt
         Pi = E0 - pr * V - float(F @ pe)
         if length_mode:
-            Pi += 0.5 * k_pen * float(np.sum(np.maximum(lq - l0, 0.0) ** 2))
+            st = np.maximum(lq - l0, 0.0)
+            sc = np.minimum(st, s_hold)
+            Pi += float(np.sum(0.5 * k_pen * sc ** 2 + F_hold * (st - sc) if math.isfinite(F_hold)
+                               else 0.5 * k_pen * sc ** 2))
         else:
             Pi += float(T @ lq)
         return Pi
@@ -450,6 +464,11 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
                         kind = "taut" if T_i[j] > 0 else "slack"
                         events.append({"t": float(t_target), "kind": kind, "tendon": j,
                                        "text": f"tendon {j + 1} {kind} at t = {t_target:.6g} s"})
+                    if (T_prev[j] >= F_hold) != (T_i[j] >= F_hold):
+                        kind = "overpowered" if T_i[j] >= F_hold else "holding"
+                        events.append({"t": float(t_target), "kind": kind, "tendon": j,
+                                       "text": f"motor {j + 1} {'gives way at its holding force' if kind == 'overpowered' else 'holds again'}"
+                                               f" ({F_hold:g} N) at t = {t_target:.6g} s"})
             pt_prev, T_prev, pw_prev = pt, T_i, pw
             pr_prev, F_prev, l0_prev, t_prev = pr_i, F_i, l0_i, t_target
             if progress is not None:

@@ -142,3 +142,42 @@ def test_control_command_dynamic_options(tmp_path):
                        (("--shaping-damping-ratio", "1.5"), "shaping-damping-ratio")):
         r = run("--rig", "sim", "--fast", "--max-iterations", "5", *args)
         assert r.returncode == 2 and r.stderr.count("error:") == 1 and text in r.stderr, r.stderr
+
+
+def test_motors_lag_behind_their_position_loop(model, ref):
+    """motor_bandwidth f: after the rate-limited profile ends, the encoder's distance to the target decays
+    like e^{−2πf t} (the first-order position loop, solved exactly on each linear piece)."""
+    ref2 = model.fk((2.5, 1.0, 0.5), P)
+    rig = SimulatedRig(model, P, dynamics=True, options=PlantOptions(damping=0.2, motor_bandwidth=5.0,
+                                                                       length_rate=0.05))
+    rig.command(ref.tendon_lengths)
+    rig.advance(0.01)
+    move = rig.command(ref2.tendon_lengths)
+    rig.advance(move + 0.001)
+    errs = []
+    for _ in range(6):
+        rig.advance(0.01)
+        errs.append(rig.drives[0].position() - ref2.tendon_lengths[0])
+    ratios = np.array(errs[1:]) / np.array(errs[:-1])
+    assert np.allclose(ratios, np.exp(-2 * np.pi * 5.0 * 0.01), rtol=1e-9)
+    assert abs(errs[0]) > 0.3e-3                                            # a visible lag
+    with pytest.raises(InputError, match="dynamics=True"):
+        SimulatedRig(model, P, options=PlantOptions(motor_bandwidth=5.0))
+    with pytest.raises(InputError, match="motor_force_max"):
+        PlantOptions(motor_force_max=-1.0)
+
+
+def test_a_weak_motor_gives_way_on_the_dynamic_plant(model, ref):
+    """motor_force_max: a tip load needing more tension than the motor can hold pulls its tendon out — the
+    rig's force sensor reads the limit, and the tip sags past where stiff motors would hold it."""
+    F = (0.0, 0.0, -1.0)
+    strong = SimulatedRig(model, P, load=F, dynamics=True, options=PlantOptions(damping=0.3))
+    weak = SimulatedRig(model, P, load=F, dynamics=True, options=PlantOptions(damping=0.3, motor_force_max=2.2))
+    for rig in (strong, weak):
+        rig.command(ref.tendon_lengths)
+        rig.advance(0.01)
+    assert strong.equilibrium().tensions[0] > 2.5
+    # the weak rig started at the limit-free locked state; let it give way and settle
+    weak.advance(2.0)
+    assert weak.equilibrium().tensions[0] == pytest.approx(2.2, abs=1e-9)
+    assert weak.true_tip()[2] < strong.true_tip()[2] - 1e-4
