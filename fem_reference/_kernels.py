@@ -173,10 +173,31 @@ def _deformation_gradient(ue, D, F):
 
 
 @njit(cache=True)
-def _hex_kernel(U, edofs, dphi, dx, mode, mu, kappa, c01, tangent, emap, f, data):
-    """Element loop of :class:`HexKernel` (arrays already checked there).  Returns ``(ok, jmin)``."""
+def _cofactor(F, C):
+    """Cofactor ``C = J F^{-T}`` of one 3×3 ``F`` (in place); returns ``J = det F``."""
+    C[0, 0] = F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]
+    C[0, 1] = F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2]
+    C[0, 2] = F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]
+    C[1, 0] = F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2]
+    C[1, 1] = F[0, 0] * F[2, 2] - F[0, 2] * F[2, 0]
+    C[1, 2] = F[0, 1] * F[2, 0] - F[0, 0] * F[2, 1]
+    C[2, 0] = F[0, 1] * F[1, 2] - F[0, 2] * F[1, 1]
+    C[2, 1] = F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2]
+    C[2, 2] = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+    return F[0, 0] * C[0, 0] + F[0, 1] * C[0, 1] + F[0, 2] * C[0, 2]
+
+
+@njit(cache=True)
+def _hex_kernel(U, edofs, dphi, dx, mode, mu, kappa, c01, tangent, emap, f, data, pb, Mi):
+    """Element loop of :class:`HexKernel` (arrays already checked there).  Returns ``(ok, jmin)``.
+
+    ``pb`` (ne, nq, 4) and ``Mi`` (ne, 4, 4): the element pressure basis at the Gauss points and the inverse
+    of its mass matrix — the mixed (u–p, P1-disc) volumetric term; empty (0, …) for the displacement element.
+    """
     ne = dx.shape[0]
     nq = dx.shape[1]
+    mixed = pb.shape[0] > 0
+    kpt = 0.0 if mixed else kappa  # the pointwise volumetric term is replaced by the projected one
     ue = np.empty((3, 27))
     F = np.empty((3, 3))
     P = np.empty((3, 3))
@@ -185,20 +206,76 @@ def _hex_kernel(U, edofs, dphi, dx, mode, mu, kappa, c01, tangent, emap, f, data
     H = np.empty((3, 3, 3, 27))  # [i, J, k, b]
     Ke = np.empty((27, 3, 3, 27))  # [a, i, k, b]
     fe = np.empty((27, 3))
+    Fq = np.empty((nq, 3, 3))
+    Cq = np.empty((nq, 3, 3))  # cofactors J F^{-T}
+    Jq = np.empty(nq)
+    pq = np.empty(nq)  # projected pressure p_h = κ(ΠJ − 1) at the Gauss points
+    G = np.empty((4, 27, 3))  # ∂(∫ N_m J dV)/∂u_{a i}
+    Gt = np.empty((4, 27, 3))  # Mi G
+    bm = np.empty(4)
+    cm = np.empty(4)
     jmin = np.inf
     for e in range(ne):
         _gather(U, edofs, e, ue)
         fe[:] = 0.0
         if tangent:
             Ke[:] = 0.0
+        if mixed:
+            # first pass: J at every point, its projection ΠJ on {1, X, Y, Z} and the pressure p_h
+            bm[:] = 0.0
+            if tangent:
+                G[:] = 0.0
+            for q in range(nq):
+                D = dphi[e, q]
+                _deformation_gradient(ue, D, Fq[q])
+                Jq[q] = _cofactor(Fq[q], Cq[q])
+                if not Jq[q] > 0.0:
+                    return False, Jq[q]
+                w = dx[e, q]
+                for m in range(4):
+                    bm[m] += pb[e, q, m] * (Jq[q] - 1.0) * w  # Π(J − 1): exactly 0 at J = 1
+                if tangent:
+                    for a in range(27):
+                        for i in range(3):
+                            g = (Cq[q, i, 0] * D[0, a] + Cq[q, i, 1] * D[1, a] + Cq[q, i, 2] * D[2, a]) * w
+                            for m in range(4):
+                                G[m, a, i] += pb[e, q, m] * g
+            for m in range(4):
+                s = 0.0
+                for n in range(4):
+                    s += Mi[e, m, n] * bm[n]
+                cm[m] = s
+            for q in range(nq):
+                s = 0.0
+                for m in range(4):
+                    s += pb[e, q, m] * cm[m]
+                pq[q] = kappa * s
         for q in range(nq):
             D = dphi[e, q]  # (3, 27): D[J, a] = dN_a/dX_J
-            _deformation_gradient(ue, D, F)
-            J = _material_point(F, mode, mu, kappa, c01, tangent, P, A)
+            if mixed:
+                for i in range(3):
+                    for j in range(3):
+                        F[i, j] = Fq[q, i, j]
+            else:
+                _deformation_gradient(ue, D, F)
+            J = _material_point(F, mode, mu, kpt, c01, tangent, P, A)
             if not J > 0.0:
                 return False, J
             if J < jmin:
                 jmin = J
+            if mixed:
+                # P += p_h J F^{-T};  A += p_h J (F^{-T}_iJ F^{-T}_kL − F^{-T}_iL F^{-T}_kJ)
+                ph = pq[q]
+                for i in range(3):
+                    for j in range(3):
+                        P[i, j] += ph * Cq[q, i, j]
+                if tangent:
+                    sJ = ph / J
+                    for i in range(3):
+                        for j in range(3):
+                            for k in range(3):
+                                for l in range(3):
+                                    A[i, j, k, l] += sJ * (Cq[q, i, j] * Cq[q, k, l] - Cq[q, i, l] * Cq[q, k, j])
             w = dx[e, q]
             for a in range(27):
                 d0 = D[0, a] * w
@@ -227,6 +304,23 @@ def _hex_kernel(U, edofs, dphi, dx, mode, mu, kappa, c01, tangent, emap, f, data
                     for k in range(3):
                         for b in range(a, 27):
                             Ke[a, i, k, b] += d0 * H[i, 0, k, b] + d1 * H[i, 1, k, b] + d2 * H[i, 2, k, b]
+        if mixed and tangent:
+            # the projected pressure's own variation: κ Gᵀ M⁻¹ G (rank 4), upper triangle
+            for m in range(4):
+                for a in range(27):
+                    for i in range(3):
+                        s = 0.0
+                        for n in range(4):
+                            s += Mi[e, m, n] * G[n, a, i]
+                        Gt[m, a, i] = s
+            for a in range(27):
+                for i in range(3):
+                    for k in range(3):
+                        for b in range(a, 27):
+                            s = 0.0
+                            for m in range(4):
+                                s += Gt[m, a, i] * G[m, b, k]
+                            Ke[a, i, k, b] += kappa * s
         for a in range(27):
             n3 = 3 * edofs[a, e]
             for i in range(3):
@@ -262,9 +356,13 @@ class HexKernel:
     nnz : int — length of the CSR data array
     n_nodes : int
     material : fem_reference.material.Material
+    pressure_basis : (ne, nq, 4) float64 or None — the mixed element's pressure basis at the Gauss points
+        (:func:`fem_reference.assembly.pressure_basis`); None: the displacement element (pointwise ``J``)
+    pressure_mass_inv : (ne, 4, 4) float64 or None — inverse of ``Σ_q N N^T dx`` per element [1/m³]
     """
 
-    def __init__(self, edofs, dphi, dx, emap, nnz: int, n_nodes: int, material):
+    def __init__(self, edofs, dphi, dx, emap, nnz: int, n_nodes: int, material, pressure_basis=None,
+                 pressure_mass_inv=None):
         self.n_nodes = int(n_nodes)
         self.nnz = int(nnz)
         self.edofs = np.ascontiguousarray(edofs, dtype=np.int64)
@@ -290,6 +388,25 @@ class HexKernel:
             raise ValueError("scatter map outside the CSR data array")
         if not (np.all(np.isfinite(self.dphi)) and np.all(np.isfinite(self.dx))):
             raise ValueError("shape-function gradients or weights are not finite")
+        if (pressure_basis is None) != (pressure_mass_inv is None):
+            raise ValueError("the mixed element needs both pressure_basis and pressure_mass_inv")
+        if pressure_basis is None:
+            self.pb, self.Mi = np.zeros((0, nq, 4)), np.zeros((0, 4, 4))
+        else:
+            if self.mode != 0:
+                raise ValueError("the mixed element needs the decoupled volumetric energy κ/2 (J − 1)²")
+            self.pb = np.ascontiguousarray(pressure_basis, dtype=np.float64)
+            self.Mi = np.ascontiguousarray(pressure_mass_inv, dtype=np.float64)
+            if self.pb.shape != (ne, nq, 4) or self.Mi.shape != (ne, 4, 4):
+                raise ValueError(f"pressure basis {self.pb.shape} (want ({ne}, {nq}, 4)) or mass inverse "
+                                 f"{self.Mi.shape} (want ({ne}, 4, 4))")
+            if not (np.all(np.isfinite(self.pb)) and np.all(np.isfinite(self.Mi))):
+                raise ValueError("the pressure basis or its mass inverse is not finite")
+
+    @property
+    def mixed(self) -> bool:
+        """True for the mixed u–p element (projected volumetric term)."""
+        return self.pb.shape[0] > 0
 
     def __call__(self, U: np.ndarray, tangent: bool = True):
         """Internal force and CSR tangent data at nodal displacements ``U`` (3, n_nodes) [m].
@@ -305,7 +422,7 @@ class HexKernel:
         f = np.zeros(3 * self.n_nodes)
         data = np.zeros(self.nnz if tangent else 1)
         ok, jmin = _hex_kernel(U, self.edofs, self.dphi, self.dx, self.mode, *self.params, bool(tangent),
-                               self.emap, f, data)
+                               self.emap, f, data, self.pb, self.Mi)
         return bool(ok), float(jmin), f, (data if tangent else None)
 
 

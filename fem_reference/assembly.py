@@ -11,6 +11,27 @@ Volume terms (27-point Gauss on each Hex2, ``dphi[a, J, e, q] = ∂N_a/∂X_J``,
     f^{int}_{a i} = \sum_q P_{iJ}\,\partial_J N_a\, dx, \qquad
     K_{a i, b k} = \sum_q \partial_J N_a\, A_{iJkL}\, \partial_L N_b\, dx.
 
+**Mixed u–p element** (``element="mixed"``, default).  With the decoupled energy
+:math:`\psi = \psi_{iso}(F) + \tfrac{\kappa}{2}(J - 1)^2` a full-integration Hex27 locks: 27 pointwise
+constraints :math:`J \approx 1` per element are too many for its displacements when the wall bends.  The
+two-field functional :math:`\int \psi_{iso} + p_h (J - 1) - p_h^2/(2\kappa)` with a pressure
+:math:`p_h \in \mathrm{span}\{1, \hat X, \hat Y, \hat Z\}` per element (discontinuous, the inf–sup stable
+Q2/P1-disc pair; :math:`\hat X = (X - X_c)/h_e` about the element's centroid) is condensed exactly: the
+pressure equation gives :math:`p_h = \kappa\,\Pi(J - 1)` with :math:`\Pi` the element's L² projection on
+that space, and the functional becomes the displacement energy
+
+.. math::
+
+    \Pi(u) = \int \psi_{iso}(F)\,dV + \frac{\kappa}{2}\int (\Pi J - 1)^2\,dV, \qquad
+    \Pi J = N^T M^{-1} b, \quad M = \int N N^T dV, \quad b = \int N J\, dV,
+
+so the global system keeps its size.  Its force replaces :math:`\kappa(J-1)` by :math:`p_h` at each point,
+:math:`f_{ai} = \sum_q (P^{iso} + p_h J F^{-T})_{iJ} \partial_J N_a dx`, and its exact tangent is the
+pointwise part with the same replacement, :math:`A \mathrel{+}= p_h J (F^{-T}_{iJ}F^{-T}_{kL} -
+F^{-T}_{iL}F^{-T}_{kJ})`, plus the rank-4 element matrix :math:`\kappa\, G^T M^{-1} G`,
+:math:`G_{m,ai} = \sum_q N_m J F^{-T}_{iJ}\partial_J N_a\, dx`.  At κ → ∞ the element enforces
+:math:`\Pi J = 1` (4 constraints per element), not :math:`J = 1` at 27 points.
+
 Two implementations with the same formulation and quadrature (``kernel=``):
 
 - ``"numba"`` (default): a compiled element loop (:mod:`fem_reference._kernels`) with the material law
@@ -50,7 +71,14 @@ from ancf.errors import ConfigError
 
 from .material import Material, _inv_det
 
-__all__ = ["KERNELS", "CsrPattern", "HexAssembler", "PressureAssembler", "gravity_load"]
+__all__ = ["ELEMENTS", "KERNELS", "CsrPattern", "HexAssembler", "PressureAssembler", "gravity_load",
+           "pressure_basis"]
+
+#: Wall elements (``element=``): ``"mixed"`` — Hex27 displacements with a discontinuous linear pressure per
+#: element (Q2/P1-disc, u–p; the pressure condensed element by element; locking-free, the default) and
+#: ``"displacement"`` — Hex27 displacements alone with the pointwise volumetric term (locks in bending of a
+#: thin nearly incompressible wall; ``docs/fem.md`` §3).
+ELEMENTS = ("mixed", "displacement")
 
 #: Implementations of :meth:`HexAssembler.assemble`: ``"numba"`` (compiled element loop of
 #: :mod:`fem_reference._kernels`, the default) and ``"numpy"`` (the vectorised reference it is tested against).
@@ -134,14 +162,20 @@ class HexAssembler:
         ``"numba"``: compiled per-element force and symmetric tangent written straight into the CSR data
         (:mod:`fem_reference._kernels`); ``"numpy"``: the vectorised reference (batched BLAS products).
         Same formulation and quadrature; results agree to round-off (tested).
+    element : {"mixed", "displacement"}
+        The wall element (:data:`ELEMENTS`): mixed u–p Q2/P1-disc (locking-free, default; needs the
+        decoupled volumetric energy) or displacement-only Hex27.
     """
 
-    def __init__(self, mesh, material: Material, chunk: int = 128, kernel: str = "numba"):
+    def __init__(self, mesh, material: Material, chunk: int = 128, kernel: str = "numba",
+                 element: str = "mixed"):
         from skfem import CellBasis, ElementHex2
 
         if kernel not in KERNELS:
             raise ConfigError(f"unknown assembly kernel {kernel!r}; choose one of {KERNELS}")
+        check_element(element, material)
         self.material = material
+        self.element = element
         self.basis = CellBasis(mesh, ElementHex2(), intorder=4)
         b = self.basis
         self.edofs = b.element_dofs  # (27, ne) scalar dofs == node ids
@@ -157,6 +191,9 @@ class HexAssembler:
         self.pattern = CsrPattern(self.ldofs, 3 * self.n_nodes, col_ldofs=cols)
         self.chunk = int(chunk)
         self.kernel = kernel
+        self.pb = self.Mi = None
+        if element == "mixed":
+            self.pb, self.Mi = pressure_basis(self._pressure_points(), self.dx)
         self._compiled = None
         if kernel == "numba":
             from ._kernels import HexKernel
@@ -164,7 +201,17 @@ class HexAssembler:
             # the compiled kernel's layouts: dphi[e, q, J, a]; scatter map [e, (a, i), (k, b)] (same order)
             self._compiled = HexKernel(self.edofs, self.dphi.transpose(2, 3, 1, 0), self.dx,
                                        self.pattern.scatter.reshape(self.ne, 81, 81), self.pattern.nnz,
-                                       self.n_nodes, material)
+                                       self.n_nodes, material, self.pb, self.Mi)
+
+    #: coordinates of the mixed element's linear pressure: "reference" (ξ, η, ζ of the element; they follow a
+    #: curved wall's thickness direction) or "physical" (X, Y, Z)
+    PRESSURE_COORDINATES = "reference"
+
+    def _pressure_points(self) -> np.ndarray:
+        """Gauss points in the pressure basis' coordinates, (3, ne, nq)."""
+        if self.PRESSURE_COORDINATES == "physical":
+            return self.basis.global_coordinates().value
+        return np.ascontiguousarray(np.broadcast_to(self.basis.X[:, None, :], (3, self.ne, self.nq)))
 
     def deformation_gradient(self, U: np.ndarray, sl=slice(None)) -> np.ndarray:
         """``F`` at the Gauss points of elements ``sl``, shape ``(3, 3, ne, nq)``."""
@@ -185,9 +232,21 @@ class HexAssembler:
         return jmin
 
     def energy(self, U: np.ndarray) -> float:
-        """Stored strain energy [J]."""
+        """Stored strain energy [J] (of the mixed element: with the projected volumetric term)."""
         F = self.deformation_gradient(U)
-        return float((self.material.energy(F) * self.dx).sum())
+        psi = self.material.energy(F)
+        if self.element == "mixed":
+            _, J = _inv_det(F)
+            kap = self.material.kappa
+            psi = psi - 0.5 * kap * (J - 1) ** 2 + 0.5 * kap * self._projected(J - 1) ** 2
+        return float((psi * self.dx).sum())
+
+    def _projected(self, g: np.ndarray, sl=slice(None)) -> np.ndarray:
+        """``Πg`` at the Gauss points of elements ``sl`` from ``g`` there (``g = J − 1``: exactly 0 at the
+        reference state, which ``ΠJ − 1`` is only to round-off), shape ``(ne, nq)``."""
+        pb = self.pb[sl]
+        b = np.einsum("eqm,eq,eq->em", pb, g, self.dx[sl])
+        return np.einsum("eqm,emn,en->eq", pb, self.Mi[sl], b)
 
     def assemble(self, U: np.ndarray, tangent: bool = True):
         """Internal force and tangent.
@@ -230,6 +289,8 @@ class HexAssembler:
             jmin = min(jmin, float(np.nanmin(J)))
             if not np.all(J > 0):
                 return f, None, -1.0 if not np.isfinite(jmin) else min(jmin, 0.0)
+            if self.element == "mixed":
+                P, A, G = self._mixed_terms(F, J, P, A, sl)
             Re = np.einsum("aJeq,iJeq,eq->eai", dphi, P, dx).reshape(nc, 81)
             f += np.bincount(self.ldofs[:, sl].T.ravel(), weights=Re.ravel(), minlength=f.size)
             if tangent:
@@ -237,14 +298,58 @@ class HexAssembler:
                 Y = np.einsum("iJkLeq,bLeq,eq->eJqikb", A, dphi, dx, optimize=True).reshape(nc, 3 * nq, 243)
                 D = dphi.transpose(2, 0, 1, 3).reshape(nc, 27, 3 * nq)  # [e, a, (J,q)]
                 np.matmul(D, Y, out=Kvals[sl].reshape(nc, 27, 243))  # [e, a, (i, k, b)]
+                if self.element == "mixed":
+                    Kvals[sl] += self.material.kappa * np.einsum(
+                        "emai,emn,enbk->eaikb", G, self.Mi[sl], G).reshape(nc, 81, 81)
         K = self.pattern.matrix(Kvals) if tangent else None
         return f, K, jmin
+
+    def _mixed_terms(self, F, J, P, A, sl):
+        """The mixed element's stress and pointwise tangent at the points of elements ``sl`` (the pointwise
+        volumetric term κ(J − 1) replaced by the projected pressure p_h), and ``G[e, m, a, i]``."""
+        kap = self.material.kappa
+        FiT, _ = _inv_det(F)
+        ph = kap * self._projected(J - 1.0, sl)
+        P = P + (ph - kap * (J - 1)) * J * FiT
+        G = None
+        if A is not None:
+            TT = np.einsum("iJ...,kL...->iJkL...", FiT, FiT)
+            TTx = TT.transpose(0, 3, 2, 1, 4, 5)
+            A = A - kap * (2 * J * J - J) * TT + kap * (J * J - J) * TTx + ph * J * (TT - TTx)
+            G = np.einsum("eqm,eq,iJeq,aJeq->emai", self.pb[sl], self.dx[sl], J * FiT, self.dphi[:, :, sl])
+        return P, A, G
 
     def body_load(self, b: np.ndarray) -> np.ndarray:
         """Consistent nodal load of a constant body force density ``b`` [N/m³], shape ``(3 n_nodes,)``."""
         w = (self.phi * self.dx[None]).sum(axis=2)  # (27, ne)  ∫ N_a dx
         mass = np.bincount(self.edofs.ravel(), weights=w.ravel(), minlength=self.n_nodes)
         return (np.asarray(b, float)[:, None] * mass[None, :]).T.ravel()
+
+
+def check_element(element: str, material: Material) -> None:
+    """ConfigError unless ``element`` is one of :data:`ELEMENTS` and fits the material's volumetric law."""
+    if element not in ELEMENTS:
+        raise ConfigError(f"unknown wall element {element!r}; choose one of {ELEMENTS}")
+    if element == "mixed" and material.formulation != "decoupled":
+        raise ConfigError(f"the mixed wall element needs the decoupled volumetric energy κ/2 (J − 1)²; the "
+                          f"material's formulation is {material.formulation!r}: use element='displacement'")
+
+
+def pressure_basis(X: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The mixed element's pressure basis ``N = [1, X̂, Ŷ, Ẑ]`` at the Gauss points and ``M⁻¹``.
+
+    ``X`` (3, ne, nq) Gauss-point coordinates [m], ``dx`` (ne, nq) weights [m³].  ``X̂ = (X − X_c)/h_e`` about
+    the element's centroid ``X_c`` with ``h_e = V_e^{1/3}`` (a well-conditioned 4×4 ``M``).  Returns
+    ``pb`` (ne, nq, 4) and ``Mi`` (ne, 4, 4) = ``(Σ_q N Nᵀ dx)⁻¹`` [1/m³].
+    """
+    V = dx.sum(axis=1)
+    Xc = np.einsum("ieq,eq->ie", X, dx) / V
+    h = np.cbrt(V)
+    pb = np.empty(dx.shape + (4,))
+    pb[..., 0] = 1.0
+    pb[..., 1:] = ((X - Xc[:, :, None]) / h[None, :, None]).transpose(1, 2, 0)
+    M = np.einsum("eqm,eqn,eq->emn", pb, pb, dx)
+    return pb, np.linalg.inv(M)
 
 
 def gravity_load(assembler: HexAssembler, density: float, g=(0.0, 0.0, -9.81)) -> np.ndarray:

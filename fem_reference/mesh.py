@@ -53,8 +53,8 @@ class MeshLevel:
 
 
 MESH_LEVELS: dict[str, MeshLevel] = {
-    "coarse": MeshLevel(n_per_conv=4, n_thick=1, n_theta=12, n_collar=1),
-    "medium": MeshLevel(n_per_conv=6, n_thick=1, n_theta=18, n_collar=1),
+    "coarse": MeshLevel(n_per_conv=4, n_thick=2, n_theta=12, n_collar=1),
+    "medium": MeshLevel(n_per_conv=6, n_thick=2, n_theta=18, n_collar=1),
     "reference": MeshLevel(n_per_conv=8, n_thick=2, n_theta=24, n_collar=2),
 }
 

@@ -44,7 +44,7 @@ from ancf.errors import (
     check_finite,
 )
 
-from .assembly import KERNELS, HexAssembler, PressureAssembler, gravity_load
+from .assembly import ELEMENTS, KERNELS, HexAssembler, check_element, PressureAssembler, gravity_load
 from .geometry import BellowsGeometry, e_radial
 from .loads.caps import (
     RigidCapReduction,
@@ -179,11 +179,16 @@ class BellowsModel:
     assembly_kernel : {"numba", "numpy"}
         Implementation of the hyperelastic assembly (:class:`~fem_reference.assembly.HexAssembler`): the
         compiled kernel (default) or the numpy reference; same results to round-off.
+    element : {"mixed", "displacement"}
+        The wall element (:data:`fem_reference.assembly.ELEMENTS`): ``"mixed"`` (default) — Hex27 with a
+        discontinuous linear pressure per element, condensed (u–p, Q2/P1-disc; locking-free for the nearly
+        incompressible wall); ``"displacement"`` — Hex27 alone, which over-stiffens bending of a thin wall at
+        κ/μ ≫ 1 (``docs/fem.md`` §3).
     """
 
     def __init__(self, geometry: BellowsGeometry, material: Material, mesh="coarse",
                  linear_solver: str = "auto", gravity_vector=G_DEFAULT, limits: OperatingLimits | None = None,
-                 assembly_kernel: str = "numba"):
+                 assembly_kernel: str = "numba", element: str = "mixed"):
         if not isinstance(geometry, BellowsGeometry) or not isinstance(material, Material):
             raise InputError(f"BellowsModel needs (BellowsGeometry, Material), got "
                              f"({type(geometry).__name__}, {type(material).__name__})")
@@ -194,6 +199,8 @@ class BellowsModel:
                               f"{['auto'] + available_solvers()}")       # before minutes of meshing
         if assembly_kernel not in KERNELS:
             raise ConfigError(f"unknown assembly kernel {assembly_kernel!r}; choose one of {KERNELS}")
+        check_element(element, material)
+        self.element = element
         self.geometry = geometry
         self.material = material
         self.linear_solver = linear_solver
@@ -202,7 +209,7 @@ class BellowsModel:
         t0 = time.perf_counter()
         self.bmesh = mesh if isinstance(mesh, BellowsMesh) else build_mesh(geometry, mesh)
         bm = self.bmesh
-        self.asm = HexAssembler(bm.mesh, material, kernel=assembly_kernel)
+        self.asm = HexAssembler(bm.mesh, material, kernel=assembly_kernel, element=element)
         self.press = PressureAssembler(bm.mesh, bm.inner_facets(), self.asm.pattern, kernel=assembly_kernel)
         self.f_gravity = gravity_load(self.asm, material.density, self.g)
         n_s, n_t, n_th = bm.shape

@@ -7,6 +7,9 @@
 - :func:`rivlin_ring` / :func:`rivlin_ring_exact` — large-strain inflation of a plane-strain thick
   ring by a follower pressure vs Rivlin's incompressible solution: checks the follower load at
   large strain *and* the absence of volumetric locking of full-integration Hex2 at κ/μ = 1000.
+- :func:`curved_wall_bending` — a thin curved wall (quarter ring, R/t = 20, plane strain) bent by a tip
+  load with ONE element through the wall, vs the curved-beam closed form: the bending of a thin, nearly
+  incompressible curved wall that the bellows' convolutions do, where the displacement element locks.
 """
 
 from __future__ import annotations
@@ -19,12 +22,13 @@ from .assembly import HexAssembler
 from .material import Material
 from .solver import factorize
 
-__all__ = ["rivlin_ring", "rivlin_ring_exact", "tube_beam_theory", "uniaxial_block"]
+__all__ = ["curved_wall_bending", "rivlin_ring", "rivlin_ring_exact", "tube_beam_theory", "uniaxial_block"]
 
 
 def uniaxial_block(material: Material, stretch: float, n: int = 2, side: float = 0.01,
-                   tol: float = 1e-10, max_iter: int = 20) -> dict:
-    """FE uniaxial tension of a cube of edge ``side`` [m] on an ``n³`` Hex2 mesh.
+                   tol: float = 1e-10, max_iter: int = 20, element: str = "mixed") -> dict:
+    """FE uniaxial tension of a cube of edge ``side`` [m] on an ``n³`` Hex2 mesh (wall ``element`` of
+    :class:`~fem_reference.assembly.HexAssembler`).
 
     Returns ``{"P11": nominal stress [Pa] from the reaction, "lateral_stretch", "history"}``.
     """
@@ -32,7 +36,7 @@ def uniaxial_block(material: Material, stretch: float, n: int = 2, side: float =
 
     x = np.linspace(0, side, n + 1)
     m = MeshHex2.from_mesh(MeshHex1.init_tensor(x, x, x))
-    asm = HexAssembler(m, material)
+    asm = HexAssembler(m, material, element=element)
     X = m.doflocs
     nn = X.shape[1]
     fixed = []
@@ -63,6 +67,45 @@ def uniaxial_block(material: Material, stretch: float, n: int = 2, side: float =
     reaction = f[3 * top].sum()
     corner = np.flatnonzero(np.isclose(X[0], side) & np.isclose(X[1], side) & np.isclose(X[2], side))[0]
     return dict(P11=reaction / side ** 2, lateral_stretch=1 + U[1, corner] / side, history=hist)
+
+
+def curved_wall_bending(material: Material, n_along: int = 16, n_thick: int = 1, element: str = "mixed",
+                        radius: float = 0.05, thickness: float = 0.0025) -> float:
+    r"""Tip deflection of a clamped quarter ring under a radial tip load, over the curved-beam closed form.
+
+    The wall (mid-radius ``radius``, ``thickness`` [m], width = thickness) spans θ ∈ [0, π/2] with
+    ``n_along × n_thick`` exactly curved Hex2 elements; it is clamped at θ = 0, held in plane strain
+    (u_z = 0), and loaded at θ = π/2 by a small force P along the radius there (y).  Castigliano on
+    M(θ) = P R cos θ gives δ = π P R³ / (4 E' I), E' = E / (1 − ν²), I = b t³/12 (membrane and shear add
+    O((t/R)²), ≈ 0.25 % here).  Linear: one solve with the tangent at the reference state.  Returns the
+    mean tip deflection over δ (1 for a converged, locking-free element).
+    """
+    import scipy.sparse.linalg as spla
+    from skfem import MeshHex1, MeshHex2
+
+    if n_along < 1 or n_thick < 1 or not (0 < thickness < radius):
+        raise InputError(f"curved_wall_bending needs n_along, n_thick >= 1 and 0 < thickness < radius, got "
+                         f"{n_along}, {n_thick}, {thickness}, {radius}")
+    R, t = float(radius), float(thickness)
+    m = MeshHex2.from_mesh(MeshHex1.init_tensor(np.linspace(0.0, np.pi / 2, n_along + 1),
+                                                np.linspace(R - t / 2, R + t / 2, n_thick + 1),
+                                                np.linspace(0.0, t, 2)))
+    th, r, z = m.doflocs
+    m.doflocs[:] = np.array([r * np.cos(th), r * np.sin(th), z])      # exact curved nodes
+    asm = HexAssembler(m, material, element=element)
+    X = m.doflocs
+    nn = X.shape[1]
+    _, K, _ = asm.assemble(np.zeros((3, nn)))
+    clamp = np.flatnonzero(np.abs(X[1]) < 1e-12 * R)
+    tip = np.flatnonzero(np.abs(X[0]) < 1e-12 * R)
+    fixed = np.unique(np.concatenate([3 * clamp, 3 * clamp + 1, 3 * np.arange(nn) + 2]))
+    free = np.setdiff1d(np.arange(3 * nn), fixed)
+    f = np.zeros(3 * nn)
+    f[3 * tip + 1] = 1.0 / tip.size                                       # P = 1 N
+    u = np.zeros(3 * nn)
+    u[free] = spla.splu(K[free][:, free].tocsc()).solve(f[free])
+    E_plane = material.E / (1 - material.nu ** 2)
+    return float(u[3 * tip + 1].mean() / (np.pi * R ** 3 / (4 * E_plane * t * t ** 3 / 12)))
 
 
 def tube_beam_theory(length: float, r_mid: float, thickness: float, material: Material) -> dict:
@@ -102,7 +145,8 @@ def rivlin_ring_exact(p_over_mu: float, A: float, B: float) -> float:
 
 
 def rivlin_ring(material: Material, p_over_mu: float, A: float = 0.01, B: float = 0.02,
-                n_thick: int = 4, n_theta: int = 24, n_steps: int = 5, tol: float = 1e-10) -> dict:
+                n_thick: int = 4, n_theta: int = 24, n_steps: int = 5, tol: float = 1e-10,
+                element: str = "mixed") -> dict:
     """FE plane-strain thick ring (full ring, exact curved Hex2, one element axially) inflated by a
     follower pressure on its inner surface; returns the mean deformed inner radius and Newton data.
 
@@ -116,7 +160,7 @@ def rivlin_ring(material: Material, p_over_mu: float, A: float = 0.01, B: float 
     h = 0.2 * (B - A)
     geo = BellowsGeometry.straight_tube(h, 0.5 * (A + B), B - A, n_segments=1)
     bm = build_mesh(geo, MeshLevel(1, n_thick, n_theta, 0))
-    asm = HexAssembler(bm.mesh, material)
+    asm = HexAssembler(bm.mesh, material, element=element)
     pa = PressureAssembler(bm.mesh, bm.inner_facets(), asm.pattern)
     X = bm.X
     nn = X.shape[1]

@@ -1,6 +1,7 @@
 """The compiled assembly kernel (fem_reference._kernels) against the numpy reference path of HexAssembler:
-internal force and tangent to round-off on random deformations for every material law, the tangent
-against central differences of the force, J <= 0 handling, and the checks in front of the kernel."""
+internal force and tangent to round-off on random deformations for every material law and wall element
+(mixed u–p and displacement), the tangent against central differences of the force, the force against
+central differences of the energy, J <= 0 handling, and the checks in front of the kernel."""
 
 import numpy as np
 import pytest
@@ -18,6 +19,9 @@ MATERIALS = {
     "Mooney-Rivlin": Material.mooney_rivlin(0.3e6, 0.1e6, 50e6),
     "ex43 NH": Material.neo_hookean(0.8e6, 40e6, formulation="ex43"),
 }
+#: (material, wall element): the mixed element needs the decoupled volumetric energy
+CASES = [(name, el) for name in MATERIALS for el in ("mixed", "displacement")
+         if not (el == "mixed" and MATERIALS[name].formulation == "ex43")]
 
 
 @pytest.fixture(scope="module")
@@ -33,11 +37,11 @@ def _deformation(bm, seed, scale=0.2, noise=2e-5):
     return G @ bm.mesh.doflocs + noise * rng.standard_normal((3, bm.n_nodes))
 
 
-@pytest.mark.parametrize("name", list(MATERIALS))
-def test_kernel_equals_numpy_reference(mesh, name):
+@pytest.mark.parametrize("name,element", CASES)
+def test_kernel_equals_numpy_reference(mesh, name, element):
     mat = MATERIALS[name]
-    ref = HexAssembler(mesh.mesh, mat, kernel="numpy")
-    new = HexAssembler(mesh.mesh, mat, kernel="numba")
+    ref = HexAssembler(mesh.mesh, mat, kernel="numpy", element=element)
+    new = HexAssembler(mesh.mesh, mat, kernel="numba", element=element)
     assert np.array_equal(ref.pattern.indices, new.pattern.indices)
     for seed in range(3):
         U = _deformation(mesh, seed)
@@ -52,9 +56,9 @@ def test_kernel_equals_numpy_reference(mesh, name):
         assert K3 is None and np.array_equal(f3, f2) and j3 == j2
 
 
-@pytest.mark.parametrize("name", list(MATERIALS))
-def test_kernel_tangent_matches_central_fd_of_its_force(mesh, name):
-    asm = HexAssembler(mesh.mesh, MATERIALS[name], kernel="numba")
+@pytest.mark.parametrize("name,element", CASES)
+def test_kernel_tangent_matches_central_fd_of_its_force(mesh, name, element):
+    asm = HexAssembler(mesh.mesh, MATERIALS[name], kernel="numba", element=element)
     U = _deformation(mesh, 10)
     _, K, jmin = asm.assemble(U)
     assert jmin > 0
@@ -66,6 +70,32 @@ def test_kernel_tangent_matches_central_fd_of_its_force(mesh, name):
     assert np.linalg.norm(fd - an) < 1e-7 * np.linalg.norm(an)
     # hyperelastic: the element matrices (so the assembled tangent) are symmetric
     assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
+    # and the force is the gradient of the stored energy (of the mixed element: with the projected term)
+    f = asm.assemble(U, False)[0]
+    de = (asm.energy(U + h * d) - asm.energy(U - h * d)) / (2 * h)
+    assert de == pytest.approx(f @ d.T.ravel(), rel=1e-7)
+
+
+def test_mixed_element_differs_from_the_displacement_element_only_in_its_volumetric_term(mesh):
+    """Same deviatoric response: with κ small against μ the two elements nearly agree; a homogeneous
+    deformation (J constant, so ΠJ = J) gives the same force; a bending-type field does not."""
+    mat = MATERIALS["decoupled NH"]
+    mix, dis = (HexAssembler(mesh.mesh, mat, element=el) for el in ("mixed", "displacement"))
+    G = 0.1 * np.random.default_rng(7).standard_normal((3, 3))
+    U = G @ mesh.mesh.doflocs
+    f1, f2 = mix.assemble(U, False)[0], dis.assemble(U, False)[0]
+    assert np.abs(f1 - f2).max() <= 1e-9 * np.abs(f2).max()
+    X = mesh.mesh.doflocs
+    Ub = np.stack([-0.5 * X[2] ** 2 * 20.0, 0 * X[0], X[0] * X[2] * 20.0])  # a varying J
+    assert np.abs(mix.assemble(Ub, False)[0] - dis.assemble(Ub, False)[0]).max() > 1e-3 * np.abs(f2).max()
+    assert mix.energy(Ub) < dis.energy(Ub)          # the projection removes part of the volumetric energy
+
+
+def test_mixed_element_needs_the_decoupled_volumetric_law(mesh):
+    with pytest.raises(ConfigError, match="element='displacement'"):
+        HexAssembler(mesh.mesh, MATERIALS["ex43 NH"])
+    with pytest.raises(ConfigError, match="wall element"):
+        HexAssembler(mesh.mesh, MATERIALS["decoupled NH"], element="hybrid")
 
 
 @pytest.mark.filterwarnings("ignore:All-NaN slice")  # the numpy path's nanmin on a NaN state
@@ -107,6 +137,12 @@ def test_kernel_rejects_inconsistent_mesh_arrays(mesh):
     args = dict(edofs=k.edofs, dphi=k.dphi, dx=k.dx, emap=k.emap, nnz=k.nnz, n_nodes=k.n_nodes,
                 material=MATERIALS["decoupled NH"])
     HexKernel(**args)
+    assert k.mixed and not HexKernel(**args).mixed       # without a pressure basis: the displacement element
+    for key, bad in (("pressure_basis", k.pb[:, :, :3]), ("pressure_mass_inv", k.Mi * np.nan)):
+        with pytest.raises(ValueError):
+            HexKernel(**args, **{"pressure_basis": k.pb, "pressure_mass_inv": k.Mi, key: bad})
+    with pytest.raises(ValueError):
+        HexKernel(**args, pressure_basis=k.pb)
     for key, bad in (("edofs", k.edofs[:, :-1]), ("dphi", k.dphi[:, :, :2]), ("emap", k.emap[:-1]),
                      ("nnz", k.emap.max()), ("n_nodes", k.edofs.max()),
                      ("dx", np.where(k.dx > 0, np.nan, k.dx))):
