@@ -31,11 +31,14 @@ What is modelled (details and derivations in the module docstrings):
   check, meshio save/load.  Levels ``coarse``, ``medium``, ``reference``.
 - :mod:`.material` — decoupled (default) or ex43 compressible neo-Hookean, decoupled Mooney–Rivlin;
   ``P`` and ``∂P/∂F`` (checked against finite differences).  Near incompressibility (κ/μ = 50,
-  ν ≈ 0.49) with full-integration 27-node hexahedra, no mixed formulation: the Rivlin ring test
-  shows no locking even at κ/μ = 1000 (0.2 % of the displacement); the straight-tube tests measure
-  ≈ 3–4 % stiffening vs beam theory at ν = 0.49, part of it the real end restraint.
-- :mod:`.verification` — closed-form problems (uniaxial block, Rivlin ring, tube beam theory).
-- :mod:`.assembly` — vectorised internal force/tangent and follower-pressure (Nanson) load + load stiffness.
+  ν ≈ 0.49) with the mixed u–p wall element (27-node hexahedra with a discontinuous linear pressure,
+  condensed per element; ``BellowsModel(element="mixed")``, the default): locking-free in bending of the
+  thin curved wall, where full-integration Hex27 alone (``element="displacement"``) is ~30 % too stiff at
+  one layer and κ/μ = 50 (docs/fem.md §3a).
+- :mod:`.verification` — closed-form problems (uniaxial block, Rivlin ring, tube beam theory, a thin curved
+  wall in bending).
+- :mod:`.assembly` — internal force/tangent of both wall elements (compiled and numpy) and the
+  follower-pressure (Nanson) load + load stiffness.
 - :mod:`.loads` — rigid caps (clamped base, 6-DOF distal cap), cap pressure force, tendons
   (sliding cables, tension or locked length, slack allowed), gravity, tip force.
 - :mod:`.model` — Newton with exact tangent, backtracking line search, adaptive load stepping,

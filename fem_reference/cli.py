@@ -30,6 +30,7 @@ from ancf.errors import InputError
 from ancf.outputs import atomic_write_text, prepare_output_dir
 
 from ancf.textfmt import one_of, vector
+from .assembly import ELEMENTS
 from .mesh import MESH_LEVELS
 from .model import LINEAR_SOLVERS
 
@@ -53,6 +54,7 @@ def _presets():
 
 # the choices of --mesh and --preset are generated from the registries, so --help lists exactly what is accepted
 MeshChoice = Enum("MeshChoice", {name: name for name in MESH_LEVELS}, type=str)
+ElementChoice = Enum("ElementChoice", {name: name for name in ELEMENTS}, type=str)
 PresetChoice = Enum("PresetChoice", {name.replace("-", "_"): name for name in GEOMETRIES}, type=str)
 
 
@@ -103,6 +105,8 @@ def solve(
         None, help="lock tendons at these cable lengths [mm], e.g. '159.5,,' (empty = tension mode)"),
     gravity: bool = typer.Option(True, help="include the dead weight (g = -9.81 m/s² along z)"),
     mesh: MeshChoice = typer.Option(MeshChoice("coarse"), help="mesh level"),
+    element: ElementChoice = typer.Option(ElementChoice("mixed"), help="wall element: mixed (u–p, locking-free) "
+                                          "or displacement (Hex27 alone; locks in bending, docs/fem.md §3a)"),
     preset: PresetChoice = typer.Option(PresetChoice("paper"), help="geometry preset"),
     mu_mpa: float | None = typer.Option(None, help="shear modulus [MPa] (default: preset)"),
     kappa_mpa: float | None = typer.Option(None, help="bulk modulus [MPa] (default: preset)"),
@@ -144,7 +148,7 @@ def solve(
     mat = Material.neo_hookean(mu=_modulus(mu_mpa, base.mu, "--mu-mpa"),
                                kappa=_modulus(kappa_mpa, base.kappa, "--kappa-mpa"), density=base.density)
     with console.status(f"building {mesh.value} mesh and assembler ..."):
-        model = BellowsModel(_geometry(preset), mat, mesh.value, linear_solver=solver)
+        model = BellowsModel(_geometry(preset), mat, mesh.value, linear_solver=solver, element=element.value)
     console.print(f"[bold]{model.n_dofs}[/] reduced DOFs, {model.bmesh.n_elements} Hex2 elements")
     plain = not console.is_terminal      # a log file or a pipe: one plain line per load step, as it happens
 
@@ -166,6 +170,7 @@ def solve(
                           locked_lengths=locked, progress=cb, check_limits=not no_limits,
                           time_limit_s=max_time_s)
     summary = res.summary()
+    summary["element"] = element.value
     if compliance:
         summary["tip_compliance_tension_m_per_N"] = model.tip_compliance(res, "tension").tolist()
         summary["tip_compliance_locked_m_per_N"] = model.tip_compliance(res, "locked").tolist()

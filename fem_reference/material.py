@@ -44,10 +44,10 @@ With :math:`a = J^{-2/3}`, :math:`\partial a/\partial F = -\tfrac23 a F^{-T}`,
         + \tfrac43 b I_2 F^{-T}_{iL}F^{-T}_{kJ}\Big].
 
 Both reduce to linear elasticity with shear modulus μ and bulk modulus κ at small strain
-(``E = 9κμ/(3κ + μ)``, ``ν = (3κ − 2μ)/(2(3κ + μ))``).  Near incompressibility is handled by
-full-integration quadratic hexahedra with ``κ/μ ≈ 50`` (ν ≈ 0.49): the locking error of this
-element at that ratio is ~1–3 % on a thin tube (docs/fem.md §3) and is measured by the straight-tube
-tests of this package.  A mixed u–p formulation is not implemented.
+(``E = 9κμ/(3κ + μ)``, ``ν = (3κ − 2μ)/(2(3κ + μ))``).  Near incompressibility (``κ/μ ≈ 50``, ν ≈ 0.49)
+is handled by the mixed u–p wall element of :mod:`fem_reference.assembly`, which replaces the pointwise
+volumetric term κ/2 (J − 1)² of the decoupled forms by its element-wise projection (so it needs a decoupled
+form; the ex43 form runs with the displacement element only).  docs/fem.md §3a has the locking measurements.
 """
 
 from __future__ import annotations

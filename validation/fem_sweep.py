@@ -49,18 +49,22 @@ __all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "fem_model", "solve_t
 
 @dataclass(frozen=True)
 class FemSpec:
-    """What defines an FEM model: geometry, material and mesh level (all picklable, hashable inputs)."""
+    """What defines an FEM model: geometry, material, mesh level and wall element (``"mixed"``, the locking-free
+    default, or ``"displacement"``; fem_reference.assembly.ELEMENTS) — all picklable, hashable inputs."""
     geometry: object
     material: object
     mesh: str = "coarse"
+    element: str = "mixed"
 
     def __post_init__(self):
+        from fem_reference.assembly import check_element
         from fem_reference.mesh import MESH_LEVELS, MeshLevel
         if not (isinstance(self.mesh, MeshLevel) or (isinstance(self.mesh, str) and self.mesh in MESH_LEVELS)):
             raise ConfigError(f"unknown mesh level {self.mesh!r}; choose from {sorted(MESH_LEVELS)}")
+        check_element(self.element, self.material)
 
     def key(self) -> dict:
-        return {"geometry": self.geometry, "material": self.material, "mesh": self.mesh}
+        return {"geometry": self.geometry, "material": self.material, "mesh": self.mesh, "element": self.element}
 
 
 @dataclass
@@ -112,7 +116,7 @@ def fem_model(spec: FemSpec):
     k = task_key(spec.key())
     if k not in _MODELS:
         _MODELS.clear()                       # one model per worker at a time (memory)
-        _MODELS[k] = BellowsModel(spec.geometry, spec.material, mesh=spec.mesh)
+        _MODELS[k] = BellowsModel(spec.geometry, spec.material, mesh=spec.mesh, element=spec.element)
     return _MODELS[k]
 
 
