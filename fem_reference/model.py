@@ -376,8 +376,6 @@ class BellowsModel:
                 K.data -= Kp.data  # the same differences as K - Kp, without scipy's merge of two patterns
             else:  # pragma: no cover - a pressure assembler without the volume pattern
                 K = K - Kp
-        r, Kq = c.reduce(K, r_full, st.R)
-        fext_q = c.prolongation(st.R, transpose=True) @ f_ext
         s = c.n_free
         extra_K = np.zeros((6, 6))
         # point loads on the cap: (spatial offset, external force)
@@ -387,12 +385,17 @@ class BellowsModel:
         pvec, dpvec = cap_pressure_force(lc.pressure, self.A_cap, st.R)
         loads.append((np.zeros(3), pvec))
         for rr, F in loads:
-            Jb = point_jacobian(rr)
-            r[s: s + 6] -= Jb.T @ F
-            fext_q[s: s + 6] += Jb.T @ F
             extra_K[3:, 3:] += point_geometric(rr, -F)
         # follower cap pressure: residual -f, so K[u_c, θ] += -∂f/∂θ = p A [R e_x]_×
         extra_K[0:3, 3:6] -= dpvec
+        r, Kq = c.reduce(K, r_full, st.R, extra_cc=extra_K)
+        fext_q = np.empty(c.n_q)
+        fext_q[:s] = f_ext[c.free_dofs]
+        fext_q[s:] = c.cap_rows(st.R).T @ f_ext[c.cap_dofs]
+        for rr, F in loads:
+            Jb = point_jacobian(rr)
+            r[s: s + 6] -= Jb.T @ F
+            fext_q[s: s + 6] += Jb.T @ F
         m = self.m
         Ls = np.zeros(m)
         g = np.zeros((self.n_dofs, m))
@@ -405,8 +408,6 @@ class BellowsModel:
                 if tangent:
                     Kq = Kq + st.T[k] * Hk
         if tangent:
-            ii, jj = np.meshgrid(np.arange(6), np.arange(6), indexing="ij")
-            Kq = (Kq + sp.csr_matrix((extra_K.ravel(), (s + ii.ravel(), s + jj.ravel())), shape=Kq.shape)).tocsr()
             Kq = self._canonical(Kq)
         out.update(r=r, K=Kq, L=Ls, g=g, f_ref=float(np.linalg.norm(fext_q)))
         if stats is not None:

@@ -23,6 +23,14 @@ cap point ``X_c + R a`` (tip force, cap weight, tendon anchor) with :math:`r = R
 
 The condensed cap stiffness (Schur complement of ``K_q`` on the 6 cap DOFs) is the consistent tip
 stiffness of the loaded state; its inverse is the tip compliance.
+
+**Cost.**  ``P`` is the identity on the free DOFs, so ``Pᵀ K P`` needs no sparse triple product: with the
+DOFs split into free (f), cap (c) and base (dropped), ``K_q = [[K_ff, K_fc P_c], [P_cᵀ K_cf, P_cᵀ K_cc P_c]]``
+with ``P_c`` the (3 n_cap × 6) rows of ``P`` on the cap DOFs.  :class:`_ReductionMap` finds once, for the
+fixed pattern of ``K``, where each entry of ``K`` goes in ``K_q``; every reduction is then a gather of
+``K_ff``, six weighted sums for ``K_fc P_c`` and ``P_cᵀ K_cf``, and a small dense product
+(:meth:`RigidCapReduction.reduce`; ``reduce_reference`` keeps the sparse triple product it is tested
+against).
 """
 
 from __future__ import annotations
@@ -143,7 +151,55 @@ class RigidCapReduction:
             return sp.csr_matrix((v_, (c_, r_)), shape=(self.n_q, 3 * self.n_nodes))
         return sp.csr_matrix((v_, (r_, c_)), shape=(3 * self.n_nodes, self.n_q))
 
-    def reduce(self, K: sp.spmatrix | None, r: np.ndarray, R: np.ndarray):
+    def cap_rows(self, R: np.ndarray) -> np.ndarray:
+        """``P_c``: the rows of ``P`` on the cap DOFs, dense ``(3 n_cap, 6)`` in ``cap_dofs`` order."""
+        r = R @ self.A_cap  # (3, nc)
+        nc = r.shape[1]
+        Pc = np.zeros((nc, 3, 6))
+        Pc[:, 0, 0] = Pc[:, 1, 1] = Pc[:, 2, 2] = 1.0
+        # -skew(r) = [[0, z, -y], [-z, 0, x], [y, -x, 0]]
+        x, y, z = r
+        Pc[:, 0, 4], Pc[:, 0, 5] = z, -y
+        Pc[:, 1, 3], Pc[:, 1, 5] = -z, x
+        Pc[:, 2, 3], Pc[:, 2, 4] = y, -x
+        return Pc.reshape(3 * nc, 6)
+
+    def reduce(self, K: sp.spmatrix | None, r: np.ndarray, R: np.ndarray, extra_cc: np.ndarray | None = None):
+        """Reduced residual ``Pᵀ r`` and tangent ``Pᵀ K P`` + rigid-link geometric stiffness (see the module
+        docstring, "Cost"; the same as :meth:`reduce_reference` to round-off), plus ``extra_cc`` (6, 6) on the
+        cap block if given (point loads' terms).
+
+        Parameters
+        ----------
+        K : csr (3n, 3n) or None
+        r : ndarray (3n,)  — full residual (internal − external) [N]
+        R : ndarray (3, 3) — current cap rotation
+
+        Returns
+        -------
+        r_q : ndarray (n_q,)
+        K_q : csr_matrix (n_q, n_q) or None
+        """
+        Pc = self.cap_rows(R)
+        rq = np.empty(self.n_q)
+        rq[: self.n_free] = r[self.free_dofs]
+        rq[self.n_free:] = Pc.T @ r[self.cap_dofs]
+        if K is None:
+            return rq, None
+        K = K.tocsr()
+        m = getattr(self, "_map", None)
+        if m is None or not m.matches(K):
+            m = self._map = _ReductionMap(self, K)
+        data = m.reduce(K.data, Pc)
+        rho = r.reshape(-1, 3)[self.cap_nodes].T  # (3, nc)
+        rr = R @ self.A_cap
+        G = rr @ rho.T - np.sum(rho * rr) * np.eye(3)
+        data[m.pos_cc[3:, 3:].ravel()] += G.ravel()
+        if extra_cc is not None:
+            data[m.pos_cc.ravel()] += np.asarray(extra_cc, float).ravel()
+        return rq, sp.csr_matrix((data, m.indices, m.indptr), shape=(self.n_q, self.n_q))
+
+    def reduce_reference(self, K: sp.spmatrix | None, r: np.ndarray, R: np.ndarray):
         """Reduced residual ``Pᵀ r`` and tangent ``Pᵀ K P`` + rigid-link geometric stiffness.
 
         Parameters
@@ -175,3 +231,80 @@ class RigidCapReduction:
         """Spatial offset ``r = R a`` and 3×6 Jacobian block (columns ``cap_slice``) of a cap point."""
         r = R @ np.asarray(a, float)
         return r, point_jacobian(r)
+
+
+class _ReductionMap:
+    """Where every entry of a fixed-pattern ``K`` (3n × 3n CSR) goes in ``K_q = Pᵀ K P`` (module docstring).
+
+    Built once per pattern.  ``K_q``'s pattern: the free–free entries of ``K``, the 6 cap columns on every free
+    row coupled to a cap DOF, the 6 cap rows on every free column coupled to a cap DOF, and the full 6 × 6 cap
+    block (always present, so the rigid-link and point-load terms have their places).
+    """
+
+    def __init__(self, red: RigidCapReduction, K: sp.csr_matrix):
+        n = K.shape[0]
+        self.indptr_k, self.indices_k = K.indptr, K.indices
+        nf, nq = red.n_free, red.n_q
+        qd = -np.ones(n, np.int64)
+        qd[red.free_dofs] = np.arange(nf)
+        cd = -np.ones(n, np.int64)
+        cd[red.cap_dofs] = np.arange(red.cap_dofs.size)
+        rows = np.repeat(np.arange(n), np.diff(K.indptr))
+        cols = K.indices.astype(np.int64)
+        ff = (qd[rows] >= 0) & (qd[cols] >= 0)
+        fc = (qd[rows] >= 0) & (cd[cols] >= 0)
+        cf = (cd[rows] >= 0) & (qd[cols] >= 0)
+        cc = (cd[rows] >= 0) & (cd[cols] >= 0)
+        self.src_ff = np.flatnonzero(ff)
+        self.src_fc, self.src_cf, self.src_cc = np.flatnonzero(fc), np.flatnonzero(cf), np.flatnonzero(cc)
+        # K_fc P_c: free row q, summed over the cap columns; rows_fc = the distinct free rows, slot_fc per entry
+        self.rows_fc, self.slot_fc = np.unique(qd[rows[fc]], return_inverse=True)
+        self.cap_fc = cd[cols[fc]]
+        self.cols_cf, self.slot_cf = np.unique(qd[cols[cf]], return_inverse=True)
+        self.cap_cf = cd[rows[cf]]
+        self.cc_r, self.cc_c = cd[rows[cc]], cd[cols[cc]]
+        self.n_cap = red.cap_dofs.size
+        six = np.arange(6)
+        keys = np.concatenate([
+            qd[rows[ff]] * nq + qd[cols[ff]],
+            (self.rows_fc[:, None] * nq + nf + six[None, :]).ravel(),
+            ((nf + six[:, None]) * nq + self.cols_cf[None, :]).ravel(),
+            ((nf + six[:, None]) * nq + nf + six[None, :]).ravel()])
+        ukeys = np.unique(keys)
+        self.indices = (ukeys % nq).astype(np.int32)
+        self.indptr = np.zeros(nq + 1, np.int64)
+        np.add.at(self.indptr, ukeys // nq + 1, 1)
+        self.indptr = np.cumsum(self.indptr)
+        if self.indptr[-1] < 2**31:
+            self.indptr = self.indptr.astype(np.int32)
+        pos = np.searchsorted(ukeys, keys)
+        a, b, c = self.src_ff.size, self.rows_fc.size * 6, self.cols_cf.size * 6
+        self.pos_ff = pos[:a]
+        self.pos_fc = pos[a:a + b]                         # (rows_fc, 6) in C order
+        self.pos_cf = pos[a + b:a + b + c]                 # (6, cols_cf)
+        self.pos_cc = pos[a + b + c:].reshape(6, 6)
+        self.nnz = ukeys.size
+
+    def matches(self, K: sp.csr_matrix) -> bool:
+        """True when ``K`` has the pattern this map was built for."""
+        return ((K.indptr is self.indptr_k or np.array_equal(K.indptr, self.indptr_k))
+                and (K.indices is self.indices_k or np.array_equal(K.indices, self.indices_k)))
+
+    def reduce(self, kdata: np.ndarray, Pc: np.ndarray) -> np.ndarray:
+        """``K_q``'s data from ``K``'s data and ``P_c`` (3 n_cap, 6)."""
+        data = np.zeros(self.nnz)
+        data[self.pos_ff] = kdata[self.src_ff]
+        v = kdata[self.src_fc]
+        fc = np.empty((self.rows_fc.size, 6))
+        for j in range(6):
+            fc[:, j] = np.bincount(self.slot_fc, weights=v * Pc[self.cap_fc, j], minlength=self.rows_fc.size)
+        data[self.pos_fc] = fc.ravel()
+        v = kdata[self.src_cf]
+        cf = np.empty((6, self.cols_cf.size))
+        for j in range(6):
+            cf[j] = np.bincount(self.slot_cf, weights=v * Pc[self.cap_cf, j], minlength=self.cols_cf.size)
+        data[self.pos_cf] = cf.ravel()
+        Kcc = np.zeros((self.n_cap, self.n_cap))
+        Kcc[self.cc_r, self.cc_c] = kdata[self.src_cc]
+        data[self.pos_cc.ravel()] += (Pc.T @ Kcc @ Pc).ravel()
+        return data
