@@ -149,6 +149,11 @@ def modes_sentences(modes: dict) -> list:
         a, b = rod[0], rod[-1]
         out.append(f"From {a['pressure_kPa']:g} to {b['pressure_kPa']:g} kPa the rod's first bending frequency "
                    f"changes by {change(a, b, 'rod_bending_frequency_hz'):+.0f} %.")
+    if fem and fem[0]["bending_difference_pct"] is not None and abs(fem[0]["bending_difference_pct"]) > 5:
+        out.append(f"At {fem[0]['pressure_kPa']:g} kPa the rod's bending frequency is already "
+                   f"{fem[0]['bending_difference_pct']:+.0f} % off: the law is fitted over the whole load range, "
+                   "a mode is a small vibration about one state (compare the fitted EI with the FEM's small-load "
+                   "tangent in the diagnostics).")
     if modes["fem"] == "computed":
         out.append("The rod's masses are the FEM's, so a frequency difference is a stiffness difference. The "
                    "rod's bending stiffness EI(λ) depends on its stretch only, not on the pressure: where "

@@ -196,3 +196,28 @@ def test_fem_mode_classification_ignores_torsion():
                        [1e-3, 0, 0, 1e-9, 0, 0]])        # axial
     out = fem_sweep.classify_fem_modes([1.0, 2.0, 3.0], shapes, axis, 0.16)
     assert out == {"bending_hz": 2.0, "axial_hz": 3.0}
+
+
+# ------------------------------------------------------------------------------------ the documented numbers
+@pytest.mark.slow
+def test_the_documented_report_modes_are_the_programs_output(tmp_path_factory):
+    """docs/identification.md's Dynamics table is the full report's on the `paper` design: the identification
+    of every form and the FEM modes rerun (coarse mesh; ~15–20 min on 2 shared cores with an empty cache,
+    seconds with the FEM cache of a report run in $BELLOWS_FEM_CACHE)."""
+    import os
+    import pathlib
+    from validation.forms import FORMS
+    text = (pathlib.Path(__file__).parents[2] / "docs" / "identification.md").read_text()
+    rows = re.findall(r"^\| (\d+) \| ([\d.]+) \| ([\d.]+) \| ([+−-][\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([+−-][\d.]+) \|$",
+                      text, re.M)
+    assert len(rows) == 3
+    cache = pathlib.Path(os.environ.get("BELLOWS_FEM_CACHE") or tmp_path_factory.mktemp("fem_cache"))
+    fem = cli._fem_design("paper", None, None)
+    res = cli._identify_fem(fem, "coarse", 2, None, cache, FORMS, False)
+    m = cli._report_modes(res, fem, "coarse", cache, quick=False)
+    for doc, row in zip(rows, m["rows"]):
+        got = (f"{row['pressure_kPa']:g}", f"{row['fem_bending_frequency_hz']:.3f}",
+               f"{row['rod_bending_frequency_hz']:.3f}", f"{row['bending_difference_pct']:+.1f}",
+               f"{row['fem_axial_frequency_hz']:.2f}", f"{row['rod_axial_frequency_hz']:.2f}",
+               f"{row['axial_difference_pct']:+.1f}")
+        assert tuple(x.replace("−", "-") for x in doc) == got
