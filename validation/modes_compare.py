@@ -5,7 +5,7 @@ held at 0 N), the first bending and the first axial frequency [Hz] of the reduce
 (:meth:`ancf.Model.modes` of the identified parameters) and of the FEM
 (:meth:`fem_reference.BellowsModel.modes` through :func:`validation.fem_sweep.run_modes`, cached like the
 load cases) and their relative difference.  The rod's masses are the FEM's (the wall's line mass, the cap
-as tip mass: ``fem_base_params``), so a difference in frequency is a stiffness difference.  Without gravity
+as tip mass at the tool point: ``fem_base_params``), so a difference in frequency is a stiffness difference.  Without gravity
 when compared with the FEM (its load cases have none), with the actuator's own gravity otherwise.  When
 the parameters carry damping coefficients (``rayleigh_alpha_per_s``, ``rayleigh_beta_s``,
 ``axial_damping_N_s``) the rod's first-mode damping ratio is given too.
