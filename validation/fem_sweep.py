@@ -44,7 +44,8 @@ def fem_fingerprint() -> str:
                                        files=("validation.fem_sweep", "validation.experiments"))
 
 
-__all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "fem_model", "solve_task", "plan_chains", "locked_compliance"]
+__all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "run_modes", "fem_model", "solve_task", "plan_chains",
+           "locked_compliance", "modes_chain", "classify_fem_modes"]
 
 
 @dataclass(frozen=True)
@@ -132,10 +133,12 @@ def _centreline_s(model) -> np.ndarray:
 
 def solve_task(task: dict):
     """Worker entry point: ``task["kind"]`` is ``"chain"`` (:func:`solve_chain`), ``"case"``
-    (:func:`solve_case`) or ``"rod"`` (:func:`rod_estimate`)."""
+    (:func:`solve_case`), ``"rod"`` (:func:`rod_estimate`) or ``"modes"`` (:func:`modes_chain`)."""
     kind = task.get("kind")
     if kind == "rod":
         return rod_estimate(task)
+    if kind == "modes":
+        return modes_chain(task)
     if kind == "chain":
         return solve_chain(task)
     return solve_case(task)
@@ -347,3 +350,92 @@ def run_rod(spec: FemSpec, *, cache_dir=None) -> dict:
     task = {"kind": "rod", "spec": spec}
     return run_tasks(solve_task, [task], workers=1, progress=False, cache=cache,
                      key_inputs=lambda t: {**t["spec"].key(), "kind": "rod"}).results[0]
+
+
+#: modes asked of the FEM per state: enough to hold the first bending pair, the second, the first axial and
+#: the first torsion mode of a bellows
+FEM_MODE_COUNT = 8
+
+
+def classify_fem_modes(frequencies_hz, cap_shapes, axis, length: float) -> dict:
+    """The first bending and first axial frequency [Hz] among FEM modes, from the rigid cap's motion in each
+    shape (``cap_shapes`` (k, 6): translation [m], rotation [rad]; ``axis``: the actuator's axis at the state):
+    a shape whose cap translation is not small beside its rotation times ``length`` (torsion has none) is
+    *axial* when ≥ 90 % of the translation lies along the axis and *bending* when ≥ 90 % lies across it.
+    None where no mode of the kind is among those computed."""
+    e = np.asarray(axis, float) / np.linalg.norm(axis)
+    out = {"bending_hz": None, "axial_hz": None}
+    for f, s in zip(frequencies_hz, np.asarray(cap_shapes, float)):
+        u, th = s[:3], s[3:]
+        nu = np.linalg.norm(u)
+        if not nu > 0.1 * length * np.linalg.norm(th):
+            continue
+        along = abs(float(u @ e))
+        across = float(np.linalg.norm(u - (u @ e) * e))
+        if out["axial_hz"] is None and along > 0.9 * nu:
+            out["axial_hz"] = float(f)
+        elif out["bending_hz"] is None and across > 0.9 * nu:
+            out["bending_hz"] = float(f)
+    return out
+
+
+def modes_chain(task: dict) -> list:
+    """Worker: the FEM's first bending and axial modes (tensions held, :meth:`fem_reference.BellowsModel.modes`)
+    at each pressure of ``task["pressures"]`` [Pa] with the tensions ``task["tensions"]`` [N], no gravity; each
+    state warm-started from the previous one.  One dict per pressure: pressure_Pa, bending_hz, axial_hz,
+    frequencies_hz (every mode computed), total_mass_kg, seconds, error (the failure text, '' if none; then
+    the frequencies are None)."""
+    spec: FemSpec = task["spec"]
+    model = fem_model(spec)
+    length = float(spec.geometry.length)
+    out, prev = [], None
+    for p in task["pressures"]:
+        t0 = time.perf_counter()
+        row = {"pressure_Pa": float(p), "bending_hz": None, "axial_hz": None, "frequencies_hz": None,
+               "total_mass_kg": None, "seconds": 0.0, "error": ""}
+        res, err = None, ""
+        for initial in ((prev, None) if prev is not None else (None,)):
+            try:
+                res = model.solve(tensions=task["tensions"], pressure=float(p), initial=initial)
+                break
+            except BellowsError as exc:
+                err = f"{type(exc).__name__}: {exc}"
+        if res is not None:
+            prev = res
+            try:
+                md = model.modes(res, FEM_MODE_COUNT, tendons="held")
+            except BellowsError as exc:
+                err = f"{type(exc).__name__}: {exc}"
+            else:
+                err = ""
+                axis = np.asarray(res.tip_position, float)
+                row.update(classify_fem_modes(md.frequencies_hz, md.cap_shapes, axis, length))
+                row["frequencies_hz"] = [float(f) for f in md.frequencies_hz]
+                row["total_mass_kg"] = float(md.total_mass)
+        row["error"] = err
+        row["seconds"] = time.perf_counter() - t0
+        out.append(row)
+    return out
+
+
+def run_modes(spec: FemSpec, pressures: Sequence[float], tensions: Sequence[float], *, cache_dir=None,
+              progress: bool = False) -> list:
+    """:func:`modes_chain` of ``spec`` in this process, cached like the load cases (one entry per design,
+    mesh, pressures and tensions).  Loads outside the FEM's operating limits are refused first
+    (:class:`~ancf.errors.LimitError`)."""
+    from fem_reference import OperatingLimits
+    pressures = [float(p) for p in pressures]
+    tensions = [float(t) for t in tensions]
+    if not pressures:
+        raise InputError("run_modes: no pressures")
+    if len(tensions) != len(spec.geometry.tendon_angles):
+        raise InputError(f"run_modes: {len(tensions)} tensions for a design with "
+                         f"{len(spec.geometry.tendon_angles)} tendons")
+    for p in pressures:
+        OperatingLimits().check_loads(tensions, p, (0.0, 0.0, 0.0))
+    cache = None if cache_dir is None else ResultCache(cache_dir, version=fem_fingerprint())
+    task = {"kind": "modes", "spec": spec, "pressures": pressures, "tensions": tensions}
+    return run_tasks(solve_task, [task], workers=1, progress=progress, description=f"FEM modes ({spec.mesh} mesh)",
+                     cache=cache, key_inputs=lambda t: {**t["spec"].key(), "kind": "modes",
+                                                        "pressures": t["pressures"], "tensions": t["tensions"],
+                                                        "count": FEM_MODE_COUNT}).results[0]

@@ -155,6 +155,8 @@ class IdentificationResult:
     rod: Optional[dict] = None
     provenance: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
+    #: the report's Dynamics section (:func:`validation.modes_compare.compare_modes`), None if not computed
+    modes: Optional[dict] = None
 
     @property
     def fit(self) -> FitResult:
@@ -231,7 +233,8 @@ class IdentificationResult:
             "heldout_labels": None if self.heldout is None else self.heldout.labels,
             "design": None if self.design is None else self.design.to_dict(),
             "fem_records": [r.to_dict() for r in self.records], "rod_estimate": self.rod,
-            "actuator_toml": self.params.to_toml(), "provenance": self.provenance, "meta": self.meta})
+            "actuator_toml": self.params.to_toml(), "provenance": self.provenance, "meta": self.meta}
+            | ({} if self.modes is None else {"modes": self.modes}))
 
     def save(self, path, *, force: bool = False) -> pathlib.Path:
         """Write the fit data as JSON (see :meth:`to_dict`)."""
@@ -305,12 +308,13 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
 
 
 def _finalise_params(res: IdentificationResult, base: ActuatorParams) -> None:
-    """Give the chosen parameters the base actuator's name, masses and limits (the fit ran without gravity
-    where the data had none)."""
-    p = res.fit.params
-    res.params = p.replace(line_mass=base.line_mass, tip_mass=base.tip_mass, gravity=base.gravity)
+    """Give the chosen parameters the base actuator's name, masses, damping and limits (the fit ran without
+    gravity where the data had none; static states say nothing about mass or damping)."""
+    keep = dict(line_mass=base.line_mass, tip_mass=base.tip_mass, gravity=base.gravity,
+                rayleigh_alpha=base.rayleigh_alpha, rayleigh_beta=base.rayleigh_beta, axial_damping=base.axial_damping)
+    res.params = res.fit.params.replace(**keep)
     for f in res.fits.values():
-        f.params = f.params.replace(line_mass=base.line_mass, tip_mass=base.tip_mass, gravity=base.gravity)
+        f.params = f.params.replace(**keep)
 
 
 # ---------------------------------------------------------------------------------------------- from the FEM

@@ -41,7 +41,8 @@ FORMS_HELP = f"Model forms to compare, comma separated, from {one_of(FORMS)} (de
 DEFAULT_CACHE = pathlib.Path("bellows_out/fem_cache")
 QUICK_FORMS = ("paper", "separate")
 N_FEM_CASES = len(default_design().cases)
-QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)} and no stiffness-vs-tension study. The FEM solves of the "
+QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)}, no stiffness-vs-tension study and no FEM modes (the "
+              "Dynamics section shows the rod's). The FEM solves of the "
               f"design's {N_FEM_CASES} load cases still dominate: 7.5 min measured on 2 busy shared cores with an empty "
               "--cache (less on an idle machine); a re-run whose solves are cached takes seconds.")
 FREE_PARAMETERS = GEOMETRY_PARAMETERS + MATERIAL_PARAMETERS
@@ -241,6 +242,42 @@ def validate_cmd(
     console.print(f"wrote {d / 'validation.json'}")
 
 
+def _report_modes(res, fem, mesh, cache, quick: bool) -> dict:
+    """The report's Dynamics data (validation/modes_compare.py): the identified rod's first bending and axial
+    modes per pressure, tendons slack, beside the FEM's (computed and cached here, not with --quick)."""
+    from .fem_sweep import FemSpec, run_modes
+    from .modes_compare import MEASURED_NOTE, QUICK_NOTE, compare_modes, report_pressures
+    p = res.params
+    slack = [0.0] * len(p.tendons)
+    if fem is None:
+        return compare_modes(p, report_pressures(p.pressure_max), slack, fem_note=MEASURED_NOTE, gravity=True)
+    _, geo, mat, limits = fem
+    pressures = report_pressures(limits["pressure_max"])
+    if quick:
+        return compare_modes(p, pressures, slack, fem_note=QUICK_NOTE)
+    console.print(f"FEM modes at {', '.join(f'{x / 1e3:g}' for x in pressures)} kPa …")
+    t0 = time.perf_counter()
+    fem_rows = run_modes(FemSpec(geo, mat, mesh), pressures, slack, cache_dir=cache)
+    console.print(f"FEM modes: {time.perf_counter() - t0:.1f} s")
+    return compare_modes(p, pressures, slack, fem=fem_rows)
+
+
+def _print_modes(modes: Optional[dict]) -> None:
+    if not modes:
+        return
+    t = Table(title=escape(f"First modes, tendons slack (FEM: {modes['fem']})"))
+    for c in ("pressure [kPa]", "FEM bending [Hz]", "rod bending [Hz]", "difference [%]", "FEM axial [Hz]",
+              "rod axial [Hz]", "difference [%]"):
+        t.add_column(escape(c), justify="right")
+    f = lambda v, fmt: "–" if v is None else format(v, fmt)  # noqa: E731
+    for r in modes["rows"]:
+        t.add_row(f"{r['pressure_kPa']:g}", f(r["fem_bending_frequency_hz"], ".3f"),
+                  f(r["rod_bending_frequency_hz"], ".3f"), f(r["bending_difference_pct"], "+.1f"),
+                  f(r["fem_axial_frequency_hz"], ".2f"), f(r["rod_axial_frequency_hz"], ".2f"),
+                  f(r["axial_difference_pct"], "+.1f"))
+    console.print(t)
+
+
 REPORT_FILES = ("report.html", "actuator.toml", "fit.json", "validation.json", "stiffness.json", "figures")
 
 
@@ -283,6 +320,7 @@ def report_cmd(
             _, geo, mat, _ = fem
             stiff = stiffness_vs_tension(res.params, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler,
                                          cache_dir=cache)
+    res.modes = _report_modes(res, fem, mesh, cache, quick)
     res.meta["command"] = _command_line()
     res.to_toml(d / "actuator.toml", force=force)
     res.save(d / "fit.json", force=force)
@@ -291,10 +329,11 @@ def report_cmd(
     if stiff is not None:
         atomic_write_text(d / "stiffness.json", json.dumps(to_jsonable(stiff), indent=1))
     path = write_report(d / "report.html", res, val, stiff, force=force, figures_dir=d / "figures",
-                        command=_command_line())
+                        command=_command_line(), modes=res.modes)
     _print_identification(res)
     if val is not None:
         _print_validation(val)
+    _print_modes(res.modes)
     console.print(f"{time.perf_counter() - t0:.0f} s; wrote {path} (open it in a browser), actuator.toml, "
                   f"fit.json{', validation.json' if val else ''}{', stiffness.json' if stiff else ''} and figures/ in {d}")
 

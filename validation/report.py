@@ -10,7 +10,9 @@ Sections: identified parameters with 95 % CIs (non-identifiable ones shown as su
 and the closed-form first estimate; the model forms compared on held-out error; parameter correlations;
 error per state; the reduced model vs the FEM on held-out states (tip, shape, compliance, stiffness
 per axis, locked/constant stiffness ratio), shape overlays and compliance ellipses; the Fig. 9 analogue;
-diagnostics (what the numbers imply, the paper's values beside ours); provenance (versions, git revision).
+dynamics (the rod's first bending and axial frequencies beside the FEM's, per pressure:
+:mod:`validation.modes_compare`); diagnostics (what the numbers imply, the paper's values beside ours);
+provenance (versions, git revision).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from . import report_figures as figs
 from .compare import N_SHAPE_POINTS, ValidationResult
 from .forms import MEANINGS, REPORTED, display_unit
 from .identify import PARSIMONY, IdentificationResult
+from .modes_compare import modes_sentences
 
 __all__ = ["build_report", "write_report", "report_figures"]
 
@@ -205,6 +208,28 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
     return d
 
 
+def _f(v, fmt) -> str:
+    return "–" if v is None else format(v, fmt)
+
+
+def _modes_rows(modes: Optional[dict]) -> list[dict]:
+    """The Dynamics table's rows (text) from :func:`validation.modes_compare.compare_modes`."""
+    if not modes:
+        return []
+    computed = modes.get("fem") == "computed"
+    out = []
+    for r in modes["rows"]:
+        fem_err = r.get("fem_error") or ""
+        note = "" if computed and not fem_err else (fem_err or modes.get("fem", ""))
+        out.append({"p": f"{r['pressure_kPa']:g}", "fem_b": _f(r["fem_bending_frequency_hz"], ".3f"),
+                    "rod_b": _f(r["rod_bending_frequency_hz"], ".3f"), "d_b": _f(r["bending_difference_pct"], "+.1f"),
+                    "fem_a": _f(r["fem_axial_frequency_hz"], ".2f"), "rod_a": _f(r["rod_axial_frequency_hz"], ".2f"),
+                    "d_a": _f(r["axial_difference_pct"], "+.1f"),
+                    "zeta": _f(r.get("rod_first_mode_damping_ratio"), ".4f"),
+                    "fem_note": note, "rod_error": r.get("rod_error") or ""})
+    return out
+
+
 def _provenance_rows(ident: IdentificationResult, command: Optional[str]) -> list:
     p = ident.provenance
     rows = [("created", p.get("created", "")), ("git revision", p.get("git_revision", "")),
@@ -223,9 +248,11 @@ def _provenance_rows(ident: IdentificationResult, command: Optional[str]) -> lis
 
 def build_report(ident: IdentificationResult, validation: Optional[ValidationResult] = None,
                  stiffness: Optional[dict] = None, *, title: Optional[str] = None, command: Optional[str] = None,
-                 toml_name: str = "actuator.toml", figures: Optional[dict] = None) -> str:
+                 toml_name: str = "actuator.toml", figures: Optional[dict] = None,
+                 modes: Optional[dict] = None) -> str:
     """The report as one HTML string (see the module docstring).  ``figures``: PNG bytes from
-    :func:`report_figures` (computed if not given)."""
+    :func:`report_figures` (computed if not given); ``modes``: the Dynamics section's data
+    (:func:`validation.modes_compare.compare_modes`; no section without it)."""
     if not isinstance(ident, IdentificationResult):
         raise InputError(f"build_report needs an IdentificationResult, got {type(ident).__name__}")
     import jinja2
@@ -265,6 +292,8 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "n_shape_points": N_SHAPE_POINTS, "stiffness": stiffness,
         "diagnostics": _diagnostics(ident, validation, stiffness),
         "provenance_rows": _provenance_rows(ident, command),
+        "modes": modes, "modes_rows": _modes_rows(modes),
+        "modes_sentences": [] if not modes else modes_sentences(modes),
     }
     return env.get_template("report.html.j2").render(**ctx)
 

@@ -211,13 +211,14 @@ def test_a_dying_worker_is_a_typed_error_that_keeps_finished_results(tmp_path):
 
 def test_fem_cache_version_covers_every_module_that_computes_a_cached_result(monkeypatch):
     """Cached FEM records hold numbers computed in validation/ too (the sweep worker, rod measures, locked
-    compliance, the load cases): each of those modules must be hashed into the cache version, or an edit to
-    them would serve stale results."""
+    compliance, the load cases, the modes per pressure): each of those modules must be hashed into the cache
+    version, or an edit to them would serve stale results."""
     import validation.fem_sweep as fs
     seen = {}
     monkeypatch.setattr(fs, "source_fingerprint",
                         lambda pkg, exclude=(), files=(): seen.update(pkg=pkg, files=set(files)) or "x")
     fs.fem_fingerprint()
     assert seen["pkg"] == "fem_reference"
-    for fn in (fs.solve_task, fs.solve_chain, fs.rod_estimate, fs.locked_compliance, fs.LoadCase):
+    for fn in (fs.solve_task, fs.solve_chain, fs.rod_estimate, fs.locked_compliance, fs.LoadCase, fs.modes_chain,
+               fs.classify_fem_modes):
         assert fn.__module__ in seen["files"], fn.__qualname__
