@@ -92,7 +92,7 @@ INFEASIBLE = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError, I
 _RETRY = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError)
 #: Signed parameters (slopes, intercepts) for which zero is a meaningful value: rule (2) of the module
 #: docstring (CI wider than the value) does not apply to them.
-SIGNED = frozenset({"a", "b", "beta", "sA", "sI"})
+SIGNED = frozenset({"a", "b", "beta", "sA", "sI", "pI1", "pI2", "pA1"})
 
 
 @dataclass
