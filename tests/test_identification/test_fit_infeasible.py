@@ -61,13 +61,13 @@ def test_failing_trial_solve_is_rejected_and_the_fit_finishes(monkeypatch, error
     state = {"theta": None, "failed": 0, "trial": False}
     real_eval, real_fk = fitmod._Evaluator.evaluate, Model.fk
 
-    def evaluate(self, theta, jacobian=True):
+    def evaluate(self, theta, jacobian=True, **kwargs):
         theta = np.asarray(theta, float)
         state["trial"] = (state["failed"] == 0 and not jacobian
                           and not np.allclose(theta, np.clip(theta0, form.lower, form.upper)))
         q_before = [None if q is None else q.copy() for q in self.q]
         try:
-            return real_eval(self, theta, jacobian)
+            return real_eval(self, theta, jacobian, **kwargs)
         except type(error):
             # warm starts untouched by the failed θ
             assert all((a is None and b is None) or np.array_equal(a, b) for a, b in zip(q_before, self.q))
@@ -95,5 +95,36 @@ def test_failure_at_the_initial_parameters_stays_a_typed_error(monkeypatch):
         raise UnstableEquilibriumError("stub", solver="fk", min_eigenvalue=-2.0)
 
     monkeypatch.setattr(Model, "fk", fk)
-    with pytest.raises(UnstableEquilibriumError, match="FK of state .* failed for constant parameters"):
+    with pytest.raises(UnstableEquilibriumError, match="the fit of form constant cannot start: .* of .* states"):
         fit(form, obs, BASE, TRUE, max_nfev=10)
+
+
+def test_a_start_that_fails_names_every_failing_state_and_the_parameters(monkeypatch):
+    """Two of the states have no equilibrium at the starting parameters (one collapses, one is unstable):
+    the fit cannot start, and its typed error names both states with their own failure, the form and every
+    starting parameter, and carries them as attributes; the states that solved are not blamed."""
+    form, obs = _obs(TRUE)
+    bad = {obs.labels[1]: CollapsedStateError("stub collapse", solver="fk", stretch=0.3),
+           obs.labels[3]: UnstableEquilibriumError("stub saddle", solver="fk", min_eigenvalue=-2.0)}
+    real_fk = Model.fk
+    labels_by_load = {(tuple(obs.tensions[i]), float(obs.pressure[i]), tuple(obs.tip_force[i])): obs.labels[i]
+                      for i in range(obs.n)}
+
+    def fk(self, T, p, F, *args, **kwargs):
+        label = labels_by_load[(tuple(np.asarray(T, float)), float(p), tuple(np.asarray(F, float)))]
+        if label in bad:
+            raise bad[label]
+        return real_fk(self, T, p, F, *args, **kwargs)
+
+    monkeypatch.setattr(Model, "fk", fk)
+    with pytest.raises(CollapsedStateError) as info:
+        fit(form, obs, BASE, TRUE, max_nfev=10)
+    msg = str(info.value)
+    assert "cannot start" in msg and "2 of" in msg
+    for label, err in bad.items():
+        assert f"'{label}'" in msg and type(err).__name__ in msg
+    for good in set(obs.labels) - set(bad):
+        assert f"'{good}'" not in msg
+    assert "EA = 767.2 N" in msg and "EI = 0.0839 N m^2" in msg and "D_eff = 0.02605 m" in msg
+    assert [s for s, _ in info.value.failed_states] == [obs.labels[1], obs.labels[3]]
+    assert info.value.parameters == dict(zip(form.names, TRUE))
