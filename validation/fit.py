@@ -242,7 +242,11 @@ class _Evaluator:
             return self._cache
         self.nfev += 1
         obs, form = self.obs, self.form
-        params, m_g, m_0 = self._models(theta)
+        try:
+            params, m_g, m_0 = self._models(theta)
+        except (InputError, ConfigError) as exc:
+            raise type(exc)(f"the model refuses the {form.name} parameters ({_parameter_text(form, theta)}): "
+                            f"{exc}") from None
         k = 0 if obs.markers is None else obs.marker_s.size
         S = None if k == 0 else position_matrix(params.n_elements, params.length, obs.marker_s)
         pred = np.zeros((obs.n, 3 + 3 * k))

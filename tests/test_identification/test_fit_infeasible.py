@@ -128,3 +128,22 @@ def test_a_start_that_fails_names_every_failing_state_and_the_parameters(monkeyp
     assert "EA = 767.2 N" in msg and "EI = 0.0839 N m^2" in msg and "D_eff = 0.02605 m" in msg
     assert [s for s, _ in info.value.failed_states] == [obs.labels[1], obs.labels[3]]
     assert info.value.parameters == dict(zip(form.names, TRUE))
+
+
+def test_parameters_the_model_refuses_are_named_with_the_form():
+    """A pressure factor that is not positive over the actuator's pressure limits (1 − 1.5 p̂ + 0.3 p̂² < 0 above
+    79 kPa) is refused by the parameters: at the start of a fit that is a ConfigError naming the form and
+    every parameter; at a trial step the same error is a rejected step (``fit.INFEASIBLE``)."""
+    from ancf.errors import ConfigError
+    form = get_form("pressure_ei")
+    cases = list(default_design().training[::4])
+    theta = np.array([700.0, 900.0, 0.09, 0.15, 0.8, 0.3, 0.024])
+    obs = Observations([c.tensions for c in cases], [c.pressure for c in cases], [c.tip_force for c in cases],
+                       [False] * len(cases), np.zeros((len(cases), 3)), labels=[c.label for c in cases])
+    obs.tip = predict(form.to_params(theta, BASE), obs)[:, :3]
+    bad = theta.copy()
+    bad[4] = -1.5
+    with pytest.raises(ConfigError, match=r"refuses the pressure_ei parameters \(EA1 = 700 N, .*pI1 = -1.5, "
+                                          r"pI2 = 0.3, D_eff = 0.024 m\).*pressure factor of EI"):
+        fit(form, obs, BASE, bad, max_nfev=10)
+    assert ConfigError in fitmod.INFEASIBLE
