@@ -40,7 +40,6 @@ from . import assembly as _asm
 from .assembly import assemble
 from .errors import (
     CollapsedStateError,
-    ConfigError,
     ConvergenceError,
     InfeasibleTargetError,
     InputError,
@@ -253,20 +252,23 @@ class Model:
         return np.ascontiguousarray(T, dtype=float), pr, np.ascontiguousarray(F, dtype=float)
 
     def _check_law_pressure(self, pr: float) -> None:
-        """InputError when a pressure factor of the stiffness law is not positive at ``pr`` [Pa] (only reachable
-        with ``check_limits=False`` outside the actuator's pressure range, over which the parameters checked it)."""
+        """InputError when a pressure factor of the stiffness law is not positive between 0 and ``pr`` [Pa] (the
+        pressures a solve at ``pr`` passes through when it steps its loads; only reachable with
+        ``check_limits=False`` outside the actuator's pressure range, over which the parameters checked it)."""
         if self._law.pressure_dependent:
-            try:
-                self._law.check_pressure(pr)
-            except ConfigError as exc:
-                raise InputError(str(exc)) from None
+            f, at, which = self._law.pressure_factor_minimum(min(0.0, pr), max(0.0, pr))
+            if not f > 0:
+                raise InputError(f"the stiffness law's pressure factor of {which} is {f:.4g} ≤ 0 at p = "
+                                 f"{at / 1e3:g} kPa ({which} would not be positive there): the law is not valid "
+                                 f"for a solve at {pr / 1e3:g} kPa")
 
     def stiffness_coefficients(self, pressure: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
         """Stretch-polynomial coefficients (ea [N], ei [N m²]) of EA(λ, p), EI(λ, p) at ``pressure`` [Pa]: the
         stiffness every solve at that pressure uses (:meth:`ancf.StiffnessLaw.coefficients`)."""
         pr = float(check_finite("pressure", pressure, ()))
         self._check_law_pressure(pr)
-        return self._coeffs(pr)
+        ea, ei = self._coeffs(pr)
+        return ea.copy(), ei.copy()
 
     def _coeffs(self, pr: float) -> tuple[np.ndarray, np.ndarray]:
         """(ea, ei) at pressure ``pr`` [Pa], contiguous, unchecked (the p = 0 arrays themselves for a law

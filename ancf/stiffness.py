@@ -17,8 +17,8 @@ Axial energy per unit reference length.  With Green strain ε = ½(λ² − 1) a
 
 so that W(1) = W'(1) = 0 at the undeformed state (for the constant law W = EA ε² / 2).
 
-Pressure-dependent stiffness.  A pressurised bellows is stiffer in bending than its stretch alone explains
-(the wall is pre-tensioned by the pressure; docs/identification.md).  Either stiffness may carry a factor
+Pressure-dependent stiffness.  A pressurised bellows can be stiffer in bending than its stretch alone
+explains (measured on the FEM of the default bellows: docs/identification.md).  Either stiffness may carry a factor
 polynomial in the normalised pressure p̂ = p / P_REF, P_REF = 100 kPa:
 
     EI(λ, p) = EI(λ) · f_I(p̂),   f_I = 1 + Σ_{j≥1} c_I,j p̂^j,      EA(λ, p) = EA(λ) · f_A(p̂)  (likewise),
@@ -236,16 +236,6 @@ class StiffnessLaw(BaseModel):
                 if f < best[0]:
                     best = (f, pr, which)
         return best
-
-    def check_pressure(self, pressure: float) -> None:
-        """ConfigError when a pressure factor is not positive at ``pressure`` [Pa] (EA or EI would be ≤ 0)."""
-        if not self.pressure_dependent:
-            return
-        f, p, which = self.pressure_factor_minimum(pressure, pressure)
-        if not f > 0:
-            raise ConfigError(f"stiffness law: the pressure factor of {which} is {f:.4g} ≤ 0 at p = "
-                              f"{p / 1e3:g} kPa ({which} would not be positive there): the law is not valid "
-                              "at this pressure")
 
     # ---------------------------------------------------------------- evaluation (numpy, scalar or array)
     @property
