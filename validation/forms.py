@@ -35,8 +35,9 @@ form                law                                                         
 
 k₁ = EA(1) rather than the paper's intercept b is fitted (b = k₁ − a is reported) so that the axial
 stiffness at rest — the best-determined quantity — is one parameter, bounded positive.  Every form reports
-the same derived values: ``a``, ``b`` (EA(λ) = a λ + b), ``EA``, ``EI`` (at λ = 1), ``D_a = √(8 EI/EA)`` at
-λ = 1 and ``D_eff``; ``beta`` for the area forms.
+the same derived values: ``a``, ``b`` (EA(λ) = a λ + b), ``EA``, ``EI`` (at λ = 1 and p = 0),
+``D_a = √(8 EI/EA)`` at λ = 1 and ``D_eff``; ``beta`` for the area forms; ``EI_100kPa`` (and ``EA_100kPa``) for
+the pressure forms.
 """
 
 from __future__ import annotations
@@ -55,7 +56,8 @@ from ancf.errors import InputError
 __all__ = ["ModelForm", "FORMS", "get_form", "position_matrix", "REPORTED", "MEANINGS", "display_unit"]
 
 #: Derived values every form reports, with units.
-REPORTED = {"a": "N", "b": "N", "EA": "N", "EI": "N m^2", "D_a": "m", "D_eff": "m", "beta": "-", "d": "m"}
+REPORTED = {"a": "N", "b": "N", "EA": "N", "EI": "N m^2", "D_a": "m", "D_eff": "m", "beta": "-", "d": "m",
+            "EI_100kPa": "N m^2", "EA_100kPa": "N"}
 
 #: What each parameter of a form (``ModelForm.names``) and each reported value means (tables of the report).
 MEANINGS = {
@@ -69,6 +71,8 @@ MEANINGS = {
     "pI1": "pressure coefficient of EI: EI(λ, p) = EI(λ)(1 + pI1 p̂ + pI2 p̂²), p̂ = p/100 kPa",
     "pI2": "quadratic pressure coefficient of EI (see pI1)",
     "pA1": "pressure coefficient of EA: EA(λ, p) = EA(λ)(1 + pA1 p̂), p̂ = p/100 kPa",
+    "EI_100kPa": "bending stiffness at rest at 100 kPa, EI(1, 100 kPa)",
+    "EA_100kPa": "axial stiffness at rest at 100 kPa, EA(1, 100 kPa)",
 }
 
 
@@ -170,6 +174,11 @@ class ModelForm:
             out["beta"] = float(c[1] / A1)
         if d is not None:
             out["d"] = float(d)
+        if self.pressure is not None:          # the stiffnesses at rest at 100 kPa (p̂ = 1)
+            pA, pI = self.pressure(np.asarray(theta, float))
+            out["EI_100kPa"] = EI1 * _factor(pI, 1.0)
+            if len(pA):
+                out["EA_100kPa"] = EA1 * _factor(pA, 1.0)
         return out
 
     def derived_jacobian(self, theta) -> tuple[list, np.ndarray]:

@@ -166,6 +166,9 @@ def test_held_out_evidence_chooses_the_pressure_form_when_ei_grows_with_pressure
     f = res.fits["pressure_ei"]
     np.testing.assert_allclose(f.theta, truth, rtol=1e-6)
     assert f.identifiable["pI1"] and f.identifiable["pI2"]
+    assert res.values["EI_100kPa"] == pytest.approx(0.09 * 1.9, rel=1e-6)
+    lo, hi = res.ci95["EI_100kPa"]
+    assert lo < 0.09 * 1.9 < hi and "EA_100kPa" not in res.values
     assert res.params.stiffness.EI_pressure == pytest.approx((0.55, 0.35), rel=1e-6)
     text = res.to_toml()
     assert "#   pI1    = 0.55 per (p/100 kPa)^1  (95 % CI" in text and "EI_pressure_coeffs_per_100kPa" in text
