@@ -8,8 +8,11 @@ actuator frame; the pressure sensitivities of the FK, IK and locked FK against s
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from ancf import Model, StiffnessLaw, presets
+from ancf import compliance as cp
 from ancf import kinematics as kin
 from ancf.forces.axial import add_axial
 from ancf.forces.bending import add_bending
@@ -214,7 +217,6 @@ def test_hermite_shape_functions():
 
 
 # ------------------------------------------------------------------------------- pressure-dependent stiffness
-from ancf import compliance as cp  # noqa: E402
 
 
 def test_pressure_law_stiffness_terms_of_dQ_dp():
@@ -267,8 +269,6 @@ def test_pressure_sensitivity_of_fk_ik_and_locked_fk(law):
     assert np.allclose(s.dT_dp, fd["tensions"], rtol=1e-5, atol=1e-6 * np.abs(fd["tensions"]).max())
 
 
-from hypothesis import HealthCheck, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
 
 _BASE_Q = None
 

@@ -38,8 +38,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from ..errors import CollapsedStateError, ConvergenceError, InputError, LimitError, check_finite, check_scalar
 from ..assembly import assemble
+from ..errors import CollapsedStateError, ConvergenceError, InputError, LimitError, check_finite, check_scalar
 from .damping import axial_damping
 from .integrator import AlphaCoefficients, StepFailed, StepState, alpha_step
 from .mass import consistent_mass, tool_point_inertia
