@@ -38,6 +38,9 @@ and it is reported as not identifiable, never as a number.  The intervals of the
   direction, so no interval can include it; a parameter with a share > 1 % in that direction is itself
   held.
 
+The refit after holding parameters starts from the first pass's equilibria (warm starts), not cold: a state
+reached only along the first pass's path stays reachable.
+
 Too few data.  With fewer states than the free parameters + ``MIN_SPARE_STATES`` or fewer residual degrees
 of freedom than ``MIN_DOF`` (weighted residuals − free parameters) a fit is an interpolation: its residuals
 say nothing about its error and its intervals are meaningless (two states can be matched exactly by a wrong
@@ -331,7 +334,7 @@ def _observed(obs: Observations) -> np.ndarray:
 
 def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, absolute_sigma: Optional[bool] = None,
         fixed: Sequence[str] = (), max_nfev: int = 200, scale=None, _refit: bool = True,
-        _marginal: Optional[np.ndarray] = None) -> FitResult:
+        _marginal: Optional[np.ndarray] = None, _warm: Optional[list] = None) -> FitResult:
     """Fit ``form`` to ``obs`` from ``theta0`` (everything else from ``base``); see the module docstring.
 
     ``absolute_sigma`` (default: whether ``obs`` states uncertainties) — treat σ as known.
@@ -360,6 +363,8 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     w = obs.weights().ravel()
     y = _observed(obs).ravel()
     ev = _Evaluator(form, obs, base)
+    if _warm is not None:           # the refit: from the first pass's equilibria (a cold start may not reach them)
+        ev.q = list(_warm)
     if free.sum() > w.size:
         raise InputError(f"form {form.name}: {free.sum()} free parameters but only {w.size} observations")
 
@@ -477,7 +482,7 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
                     "its 95 % confidence interval is wider than its value")
                for j, nm in enumerate(form.names) if nm in newly}
         out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
-                  max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov)
+                  max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov, _warm=ev.q)
         out.rejected += ev.rejected
         for nm in newly:
             out.identifiable[nm] = False
