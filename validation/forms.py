@@ -15,7 +15,8 @@ so ∂Q/∂θ_j is one assembly of the potential with the coefficient vectors �
 every other load zero.  A pressure-dependent form scales the stretch laws by factors in p̂ = p / 100 kPa
 (:mod:`ancf.stiffness`): at a state of pressure p the law's coefficient vectors are ea f_A(p), ei f_I(p), still
 linear in what the assembly takes, so the column is the same single assembly with
-∂(ea f_A)/∂θ_j = (∂ea/∂θ_j) f_A + ea ∂f_A/∂θ_j (likewise for EI) at that state's pressure — exact.  (The optional tendon routing distance d enters the tendon terms nonlinearly; its
+∂(ea f_A)/∂θ_j = (∂ea/∂θ_j) f_A + ea ∂f_A/∂θ_j (likewise for EI) at that state's pressure — exact.
+(The optional tendon routing distance d enters the tendon terms nonlinearly; its
 column is a central difference of the assembly — not of a solve — with a relative step of 1e-6.)
 
 Forms (``FORMS``; internal parameters in SI, λ the local stretch):
@@ -29,8 +30,8 @@ form                law                                                         
 ``separate_area``   as ``separate``, A(λ) = A_eff (1 + β (λ − 1))                        + β [−]
 ``quadratic``       EA = EA₁ + s_A (λ − 1) + c_A (λ − 1)²,  EI as ``separate``            EA₁, s_A, c_A [N], EI₁, s_I, D_eff
 ``constant``        EA, EI constant,  A = π D_eff²/4                                     EA [N], EI [N m²], D_eff [m]
-``pressure_ei``     as ``separate``, EI × (1 + p_I1 p̂ + p_I2 p̂²),  p̂ = p / 100 kPa           EA₁, s_A, EI₁, s_I, p_I1 [−], p_I2 [−], D_eff
-``pressure_ei_ea``  as ``pressure_ei``, EA × (1 + p_A1 p̂)                                  + p_A1 [−]
+``pressure_ei``     as ``separate``, EI × (1 + pI1 p̂ + pI2 p̂²),  p̂ = p / 100 kPa             EA₁, s_A, EI₁, s_I, pI1 [−], pI2 [−], D_eff
+``pressure_ei_ea``  as ``pressure_ei``, EA × (1 + pA1 p̂)                                   + pA1 [−]
 ==================  ===================================================================  =========================
 
 k₁ = EA(1) rather than the paper's intercept b is fitted (b = k₁ − a is reported) so that the axial
