@@ -224,7 +224,11 @@ HOLDS = ("tensions", "tip", "lengths")
 def pressure_sensitivity(model: Model, eq: Equilibrium, hold: str = "tensions",
                          active: Optional[Sequence[int]] = None) -> PressureSensitivity:
     """d(q, tip, T)/dp at ``eq`` with the tensions (FK), the tip (IK; three tendons) or the tendon lengths
-    (locked FK; taut set ``active``, default ``eq.active`` or the tendons with T > 0) held (module docstring)."""
+    (locked FK; taut set ``active``, default ``eq.active`` or the tendons with T > 0) held (module docstring).
+
+    ``hold="tip"`` is the derivative of the square IK system with all three tensions free: at a state where
+    the IK holds a tension at its bound, the bounded IK's response differs.  Units: dq/dp and dtip/dp [m/Pa],
+    dT/dp [N/Pa]."""
     if hold not in HOLDS:
         raise InputError(f"hold must be one of {HOLDS}, got {hold!r}")
     H, Jp, Jl, _, _ = _solves(model, eq)
