@@ -27,6 +27,13 @@ Three forms of C'_p:
   as the gradient of LACC's load observer.
 
 Stiffness along a unit direction u: k(u) = 1 / (uᵀ C u)  [N/m].
+
+Response to the pressure (:func:`pressure_sensitivity`).  With g_p = ∂Q/∂p (:meth:`ancf.Model.dQ_dp`: the
+volume term and, for a pressure-dependent stiffness law, the stiffness terms), at an equilibrium
+
+* tensions held (FK):  H δq = −g_p δp;
+* tip held (IK, three tendons):  [H J_lᵀ; J_p 0] [δq; δT] = [−g_p; 0] δp;
+* lengths held (locked FK, taut set A):  [H J_Aᵀ; J_A −diag(1/k_s)] [δq; δT_A] = [−g_p; 0] δp.
 """
 
 from __future__ import annotations
@@ -196,6 +203,62 @@ def locked(model: Model, eq: Equilibrium, method: str = "exact", active: Optiona
         Cq = np.linalg.pinv(stack) @ rhs
     return Compliance(C_p=Jp @ Cq, C_q=_full(model, Cq), active=tuple(A), mode="locked", method=method,
                       dT_dF=dT)
+
+
+@dataclass
+class PressureSensitivity:
+    """Derivatives of an equilibrium with respect to the pressure, other inputs held (``hold``).
+
+    dq_dp : (ndof,) [m/Pa] (full coordinates);  dtip_dp : (3,) [m/Pa];  dT_dp : (m,) [N/Pa] (zero for the
+    tendons whose tension is held or that are slack);  hold : "tensions" | "tip" | "lengths"
+    """
+    dq_dp: np.ndarray
+    dtip_dp: np.ndarray
+    dT_dp: np.ndarray
+    hold: str
+
+
+HOLDS = ("tensions", "tip", "lengths")
+
+
+def pressure_sensitivity(model: Model, eq: Equilibrium, hold: str = "tensions",
+                         active: Optional[Sequence[int]] = None) -> PressureSensitivity:
+    """d(q, tip, T)/dp at ``eq`` with the tensions (FK), the tip (IK; three tendons) or the tendon lengths
+    (locked FK; taut set ``active``, default ``eq.active`` or the tendons with T > 0) held (module docstring).
+
+    ``hold="tip"`` is the derivative of the square IK system with all three tensions free: at a state where
+    the IK holds a tension at its bound, the bounded IK's response differs.  Units: dq/dp and dtip/dp [m/Pa],
+    dT/dp [N/Pa]."""
+    if hold not in HOLDS:
+        raise InputError(f"hold must be one of {HOLDS}, got {hold!r}")
+    H, Jp, Jl, _, _ = _solves(model, eq)
+    gp = model.reduce_vec(model.dQ_dp(eq.q, eq.pressure))
+    nz, m = H.shape[0], model.m
+    dT = np.zeros(m)
+    if hold == "tensions":
+        dz = -np.linalg.solve(H, gp)
+    elif hold == "tip":
+        if m != 3:
+            raise InputError(f"hold='tip' needs exactly 3 tendons (a square IK system), the actuator has {m}")
+        K = np.zeros((nz + 3, nz + 3))
+        K[:nz, :nz], K[:nz, nz:], K[nz:, :nz] = H, Jl.T, Jp
+        x = np.linalg.solve(K, np.concatenate([-gp, np.zeros(3)]))
+        dz, dT = x[:nz], x[nz:]
+    else:
+        if active is None:
+            active = eq.active if eq.active is not None else np.flatnonzero(eq.tensions > 0)
+        A = sorted(int(i) for i in active)
+        if any(i < 0 or i >= m for i in A):
+            raise InputError(f"active tendon indices must be in 0..{m - 1}, got {A}")
+        k = len(A)
+        K = np.zeros((nz + k, nz + k))
+        K[:nz, :nz], K[:nz, nz:], K[nz:, :nz] = H, Jl[A].T, Jl[A]
+        K[nz:, nz:] = -model._cs * np.eye(k)
+        x = np.linalg.solve(K, np.concatenate([-gp, np.zeros(k)]))
+        dz = x[:nz]
+        dT[A] = x[nz:]
+    dq = _full(model, dz[:, None])[:, 0]
+    return PressureSensitivity(dq_dp=dq, dtip_dp=Jp @ dz, dT_dp=dT, hold=hold)
 
 
 def directional_stiffness(C: np.ndarray, direction) -> float:

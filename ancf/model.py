@@ -10,9 +10,12 @@ Equilibrium is the stationarity of the potential (docs/design.md §3)
 
 Q(q, T, p, F) = ∂Π/∂q = 0 is paper eq. (1); its exact derivatives are
 
-    ∂Q/∂q = ∇²Π (symmetric),  ∂Q/∂T_i = ∂l_c,i/∂q,  ∂Q/∂p = −∂(∫A(λ)λ dx)/∂q,  ∂Q/∂F = −(∂p_end/∂q)ᵀ
+    ∂Q/∂q = ∇²Π (symmetric),  ∂Q/∂T_i = ∂l_c,i/∂q,  ∂Q/∂F = −(∂p_end/∂q)ᵀ,
+    ∂Q/∂p = −∂(∫A(λ)λ dx)/∂q + ∂Q_axial/∂p + ∂Q_bend/∂p
 
-(A(λ) = A_eff for the paper's constant pressure area; see :mod:`ancf.forces.pressure`).
+(A(λ) = A_eff for the paper's constant pressure area; see :mod:`ancf.forces.pressure`).  The last two terms
+are those of a pressure-dependent stiffness law EA(λ, p), EI(λ, p) (:mod:`ancf.stiffness`; zero without
+pressure factors): the stiffness of every solve is the law at the solve's pressure.
 
 Solvers:
 * FK (T, p, F) → q: Newton on ∇Π with an energy line search, LM shift, load stepping fallback.
@@ -135,7 +138,8 @@ class Model:
         self.ndof = 6 * (self.n + 1)
         self.m = p.n_tendons
         self._N, self._wq = kin.shape_table(p.quadrature_points, p.element_length)
-        self._ea = p.stiffness.ea
+        self._law = p.stiffness
+        self._ea = p.stiffness.ea                             # EA, EI coefficients at p = 0 [N], [N m²]
         self._ei = p.stiffness.ei
         self._vc = np.ascontiguousarray(p.volume_coeffs)      # A(λ) λ = Σ c_k λ^{k+1} [m²]
         self._E = np.ascontiguousarray(p.frame)
@@ -234,6 +238,7 @@ class Model:
         T = check_finite("tensions", tensions, (self.m,)) if tensions is not None else np.zeros(self.m)
         pr = float(check_finite("pressure", pressure, ()))
         F = check_finite("tip_force", tip_force, (3,))
+        self._check_law_pressure(pr)
         if check_limits:
             for i, t in enumerate(T):
                 if t < p.tension_min - 1e-12 or t > p.tension_max + 1e-12:
@@ -245,6 +250,33 @@ class Model:
                                  f"[{p.pressure_min / 1e3:g}, {p.pressure_max / 1e3:g}] kPa (the Python API takes "
                                  f"pascals: 30 kPa = 30e3; check_limits=False analyses it anyway)")
         return np.ascontiguousarray(T, dtype=float), pr, np.ascontiguousarray(F, dtype=float)
+
+    def _check_law_pressure(self, pr: float) -> None:
+        """InputError when a pressure factor of the stiffness law is not positive between 0 and ``pr`` [Pa] (the
+        pressures a solve at ``pr`` passes through when it steps its loads; only reachable with
+        ``check_limits=False`` outside the actuator's pressure range, over which the parameters checked it)."""
+        if self._law.pressure_dependent:
+            f, at, which = self._law.pressure_factor_minimum(min(0.0, pr), max(0.0, pr))
+            if not f > 0:
+                raise InputError(f"the stiffness law's pressure factor of {which} is {f:.4g} ≤ 0 at p = "
+                                 f"{at / 1e3:g} kPa ({which} would not be positive there): the law is not valid "
+                                 f"for a solve at {pr / 1e3:g} kPa")
+
+    def stiffness_coefficients(self, pressure: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Stretch-polynomial coefficients (ea [N], ei [N m²]) of EA(λ, p), EI(λ, p) at ``pressure`` [Pa]: the
+        stiffness every solve at that pressure uses (:meth:`ancf.StiffnessLaw.coefficients`)."""
+        pr = float(check_finite("pressure", pressure, ()))
+        self._check_law_pressure(pr)
+        ea, ei = self._coeffs(pr)
+        return ea.copy(), ei.copy()
+
+    def _coeffs(self, pr: float) -> tuple[np.ndarray, np.ndarray]:
+        """(ea, ei) at pressure ``pr`` [Pa], contiguous, unchecked (the p = 0 arrays themselves for a law
+        without pressure factors: bit-for-bit the stretch-only law)."""
+        if not self._law.pressure_dependent:
+            return self._ea, self._ei
+        ea, ei = self._law.coefficients(pr)
+        return np.ascontiguousarray(ea), np.ascontiguousarray(ei)
 
     def total_tip_load(self, tip_force, gravity_scale: float = 1.0) -> np.ndarray:
         """External tip force plus the tip mass weight (scaled by ``gravity_scale``) [N], contiguous (3,)."""
@@ -265,6 +297,7 @@ class Model:
         pr = float(check_finite("pressure", pressure, ()))
         F = check_finite("tip_force", tip_force, (3,))
         gs = float(check_finite("gravity_scale", gravity_scale, ()))
+        self._check_law_pressure(pr)
         if lengths not in (True, False, "values"):
             raise InputError(f"lengths must be True, False or 'values', got {lengths!r}")
         ev = self._evaluate(q, T, pr, F, bool(hessian), gs, lengths)
@@ -281,8 +314,9 @@ class Model:
         """:meth:`evaluate` without argument checks (solver internals: arguments already checked)."""
         T = np.zeros(self.m) if tensions is None else np.ascontiguousarray(tensions, dtype=float)
         F = self.total_tip_load(tip_force, gravity_scale)
+        ea, ei = self._coeffs(float(pressure))
         E, Q, K, lc, Jl, arc, Jarc = assemble(
-            np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, self._ea, self._ei,
+            np.ascontiguousarray(q, dtype=float), self.n, self._N, self._wq, ea, ei,
             float(pressure) * self._vc, self._mg * gravity_scale, self._E, self._d, self._co,
             self._so, T, self.params.tool_offset, F, hessian,
             2 if lengths is True else (1 if lengths == "values" else 0))
@@ -324,13 +358,20 @@ class Model:
         """∂Q/∂T (ndof, m) = (∂l_c/∂q)ᵀ."""
         return self.evaluate(q, hessian=False).J_l.T
 
-    def dQ_dp(self, q) -> np.ndarray:
-        """∂Q/∂p = −∂V/∂q (ndof,) [m²], V = ∫ A(λ) λ dx the chamber volume."""
+    def dQ_dp(self, q, pressure: float = 0.0) -> np.ndarray:
+        """∂Q/∂p (ndof,) [m² = N/Pa] at full coordinates ``q`` and ``pressure`` [Pa]: −∂V/∂q, V = ∫ A(λ) λ dx the
+        chamber volume, plus, for a pressure-dependent stiffness law, ∂Q_axial/∂p + ∂Q_bend/∂p (the same
+        assembly with the coefficient vectors ∂ea/∂p, ∂ei/∂p: every stiffness term is linear in its
+        coefficients).  Without pressure factors it does not depend on ``pressure``."""
         zero3 = np.zeros(3)
         q = self._q(q)
-        E, Q, *_ = assemble(q, self.n, self._N, self._wq, np.zeros(1),
-                            np.zeros(1), self._vc, zero3, self._E, self._d, self._co, self._so, np.zeros(self.m),
-                            0.0, zero3, False, 0)
+        pr = float(check_finite("pressure", pressure, ()))
+        self._check_law_pressure(pr)
+        dea, dei = (self._law.coefficient_derivatives(pr) if self._law.pressure_dependent
+                    else (np.zeros(1), np.zeros(1)))
+        E, Q, *_ = assemble(q, self.n, self._N, self._wq, np.ascontiguousarray(dea),
+                            np.ascontiguousarray(dei), self._vc, zero3, self._E, self._d, self._co, self._so,
+                            np.zeros(self.m), 0.0, zero3, False, 0)
         if not np.isfinite(E):           # the assembly stopped at an inadmissible point: Q is partial
             raise CollapsedStateError(f"state is outside the model's domain: {self.inadmissibility(q)}",
                                       solver="dQ_dp", stretch=float(self._stretches(q).min()))
@@ -608,10 +649,11 @@ class Model:
         pa = float(pr * load) * self._vc
         mg = self._mg * load
         p = self.params
+        ea, ei = self._coeffs(float(pr * load))
 
         def fun(z, hessian):
             q = self._to_full(z)
-            E, Q, K, *_ = assemble(q, self.n, self._N, self._wq, self._ea, self._ei, pa, mg, self._E, self._d,
+            E, Q, K, *_ = assemble(q, self.n, self._N, self._wq, ea, ei, pa, mg, self._E, self._d,
                                    self._co, self._so, Ts, p.tool_offset, Ftot, hessian, 0)
             if not np.isfinite(E):
                 return np.inf, None, None
@@ -624,9 +666,10 @@ class Model:
         same potential).  Returns (z, SolveInfo) or raises ConvergenceError like ``minimize_newton``."""
         Ts = np.ascontiguousarray(T * load, dtype=float)
         Ftot = self.total_tip_load(F * load, gravity_scale=load)
+        ea, ei = self._coeffs(float(pr * load))      # the law at the pressure of this load step
         status, z, it, hist, H, pd, energy, lengths = _cs.fk_newton(
             np.ascontiguousarray(z0, dtype=float), self._q_fix, self._P_c, self._P is not None, self.n, self._N,
-            self._wq, self._ea, self._ei, float(pr * load) * self._vc, self._mg * load, self._E, self._d,
+            self._wq, ea, ei, float(pr * load) * self._vc, self._mg * load, self._E, self._d,
             self._co, self._so, Ts, self.params.tool_offset, Ftot, float(tol), int(max_iter))
         history = hist.tolist()
         if status == _cs.CONVERGED:
@@ -750,10 +793,11 @@ class Model:
         w = np.concatenate([np.ones(nz), np.full(3, self._kscale)])
         tol_w = min(tol, self._kscale * tol_position)
         x0 = np.concatenate([z0, T0])
+        ea, ei = self._coeffs(float(pr))
         # the Newton phase of solve_root, compiled; a solve that needs its LM phase runs solve_root itself
         status, x, it, hist, J, pd, energy, lengths = _cs.ik_newton(
             x0, nz, np.ascontiguousarray(pd, dtype=float), w, self._q_fix, self._P_c, self._P is not None, self.n,
-            self._N, self._wq, self._ea, self._ei, float(pr) * self._vc, self._mg, self._E, self._d, self._co,
+            self._N, self._wq, ea, ei, float(pr) * self._vc, self._mg, self._E, self._d, self._co,
             self._so, self.params.tool_offset, self.total_tip_load(F), float(tol_w), int(max_iter))
         if status == _cs.CONVERGED:
             history = hist.tolist()

@@ -47,6 +47,9 @@ UNITS: dict[str, dict[str, float]] = {
     "rate": {"per_s": 1.0},
     "time": {"s": 1.0, "ms": 1e-3},
     "force_time": {"N_s": 1.0},
+    # coefficients of powers of the normalised pressure p̂ = p/100 kPa (ancf.stiffness, pressure factors);
+    # only this spelling: a coefficient of (p/1 kPa)^j would need a different factor per power
+    "pressure_polynomial": {"per_100kPa": 1.0},
 }
 
 # field name -> dimension, for the top level of an actuator TOML file
@@ -61,7 +64,8 @@ TOP_FIELDS = {
     "rayleigh_alpha": "rate", "rayleigh_beta": "time", "axial_damping": "force_time",
 }
 STIFFNESS_FIELDS = {"law": None, "a": "force", "b": "force", "D_a": "length", "EA": "force",
-                    "EI": "bending_stiffness", "EA_coeffs": "force", "EI_coeffs": "bending_stiffness"}
+                    "EI": "bending_stiffness", "EA_coeffs": "force", "EI_coeffs": "bending_stiffness",
+                    "EA_pressure_coeffs": "pressure_polynomial", "EI_pressure_coeffs": "pressure_polynomial"}
 TENDON_FIELDS = {"distance": "length", "angle": "angle"}
 
 # Plausible magnitudes (SI) for a soft bellows actuator: (low, high, zero allowed).  A value outside is
@@ -232,7 +236,7 @@ class ActuatorParams(BaseModel):
     length : float                 undeformed length L [m]
     n_elements : int               number of ANCF elements n (paper: 6)
     quadrature_points : int        Gauss points per element (≥ 4)
-    stiffness : StiffnessLaw       EA(λ), EI(λ)
+    stiffness : StiffnessLaw       EA(λ, p), EI(λ, p) (pressure factors optional; :mod:`ancf.stiffness`)
     D_eff : float                  effective pressure diameter [m]; A_eff = π D_eff²/4
     pressure_area_slope : float    β of the pressure area A(λ) = A_eff (1 + β (λ − 1)) [-]; 0: constant area
     tendons : tuple[Tendon, ...]   ≥ 3 tendons
@@ -383,6 +387,13 @@ class ActuatorParams(BaseModel):
             raise ValueError("tension_max must exceed tension_min")
         if not (self.pressure_max >= self.pressure_min):
             raise ValueError("pressure_max must be >= pressure_min")
+        if self.stiffness.pressure_dependent:
+            f, p, which = self.stiffness.pressure_factor_minimum(self.pressure_min, self.pressure_max)
+            if not f > 0:
+                raise ValueError(f"the stiffness law's pressure factor of {which} is {f:.4g} ≤ 0 at p = {p / 1e3:g} "
+                                 f"kPa, inside the pressure limits [{self.pressure_min / 1e3:g}, "
+                                 f"{self.pressure_max / 1e3:g}] kPa: {which} must stay positive over the "
+                                 "operating range")
         return self
 
     def __init__(self, **data):
@@ -471,6 +482,11 @@ class ActuatorParams(BaseModel):
         top = _parse_table(raw, TOP_FIELDS, where)
         s = _parse_table(stiff, STIFFNESS_FIELDS, f"{where}[stiffness]")
         law = s.pop("law", None)
+        p_ea, p_ei = s.pop("EA_pressure_coeffs", None), s.pop("EI_pressure_coeffs", None)
+        for key, v in (("EA_pressure_coeffs_per_100kPa", p_ea), ("EI_pressure_coeffs_per_100kPa", p_ei)):
+            if v is not None and not isinstance(v, list):
+                raise ConfigError(f"{where}[stiffness].{key}: expected a list of numbers (coefficients of "
+                                  f"(p/100 kPa)^1, ^2, …), got {v!r}")
         try:
             if law == "linear":
                 stiffness = StiffnessLaw.linear(**s)
@@ -485,6 +501,8 @@ class ActuatorParams(BaseModel):
                                   f"got {law!r}")
         except TypeError as exc:
             raise ConfigError(f"{where}[stiffness]: wrong keys for law '{law}': {exc}") from None
+        if p_ea or p_ei:
+            stiffness = stiffness.with_pressure(EA=p_ea or (), EI=p_ei or ())
         tl = [Tendon(**_parse_table(t, TENDON_FIELDS, f"{where}[[tendons]][{i}]")) for i, t in enumerate(tendons)]
         for k in ("base_axis", "reference_direction", "gravity"):
             if k in top:
@@ -525,6 +543,10 @@ class ActuatorParams(BaseModel):
             lines += [f"EA_N = {s.EA_coeffs[0]!r}", f"EI_N_m2 = {s.EI_coeffs[0]!r}"]
         else:
             lines += [f"EA_coeffs_N = {list(s.EA_coeffs)}", f"EI_coeffs_N_m2 = {list(s.EI_coeffs)}"]
+        if s.EA_pressure:
+            lines.append(f"EA_pressure_coeffs_per_100kPa = {list(s.EA_pressure)}")
+        if s.EI_pressure:
+            lines.append(f"EI_pressure_coeffs_per_100kPa = {list(s.EI_pressure)}")
         for t in self.tendons:
             lines += ["", "[[tendons]]", f"distance_m = {t.distance!r}", f"angle_rad = {t.angle!r}"]
         return "\n".join(lines) + "\n"

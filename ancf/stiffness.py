@@ -16,6 +16,23 @@ Axial energy per unit reference length.  With Green strain ε = ½(λ² − 1) a
     W(λ)   = Σ_k c_k/2 [ (λ^{k+4} − 1)/(k+4) − (λ^{k+2} − 1)/(k+2) ]     for EA = Σ_k c_k λ^k,
 
 so that W(1) = W'(1) = 0 at the undeformed state (for the constant law W = EA ε² / 2).
+
+Pressure-dependent stiffness.  A pressurised bellows can be stiffer in bending than its stretch alone
+explains (measured on the FEM of the default bellows: docs/identification.md).  Either stiffness may carry a factor
+polynomial in the normalised pressure p̂ = p / P_REF, P_REF = 100 kPa:
+
+    EI(λ, p) = EI(λ) · f_I(p̂),   f_I = 1 + Σ_{j≥1} c_I,j p̂^j,      EA(λ, p) = EA(λ) · f_A(p̂)  (likewise),
+
+with dimensionless coefficients ``EI_pressure`` = (c_I,1, c_I,2, …) and ``EA_pressure`` (empty: factor 1,
+today's law).  The pressure is a load input of every solve, constant within it, so at a given p the law is
+the stretch polynomial with coefficients ``ei · f_I(p̂)`` (:meth:`StiffnessLaw.coefficients`): the energy,
+its gradient and Hessian in q are those of a stretch-only law, and the kernels are unchanged.  What changes
+is every derivative with respect to p: ∂Q/∂p gains ∂Q_axial/∂p + ∂Q_bend/∂p, the same assemblies with the
+coefficient vectors ``ea · f_A'(p)``, ``ei · f_I'(p)`` (:meth:`StiffnessLaw.coefficient_derivatives`,
+:meth:`ancf.Model.dQ_dp`).  A factor must stay positive over the pressures used (checked over the
+actuator's pressure range by :class:`ancf.ActuatorParams`, and at the pressure of every solve); then EA and
+EI vanish at the same stretches at every pressure and :attr:`StiffnessLaw.valid_stretch_range` holds for
+all of them.
 """
 
 from __future__ import annotations
@@ -38,6 +55,32 @@ def _real(name: str, v) -> float:
     return float(v)
 
 
+#: Reference pressure of the pressure factor, p̂ = p / P_REF [Pa].
+P_REF = 100e3
+#: Most coefficients of a pressure factor (powers p̂ … p̂^4).
+MAX_PRESSURE_COEFFS = 4
+
+
+def _factor(coeffs: tuple, p: float) -> float:
+    """f(p̂) = 1 + Σ_j c_j p̂^j at the pressure p [Pa]."""
+    x = p / P_REF
+    f, xp = 1.0, 1.0
+    for c in coeffs:
+        xp *= x
+        f += c * xp
+    return f
+
+
+def _factor_derivative(coeffs: tuple, p: float) -> float:
+    """df/dp [1/Pa] of f(p̂) = 1 + Σ_j c_j p̂^j."""
+    x = p / P_REF
+    d, xp = 0.0, 1.0
+    for j, c in enumerate(coeffs, start=1):
+        d += j * c * xp
+        xp *= x
+    return d / P_REF
+
+
 def _stretch(lam):
     """Stretch argument(s) as float (scalar stays scalar); InputError for text, booleans, NaN."""
     arr = check_finite("stretch λ", lam)
@@ -57,6 +100,10 @@ class StiffnessLaw(BaseModel):
         ``EI(λ) = Σ_k EI_coeffs[k] λ^k`` [N m²].
     source : dict
         The constructor's arguments in SI units (``a``, ``b``, ``D_a`` for the linear law, ...).
+    EA_pressure, EI_pressure : tuple of float
+        Dimensionless coefficients (c_1, c_2, …) of the pressure factors f(p̂) = 1 + Σ_j c_j p̂^j,
+        p̂ = p / 100 kPa, multiplying EA(λ) and EI(λ) (module docstring); empty (the default): no pressure
+        dependence.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -65,6 +112,8 @@ class StiffnessLaw(BaseModel):
     EA_coeffs: tuple[float, ...]
     EI_coeffs: tuple[float, ...]
     source: dict[str, float] = {}
+    EA_pressure: tuple[float, ...] = ()
+    EI_pressure: tuple[float, ...] = ()
 
     def __init__(self, **data):
         try:
@@ -80,6 +129,19 @@ class StiffnessLaw(BaseModel):
         if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
             raise ValueError(f"expected a list of numbers, got {v!r}")
         return tuple(_real("coefficient", c) for c in v)
+
+    @field_validator("EA_pressure", "EI_pressure", mode="before")
+    @classmethod
+    def _pressure_numbers(cls, v):
+        if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+            raise ValueError(f"expected a list of numbers (coefficients of p/100 kPa), got {v!r}")
+        v = tuple(_real("pressure coefficient", c) for c in v)
+        if len(v) > MAX_PRESSURE_COEFFS:
+            raise ValueError(f"a pressure factor takes at most {MAX_PRESSURE_COEFFS} coefficients "
+                             f"(powers of p/100 kPa from 1), got {len(v)}")
+        while v and v[-1] == 0.0:          # trailing zeros change nothing: one representation per law
+            v = v[:-1]
+        return v
 
     @field_validator("EA_coeffs", "EI_coeffs")
     @classmethod
@@ -121,6 +183,60 @@ class StiffnessLaw(BaseModel):
             raise ConfigError("polynomial stiffness law must give EA(1) > 0 and EI(1) > 0")
         return law
 
+    def with_pressure(self, EA=(), EI=()) -> "StiffnessLaw":
+        """The same law with the pressure factors f_A = 1 + Σ EA[j−1] p̂^j on EA and f_I = 1 + Σ EI[j−1] p̂^j
+        on EI, p̂ = p / 100 kPa (dimensionless coefficients, lowest power first; module docstring)."""
+        return StiffnessLaw(kind=self.kind, EA_coeffs=self.EA_coeffs, EI_coeffs=self.EI_coeffs,
+                            source=dict(self.source), EA_pressure=tuple(EA), EI_pressure=tuple(EI))
+
+    # ---------------------------------------------------------------- pressure dependence
+    @property
+    def pressure_dependent(self) -> bool:
+        """True when EA or EI carries a pressure factor."""
+        return bool(self.EA_pressure or self.EI_pressure)
+
+    def pressure_factors(self, pressure: float) -> tuple[float, float]:
+        """(f_A, f_I) [−] at ``pressure`` [Pa]: EA(λ, p) = EA(λ) f_A, EI(λ, p) = EI(λ) f_I."""
+        p = _real("pressure [Pa]", pressure)
+        return _factor(self.EA_pressure, p), _factor(self.EI_pressure, p)
+
+    def coefficients(self, pressure: float) -> tuple[np.ndarray, np.ndarray]:
+        """Stretch-polynomial coefficients (ea, ei) of EA(λ, p) [N] and EI(λ, p) [N m²] at ``pressure`` [Pa]
+        (the arrays :attr:`ea`, :attr:`ei` themselves when the law does not depend on pressure)."""
+        if not self.pressure_dependent:
+            return self.ea, self.ei
+        fA, fI = self.pressure_factors(pressure)
+        return self.ea * fA, self.ei * fI
+
+    def coefficient_derivatives(self, pressure: float) -> tuple[np.ndarray, np.ndarray]:
+        """∂(ea, ei)/∂p at ``pressure`` [Pa]: coefficient vectors [N/Pa], [N m²/Pa] (zeros (1,) for a factor
+        that does not depend on pressure)."""
+        p = _real("pressure [Pa]", pressure)
+        dA = _factor_derivative(self.EA_pressure, p)
+        dI = _factor_derivative(self.EI_pressure, p)
+        return (self.ea * dA if self.EA_pressure else np.zeros(1),
+                self.ei * dI if self.EI_pressure else np.zeros(1))
+
+    def pressure_factor_minimum(self, p_lo: float, p_hi: float) -> tuple[float, float, str]:
+        """(smallest factor, the pressure [Pa] where it is reached, "EA" or "EI") over [p_lo, p_hi] [Pa]
+        (exact: the factors are polynomials; 1.0 at p_lo for a law without pressure factors)."""
+        p_lo, p_hi = _real("p_lo [Pa]", p_lo), _real("p_hi [Pa]", p_hi)
+        best = (math.inf, p_lo, "EA")
+        for which, coeffs in (("EA", self.EA_pressure), ("EI", self.EI_pressure)):
+            cand = [p_lo, p_hi]
+            if len(coeffs) > 1:          # interior extrema: roots of f'(p̂)
+                d = np.array([j * c for j, c in enumerate(coeffs, start=1)])
+                for r in np.polynomial.polynomial.polyroots(d) if np.any(d[1:]) else []:
+                    if abs(r.imag) <= 1e-12 * max(1.0, abs(r.real)):
+                        pr = float(r.real) * P_REF
+                        if p_lo < pr < p_hi:
+                            cand.append(pr)
+            for pr in cand:
+                f = _factor(coeffs, pr)
+                if f < best[0]:
+                    best = (f, pr, which)
+        return best
+
     # ---------------------------------------------------------------- evaluation (numpy, scalar or array)
     @property
     def ea(self) -> np.ndarray:
@@ -150,13 +266,15 @@ class StiffnessLaw(BaseModel):
                 hi = min(hi, float(above.min()))
         return lo, hi
 
-    def EA(self, lam):
-        """Axial stiffness EA(λ) [N]."""
-        return np.polynomial.polynomial.polyval(_stretch(lam), self.ea)
+    def EA(self, lam, pressure: float = 0.0):
+        """Axial stiffness EA(λ, p) [N] (``pressure`` [Pa]; only a pressure-dependent law uses it)."""
+        v = np.polynomial.polynomial.polyval(_stretch(lam), self.ea)
+        return v * self.pressure_factors(pressure)[0] if self.EA_pressure else v
 
-    def EI(self, lam):
-        """Bending stiffness EI(λ) [N m²]."""
-        return np.polynomial.polynomial.polyval(_stretch(lam), self.ei)
+    def EI(self, lam, pressure: float = 0.0):
+        """Bending stiffness EI(λ, p) [N m²] (``pressure`` [Pa]; only a pressure-dependent law uses it)."""
+        v = np.polynomial.polynomial.polyval(_stretch(lam), self.ei)
+        return v * self.pressure_factors(pressure)[1] if self.EI_pressure else v
 
     def axial_energy(self, lam):
         """W(λ) [J/m = N], with W(1) = 0 (see module docstring)."""
@@ -189,7 +307,16 @@ class StiffnessLaw(BaseModel):
     def describe(self) -> str:
         if self.kind == "linear":
             s = self.source
-            return f"linear k(λ) = {s['a']:g} λ + {s['b']:g} N, D_a = {s['D_a'] * 1e3:g} mm"
-        if self.kind == "constant":
-            return f"constant EA = {self.EA_coeffs[0]:g} N, EI = {self.EI_coeffs[0]:g} N m²"
-        return f"polynomial EA {self.EA_coeffs}, EI {self.EI_coeffs}"
+            out = f"linear k(λ) = {s['a']:g} λ + {s['b']:g} N, D_a = {s['D_a'] * 1e3:g} mm"
+        elif self.kind == "constant":
+            out = f"constant EA = {self.EA_coeffs[0]:g} N, EI = {self.EI_coeffs[0]:g} N m²"
+        else:
+            out = f"polynomial EA {self.EA_coeffs}, EI {self.EI_coeffs}"
+        for which, coeffs in (("EA", self.EA_pressure), ("EI", self.EI_pressure)):
+            if coeffs:
+                terms = " ".join(f"{'+' if c >= 0 else '−'} {abs(c):g} p̂{'' if j == 1 else f'^{j}'}"
+                                 for j, c in enumerate(coeffs, start=1))
+                out += f"; {which} × (1 {terms})"
+        if self.pressure_dependent:
+            out += ", p̂ = p/100 kPa"
+        return out

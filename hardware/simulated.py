@@ -119,7 +119,8 @@ class PlantOptions:
         from ancf import StiffnessLaw, presets
         base = base or presets.paper()
         law = base.stiffness
-        scaled = StiffnessLaw.polynomial(EA=[0.95 * c for c in law.EA_coeffs], EI=[0.95 * c for c in law.EI_coeffs])
+        scaled = StiffnessLaw.polynomial(EA=[0.95 * c for c in law.EA_coeffs], EI=[0.95 * c for c in law.EI_coeffs]) \
+            .with_pressure(EA=law.EA_pressure, EI=law.EI_pressure)
         params = base.replace(line_mass=base.line_mass * 1.15, tip_mass=base.tip_mass + 0.005, stiffness=scaled)
         opts = dict(params=params, noise_std=5e-5, length_resolution=1e-6, length_rate=5e-3,
                     tendon_friction=0.1, tendon_stiffness=2e4, seed=seed)

@@ -11,7 +11,10 @@ from ancf.errors import ConvergenceError, UnstableEquilibriumError
 from ancf.solvers import minimize_newton, solve_root
 
 MODELS = {"paper": Model(presets.paper()), "four_tendon": Model(presets.four_tendon()),
-          "free_base": Model(presets.paper().replace(n_elements=3, free_base_stretch=True))}
+          "free_base": Model(presets.paper().replace(n_elements=3, free_base_stretch=True)),
+          # a pressure-dependent law: the compiled loops get the law at the solve's pressure
+          "pressure_law": Model(presets.paper().replace(
+              stiffness=presets.paper().stiffness.with_pressure(EA=(0.3,), EI=(0.9, -0.25))))}
 LOADS = [((0, 0, 0), 0.0, (0, 0, -0.3)), ((3.0, 0.5, 1.0), 40e3, (0, 0.2, -0.2)), ((1.0, 1.0, 1.0), 90e3, (0, 0, 0))]
 
 
@@ -55,7 +58,7 @@ def test_compiled_fk_fails_like_the_python_newton():
         m._fk_newton(bad, T, 0.0, F, m.default_tol, 25)
 
 
-@pytest.mark.parametrize("name", ["paper", "free_base"])
+@pytest.mark.parametrize("name", ["paper", "free_base", "pressure_law"])
 def test_compiled_ik_newton_follows_the_python_newton(name):
     m = MODELS[name]
     ref = m.fk((2.0, 0.5, 1.0), 30e3, (0, 0, -0.2))
@@ -66,7 +69,8 @@ def test_compiled_ik_newton_follows_the_python_newton(name):
     x0 = np.concatenate([m.to_free(ref.q), ref.tensions])
     F = m.total_tip_load(np.array([0, 0, -0.2]))
     status, x, it, hist, J, pdef, energy, lengths = cs.ik_newton(
-        x0, nz, pd, w, m._q_fix, m._P_c, m._P is not None, m.n, m._N, m._wq, m._ea, m._ei, 30e3 * m._vc, m._mg,
+        x0, nz, pd, w, m._q_fix, m._P_c, m._P is not None, m.n, m._N, m._wq, *m.stiffness_coefficients(30e3),
+        30e3 * m._vc, m._mg,
         m._E, m._d, m._co, m._so, m.params.tool_offset, F, tol, 60)
     assert status == cs.CONVERGED and pdef
 
@@ -85,8 +89,9 @@ def test_compiled_ik_newton_follows_the_python_newton(name):
     np.testing.assert_allclose(J, info.matrix, rtol=1e-9, atol=1e-9 * np.abs(info.matrix).max())
 
 
-def test_the_tangent_the_ik_hands_to_the_compliances_is_the_assembled_one():
-    m = MODELS["paper"]
+@pytest.mark.parametrize("name", ["paper", "pressure_law"])
+def test_the_tangent_the_ik_hands_to_the_compliances_is_the_assembled_one(name):
+    m = MODELS[name]
     ref = m.fk((2.0, 0.5, 1.0), 30e3, (0, 0, -0.2))
     eq = m.ik(ref.tip + 1e-4, 30e3, (0, 0, -0.2), q0=ref.q, tensions0=ref.tensions)
     assert m._tangent_parts(eq) is not None                  # kept by the compiled IK

@@ -82,3 +82,24 @@ def test_directional_stiffness_and_ellipsoid(model):
         cp.directional_stiffness(C, (0, 0, 0))
     with pytest.raises(InputError):
         cp.locked(model, model.fk((1, 0, 0)), method="svd")
+
+
+@pytest.mark.parametrize("T, p", [((3.0, 0.5, 1.0), 25e3), ((0.5, 4.0, 1.0), 100e3)])
+def test_compliances_of_a_pressure_dependent_law_match_fd(T, p):
+    """EI(λ, p) = EI(λ)(1 + 0.9 p̂ − 0.25 p̂²), EA(λ, p) = EA(λ)(1 + 0.3 p̂): the constant-tension and the
+    exact locked compliance equal the finite differences of the FK / locked FK under a tip force, and the
+    pressure factor makes the bellows stiffer than the stretch-only law at the same loads."""
+    law = presets.paper().stiffness.with_pressure(EA=(0.3,), EI=(0.9, -0.25))
+    m = Model(presets.paper().replace(stiffness=law))
+    eq = m.fk(T, p)
+    C = cp.tension(m, eq)
+    fd = np.column_stack([(m.fk(T, p, H_FD * e, q0=eq.q).tip - m.fk(T, p, -H_FD * e, q0=eq.q).tip) / (2 * H_FD)
+                          for e in np.eye(3)])
+    assert np.allclose(C.C_p, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
+    u = np.array([0.0, 0.0, -1.0])
+    Cl = cp.locked(m, eq, "exact", load_direction=u)
+    fdl = _one_sided_locked(m, eq, u)
+    assert np.allclose(Cl.C_p @ u, fdl, rtol=2e-4, atol=2e-4 * np.linalg.norm(fdl))
+    m0 = Model(presets.paper())
+    C0 = cp.tension(m0, m0.fk(T, p))
+    assert np.trace(C.C_p) < 0.9 * np.trace(C0.C_p)

@@ -2,13 +2,17 @@
 
 Densities (9-vector gradients and 9×9 Hessians per generalized force), the assembled Q = ∂Π/∂q and
 ∂Q/∂q, ∂Q/∂T, ∂Q/∂p, ∂Q/∂F, tendon-length and arc-length gradients, tip position and orientation
-Jacobians — at a generic loaded 3-D state, with both stiffness laws and a rotated actuator frame.
+Jacobians — at a generic loaded 3-D state, with both stiffness laws, a pressure-dependent law and a rotated
+actuator frame; the pressure sensitivities of the FK, IK and locked FK against solves at p ± h.
 """
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from ancf import Model, StiffnessLaw, presets
+from ancf import compliance as cp
 from ancf import kinematics as kin
 from ancf.forces.axial import add_axial
 from ancf.forces.bending import add_bending
@@ -132,9 +136,15 @@ def perturbed_state(model):
     return q + RNG.normal(size=q.size) * 1e-3
 
 
-@pytest.fixture(scope="module", params=["paper", "rotated_constant"])
+#: A pressure-dependent law: EI × (1 + 0.9 p̂ − 0.25 p̂²), EA × (1 + 0.3 p̂), p̂ = p/100 kPa.
+PRESSURE_LAW = presets.paper().stiffness.with_pressure(EA=(0.3,), EI=(0.9, -0.25))
+
+
+@pytest.fixture(scope="module", params=["paper", "rotated_constant", "pressure_law"])
 def model(request):
     p = presets.paper()
+    if request.param == "pressure_law":
+        p = p.replace(stiffness=PRESSURE_LAW, pressure_area_slope=0.4)
     if request.param == "rotated_constant":
         R = rotation([1, 2, 3], 0.7)
         p = p.replace(stiffness=LAWS[1], base_axis=tuple(R @ np.array(p.base_axis)),
@@ -162,7 +172,7 @@ def test_parameter_derivatives(model):
     dQdT = fd_jac(lambda t: model.residual(q, t, p, F), T, 1e-4)
     assert np.allclose(model.dQ_dT(q), dQdT, atol=1e-8)
     dQdp = (model.residual(q, T, p + 1.0, F) - model.residual(q, T, p - 1.0, F)) / 2.0
-    assert np.allclose(model.dQ_dp(q), dQdp, atol=1e-10)
+    assert np.allclose(model.dQ_dp(q, p), dQdp, atol=1e-10)
     dQdF = fd_jac(lambda f: model.residual(q, T, p, f), F, 1e-3)
     assert np.allclose(model.dQ_dF(q), dQdF, atol=1e-9)
     # tendon lengths and arc length
@@ -204,3 +214,104 @@ def test_hermite_shape_functions():
     h = 1e-6
     dN = (kin.hermite(xi + h, l0)[0] - kin.hermite(xi - h, l0)[0]) / (2 * h * l0)
     assert np.allclose(N[1], dN, atol=1e-6)
+
+
+# ------------------------------------------------------------------------------- pressure-dependent stiffness
+
+
+def test_pressure_law_stiffness_terms_of_dQ_dp():
+    """∂Q/∂p of a pressure-dependent law is the volume term plus ∂Q_axial/∂p + ∂Q_bend/∂p: against central
+    differences of Q in p at several pressures (the factor is quadratic in p, so ∂Q/∂p changes with p), and
+    clearly different from the volume term alone."""
+    m = Model(presets.paper().replace(stiffness=PRESSURE_LAW))
+    m0 = Model(presets.paper())
+    q = perturbed_state(m)
+    T, F = np.array([1.3, 0.2, 2.2]), np.array([0.3, -0.2, -0.4])
+    for p in (0.0, 40e3, 100e3):
+        fd = (m.residual(q, T, p + 5.0, F) - m.residual(q, T, p - 5.0, F)) / 10.0
+        g = m.dQ_dp(q, p)
+        assert np.abs(g - fd).max() <= 1e-7 * np.abs(fd).max()
+        assert np.abs(g - m0.dQ_dp(q, p)).max() > 1e-3 * np.abs(g).max()   # the stiffness terms matter
+    # the energy at fixed q follows EI(λ, p) = EI(λ) f_I(p): Π(p) − Π(0) has the factor's shape
+    E = [m.evaluate(q, T, p, F, hessian=False).energy - m0.evaluate(q, T, p, F, hessian=False).energy
+         for p in (0.0, 50e3, 100e3)]
+    assert E[0] == 0.0 and E[1] != 0.0 and E[2] != 0.0
+
+
+def _fd_in_pressure(solve, p, h=20.0):
+    a, b = solve(p + h), solve(p - h)
+    return {k: (getattr(a, k) - getattr(b, k)) / (2 * h) for k in ("q", "tip", "tensions")}
+
+
+@pytest.mark.parametrize("law", ["paper", "pressure_law"])
+def test_pressure_sensitivity_of_fk_ik_and_locked_fk(law):
+    """d(tip, T)/dp with the tensions, the tip or the tendon lengths held, from ∂Q/∂p (cp.pressure_sensitivity),
+    against central differences of the nonlinear FK, IK and locked FK in p."""
+    prm = presets.paper() if law == "paper" else presets.paper().replace(stiffness=PRESSURE_LAW)
+    m = Model(prm)
+    T, p = np.array([2.0, 0.6, 0.4]), 60e3
+    eq = m.fk(T, p)
+    s = cp.pressure_sensitivity(m, eq, "tensions")
+    fd = _fd_in_pressure(lambda pp: m.fk(T, pp, q0=eq.q), p)
+    assert np.allclose(s.dtip_dp, fd["tip"], rtol=1e-5, atol=1e-6 * np.abs(fd["tip"]).max())
+    assert np.allclose(s.dq_dp, fd["q"], atol=1e-6 * np.abs(fd["q"]).max())
+    # IK: the tip held, the tensions follow the pressure
+    eq_ik = m.ik(eq.tip, p, q0=eq.q, tensions0=T + 0.2)
+    s = cp.pressure_sensitivity(m, eq_ik, "tip")
+    fd = _fd_in_pressure(lambda pp: m.ik(eq_ik.tip, pp, q0=eq_ik.q, tensions0=eq_ik.tensions), p)
+    assert np.allclose(s.dT_dp, fd["tensions"], rtol=1e-5, atol=1e-6 * np.abs(fd["tensions"]).max())
+    assert np.abs(s.dtip_dp).max() < 1e-12
+    # locked lengths: the taut tendons' tensions and the tip follow the pressure
+    eq_l = m.fk_locked(eq.tendon_lengths, p, q0=eq.q, tensions0=eq.tensions)
+    s = cp.pressure_sensitivity(m, eq_l, "lengths")
+    fd = _fd_in_pressure(lambda pp: m.fk_locked(eq.tendon_lengths, pp, q0=eq_l.q, tensions0=eq_l.tensions), p)
+    assert np.allclose(s.dtip_dp, fd["tip"], rtol=1e-5, atol=1e-6 * np.abs(fd["tip"]).max())
+    assert np.allclose(s.dT_dp, fd["tensions"], rtol=1e-5, atol=1e-6 * np.abs(fd["tensions"]).max())
+
+
+
+_BASE_Q = None
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+@given(cI=st.lists(st.floats(-0.45, 2.0), min_size=1, max_size=3), cA=st.lists(st.floats(-0.45, 1.0), max_size=2),
+       p=st.floats(0.0, 120e3), seed=st.integers(0, 2 ** 16))
+def test_property_pressure_law_derivatives(cI, cA, p, seed):
+    """For any pressure factors positive over 0–120 kPa, at a random state and pressure: Q is the gradient of
+    Π, ∂Q/∂p matches central differences of Q in p, and the law equals the stretch-only law scaled by its
+    factors."""
+    law = PRESSURE_LAW.with_pressure(EA=cA, EI=cI)
+    f, _, _ = law.pressure_factor_minimum(0.0, 120e3)
+    if not f > 0.05:
+        return
+    m = Model(presets.paper().replace(stiffness=law))
+    global _BASE_Q
+    if _BASE_Q is None:
+        _BASE_Q = Model(presets.paper()).fk((1.5, 0.4, 0.0), 40e3, (0.2, 0.3, -0.3)).q
+    q = _BASE_Q + np.random.default_rng(seed).normal(size=_BASE_Q.size) * 1e-3
+    T, F = np.array([1.0, 0.0, 2.0]), np.array([0.1, 0.0, -0.2])
+    ev = m.evaluate(q, T, p, F)
+    j = np.argsort(np.abs(ev.Q))[-3:]              # the largest entries
+    for k in j:
+        e = np.zeros(q.size)
+        e[k] = 1e-7
+        fd = (m.evaluate(q + e, T, p, F, hessian=False).energy - m.evaluate(q - e, T, p, F, hessian=False).energy) / 2e-7
+        assert fd == pytest.approx(ev.Q[k], rel=1e-5, abs=1e-6 * np.abs(ev.Q).max())
+    h = 10.0
+    fd = (m.residual(q, T, p + h, F) - m.residual(q, T, p - h, F)) / (2 * h)
+    assert np.abs(m.dQ_dp(q, p) - fd).max() <= 1e-6 * np.abs(fd).max()
+    fA, fI = law.pressure_factors(p)
+    assert float(law.EI(1.1, p)) == pytest.approx(fI * float(law.EI(1.1)), rel=1e-14)
+    assert float(law.EA(0.9, p)) == pytest.approx(fA * float(law.EA(0.9)), rel=1e-14)
+
+
+def test_zero_pressure_coefficients_reproduce_the_stretch_only_law_bit_for_bit():
+    """A law with all pressure coefficients 0 is the stretch-only law (one representation), and its solves
+    are identical to the last bit."""
+    base = presets.paper()
+    law = base.stiffness.with_pressure(EA=(0.0,), EI=(0.0, 0.0))
+    assert law == base.stiffness and not law.pressure_dependent
+    m0, m1 = Model(base), Model(base.replace(stiffness=law))
+    a, b = m0.fk((2.0, 0.3, 0.0), 70e3), m1.fk((2.0, 0.3, 0.0), 70e3)
+    assert np.array_equal(a.q, b.q)
+    assert np.array_equal(m0.dQ_dp(a.q, 70e3), m1.dQ_dp(a.q, 70e3))

@@ -153,6 +153,22 @@ def test_a_tendon_goes_slack_and_taut_again():
     assert np.any(sim.tensions[:, 0] == 0) and np.all(sim.tensions >= 0)
 
 
+def test_energy_balance_under_a_pressure_ramp_with_a_pressure_dependent_law():
+    """EI(λ, p) = EI(λ)(1 + 0.9 p̂), EA(λ, p) = EA(λ)(1 + 0.3 p̂): while the pressure ramps 0 → 60 kPa the
+    potential's stiffness changes with it; the work of the loads (the change of the potential at fixed
+    state) includes that, so kinetic + potential − work + dissipated stays constant, and the run ends on
+    fk's equilibrium of the pressure-dependent law."""
+    law = presets.paper().stiffness.with_pressure(EA=(0.3,), EI=(0.9,))
+    m = Model(presets.paper().replace(stiffness=law))
+    ramp = lambda t: min(t / 0.3, 1.0)
+    sim = m.simulate(1.5, 2e-3, tensions=(2.0, 0.0, 0.0), pressure=lambda t: 60e3 * ramp(t),
+                     q0=m.fk((2.0, 0.0, 0.0), 0.0).q, damping={"alpha": 20.0})
+    total = sim.energy + sim.dissipated
+    assert abs(sim.work[-1]) > 0
+    assert np.ptp(total) < 1e-3 * abs(sim.work[-1])
+    assert np.linalg.norm(sim.tip[-1] - m.fk((2.0, 0.0, 0.0), 60e3).tip) < 1e-6
+
+
 def test_the_pressure_supply_follows_its_first_order_law(model):
     """p' = (p_cmd − p)/τ for a step command: p(t) = p_cmd (1 − e^{−t/τ}) to the trapezoidal rule's
     accuracy."""

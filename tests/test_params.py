@@ -106,3 +106,60 @@ def test_damping_coefficients_in_the_actuator_file():
         ActuatorParams.from_toml_string(base.replace("tip_mass_kg", "axial_damping = 0.3\ntip_mass_kg"))
     with pytest.raises((ConfigError, ValidationError)):
         presets.paper().replace(rayleigh_alpha=-1.0)
+
+
+def test_pressure_dependent_stiffness_in_the_actuator_file():
+    """EI(λ, p) = EI(λ)(1 + c₁ p̂ + c₂ p̂²), p̂ = p/100 kPa: keys with their unit, round trip, the factor
+    evaluated, a factor that is not positive inside the pressure limits refused naming the pressure in kPa."""
+    law = presets.paper().stiffness.with_pressure(EA=(0.2,), EI=(0.8, 0.1))
+    p = presets.paper().replace(stiffness=law)
+    text = p.to_toml()
+    assert "EI_pressure_coeffs_per_100kPa = [0.8, 0.1]" in text and "EA_pressure_coeffs_per_100kPa = [0.2]" in text
+    assert ActuatorParams.from_toml_string(text) == p
+    assert p.stiffness.EI(1.0, 50e3) == pytest.approx(p.stiffness.EI(1.0) * (1 + 0.8 * 0.5 + 0.1 * 0.25), rel=1e-14)
+    assert p.stiffness.EA(1.1, 100e3) == pytest.approx(p.stiffness.EA(1.1) * 1.2, rel=1e-14)
+    assert "EI × (1 + 0.8 p̂ + 0.1 p̂^2)" in p.stiffness.describe()
+    # without the unit suffix: rejected, naming the accepted spelling
+    with pytest.raises(ConfigError, match="EI_pressure_coeffs_per_100kPa"):
+        ActuatorParams.from_toml_string(text.replace("EI_pressure_coeffs_per_100kPa", "EI_pressure_coeffs"))
+    with pytest.raises(ConfigError, match="expected a list"):
+        ActuatorParams.from_toml_string(text.replace("= [0.8, 0.1]", "= 0.8"))
+    # a factor reaching zero inside [0, 120] kPa: 1 − 0.9 p̂ is 0 at 111 kPa
+    with pytest.raises(ConfigError, match=r"pressure factor of EI is -0.08 ≤ 0 at p = 120 kPa.*\[0, 120\] kPa"):
+        presets.paper().replace(stiffness=presets.paper().stiffness.with_pressure(EI=(-0.9,)))
+    # a minimum inside the range is found (1 − 2 p̂ + 1.2 p̂²: minimum 1/6 at 83 kPa is fine; 1 − 2.2 p̂ + 1.2 p̂²: −0.0083 at 92 kPa)
+    ok = presets.paper().stiffness.with_pressure(EI=(-2.0, 1.2))
+    f, at, which = ok.pressure_factor_minimum(0.0, 120e3)
+    assert (f, at / 1e3, which) == (pytest.approx(1 / 6), pytest.approx(250 / 3), "EI")
+    with pytest.raises(ConfigError, match="-0.008333 ≤ 0 at p = 91.6667 kPa"):
+        presets.paper().replace(stiffness=presets.paper().stiffness.with_pressure(EI=(-2.2, 1.2)))
+    with pytest.raises(ConfigError, match="at most 4 coefficients"):
+        law.with_pressure(EI=(0.1,) * 5)
+    with pytest.raises(ConfigError, match="must be a number"):
+        law.with_pressure(EI=("0.1",))
+
+
+def test_a_pressure_outside_the_limits_where_the_factor_vanishes_is_refused():
+    from ancf import InputError, Model
+    law = presets.paper().stiffness.with_pressure(EI=(-0.8,))          # 0 at 125 kPa, limits 0–120 kPa
+    m = Model(presets.paper().replace(stiffness=law))
+    with pytest.raises(InputError, match="pressure factor of EI .* at p = 130 kPa"):
+        m.fk((0, 0, 0), 130e3, check_limits=False)
+    with pytest.raises(InputError, match="at p = 130 kPa"):
+        m.dQ_dp(m.q_ref, 130e3)
+    ea, ei = m.stiffness_coefficients(100e3)
+    np.testing.assert_allclose(ei, law.ei * 0.2, rtol=1e-14)
+    np.testing.assert_array_equal(ea, law.ea)
+
+
+def test_the_stiffness_example_of_the_format_documentation_loads():
+    import pathlib
+    import re
+    doc = (pathlib.Path(__file__).resolve().parents[1] / "docs" / "data-formats.md").read_text()
+    section = doc.split("## Actuator files (TOML)", 1)[1].split("\n## ", 1)[0]
+    example = re.search(r"```toml\n(.*?)```", section, re.S).group(1)
+    text = presets.paper().to_toml()
+    head, tail = text.split("[stiffness]", 1)
+    p = ActuatorParams.from_toml_string(head + example + tail[tail.index("[[tendons]]"):])
+    assert p.stiffness.EI_pressure == (0.55, 0.35)
+    assert p.stiffness.EI(1.0, 100e3) == pytest.approx(0.0179 * 1.9, rel=1e-3)

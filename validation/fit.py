@@ -38,6 +38,9 @@ and it is reported as not identifiable, never as a number.  The intervals of the
   direction, so no interval can include it; a parameter with a share > 1 % in that direction is itself
   held.
 
+The refit after holding parameters starts from the first pass's equilibria (warm starts), not cold: a state
+reached only along the first pass's path stays reachable.
+
 Too few data.  With fewer states than the free parameters + ``MIN_SPARE_STATES`` or fewer residual degrees
 of freedom than ``MIN_DOF`` (weighted residuals − free parameters) a fit is an interpolation: its residuals
 say nothing about its error and its intervals are meaningless (two states can be matched exactly by a wrong
@@ -51,7 +54,9 @@ is *infeasible*: the residual function answers it with non-finite residuals, whi
 reflective method rejects, shrinking the trust region to a quarter of the step (scipy/optimize/_lsq/trf.py:
 ``if not np.all(np.isfinite(f_new)): Delta = 0.25 * step_h_norm; continue``).  The warm starts are only
 updated from a θ whose states all solved.  At the initial θ the same failure is an error (scipy needs finite
-residuals there), re-raised with its type.
+residuals there): the fit cannot start, and the error — the first failure's type — names every state without an
+equilibrium there, each with its own failure, and the starting parameters (attributes ``failed_states``,
+``parameters``).
 """
 
 from __future__ import annotations
@@ -92,7 +97,7 @@ INFEASIBLE = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError, I
 _RETRY = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError)
 #: Signed parameters (slopes, intercepts) for which zero is a meaningful value: rule (2) of the module
 #: docstring (CI wider than the value) does not apply to them.
-SIGNED = frozenset({"a", "b", "beta", "sA", "sI"})
+SIGNED = frozenset({"a", "b", "beta", "sA", "sI", "pI1", "pI2", "pA1"})
 
 
 @dataclass
@@ -230,19 +235,27 @@ class _Evaluator:
         m_0 = m_g if not np.any(params.gravity) else Model(params.replace(gravity=(0.0, 0.0, 0.0)))
         return params, m_g, m_0
 
-    def evaluate(self, theta, jacobian: bool = True):
+    def evaluate(self, theta, jacobian: bool = True, all_failures: bool = False):
+        """(params, predictions (N, 3 + 3k), ∂predictions/∂θ (N, 3 + 3k, n) or None) at θ.  A state without a
+        verified equilibrium raises its typed error (``all_failures``: after trying every state, naming all
+        that failed — the start of a fit, :func:`_start_failure`)."""
         theta = np.asarray(theta, float)
         if self._cache_theta is not None and np.array_equal(theta, self._cache_theta) and \
                 (not jacobian or self._cache[2] is not None):
             return self._cache
         self.nfev += 1
         obs, form = self.obs, self.form
-        params, m_g, m_0 = self._models(theta)
+        try:
+            params, m_g, m_0 = self._models(theta)
+        except (InputError, ConfigError) as exc:
+            raise type(exc)(f"the model refuses the {form.name} parameters ({_parameter_text(form, theta)}): "
+                            f"{exc}") from None
         k = 0 if obs.markers is None else obs.marker_s.size
         S = None if k == 0 else position_matrix(params.n_elements, params.length, obs.marker_s)
         pred = np.zeros((obs.n, 3 + 3 * k))
         J = np.zeros((obs.n, 3 + 3 * k, form.n)) if jacobian else None
         q_new = list(self.q)          # committed only when every state solved (warm starts of a feasible θ)
+        failures = []
         for i in range(obs.n):
             model = m_g if obs.gravity[i] else m_0
             T, p, F = obs.tensions[i], obs.pressure[i], obs.tip_force[i]
@@ -254,15 +267,11 @@ class _Evaluator:
                 except _RETRY as exc:
                     err = exc
             if eq is None:
-                where = (f"FK of state '{obs.labels[i]}' failed for {form.name} parameters "
-                         f"{dict(zip(form.names, np.round(theta, 6)))}: {err}")
-                if isinstance(err, ConvergenceError):
-                    raise ConvergenceError(where, solver="fit", iterations=err.iterations,
-                                           residual_norm=err.residual_norm, tolerance=err.tolerance,
-                                           history=err.history) from None
-                if isinstance(err, UnstableEquilibriumError):
-                    raise UnstableEquilibriumError(where, solver="fit", min_eigenvalue=err.min_eigenvalue) from None
-                raise CollapsedStateError(where, solver="fit", stretch=err.stretch) from None
+                failures.append((obs.labels[i], err))
+                if all_failures:
+                    continue
+                raise _retyped(err, f"FK of state '{obs.labels[i]}' failed for {form.name} parameters "
+                                    f"{_parameter_text(form, theta)}: {err}") from None
             q_new[i] = eq.q
             pred[i, :3] = eq.tip
             if k:
@@ -278,9 +287,40 @@ class _Evaluator:
                 J[i, :3] = Jp @ dz
                 if k:
                     J[i, 3:] = model.reduce_vec(S) @ dz
+        if failures:
+            raise _start_failure(form, theta, failures, obs.n)
         self.q = q_new
         self._cache_theta, self._cache = theta.copy(), (params, pred, J)
         return self._cache
+
+
+def _parameter_text(form: ModelForm, theta) -> str:
+    """'EA = 767.2 N, EI = 0.0839 N m^2, …': a form's parameters with their SI units."""
+    return ", ".join(f"{nm} = {float(v):.6g} {u}".rstrip(" -") for nm, v, u in zip(form.names, theta, form.units))
+
+
+def _retyped(err: Exception, message: str) -> Exception:
+    """``err``'s type (ConvergenceError, UnstableEquilibriumError, CollapsedStateError) with ``message``."""
+    if isinstance(err, ConvergenceError):
+        return ConvergenceError(message, solver="fit", iterations=err.iterations, residual_norm=err.residual_norm,
+                                tolerance=err.tolerance, history=err.history)
+    if isinstance(err, UnstableEquilibriumError):
+        return UnstableEquilibriumError(message, solver="fit", min_eigenvalue=err.min_eigenvalue)
+    return CollapsedStateError(message, solver="fit", stretch=getattr(err, "stretch", float("nan")))
+
+
+def _start_failure(form: ModelForm, theta, failures: list, n_states: int) -> Exception:
+    """The typed error of a fit that cannot start: every state without an equilibrium at the starting θ, with
+    its own failure, and the parameters (the type is the first failure's; ``failed_states`` [(label, text)]
+    and ``parameters`` {name: value [SI]} as attributes)."""
+    listed = "; ".join(f"'{label}' ({type(e).__name__}: {e})" for label, e in failures)
+    exc = _retyped(failures[0][1],
+                   f"the fit of form {form.name} cannot start: {len(failures)} of {n_states} states have no "
+                   f"verified equilibrium at the starting parameters ({_parameter_text(form, theta)}): {listed}. "
+                   "Start closer to the data (other starting values) or leave these states out")
+    exc.failed_states = [(label, f"{type(e).__name__}: {e}") for label, e in failures]
+    exc.parameters = {nm: float(v) for nm, v in zip(form.names, theta)}
+    return exc
 
 
 def _observed(obs: Observations) -> np.ndarray:
@@ -294,7 +334,7 @@ def _observed(obs: Observations) -> np.ndarray:
 
 def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, absolute_sigma: Optional[bool] = None,
         fixed: Sequence[str] = (), max_nfev: int = 200, scale=None, _refit: bool = True,
-        _marginal: Optional[np.ndarray] = None) -> FitResult:
+        _marginal: Optional[np.ndarray] = None, _warm: Optional[list] = None) -> FitResult:
     """Fit ``form`` to ``obs`` from ``theta0`` (everything else from ``base``); see the module docstring.
 
     ``absolute_sigma`` (default: whether ``obs`` states uncertainties) — treat σ as known.
@@ -323,6 +363,8 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     w = obs.weights().ravel()
     y = _observed(obs).ravel()
     ev = _Evaluator(form, obs, base)
+    if _warm is not None:           # the refit: from the first pass's equilibria (a cold start may not reach them)
+        ev.q = list(_warm)
     if free.sum() > w.size:
         raise InputError(f"form {form.name}: {free.sum()} free parameters but only {w.size} observations")
 
@@ -337,7 +379,7 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         # an infeasible trial θ (module docstring) is answered with non-finite residuals: trf rejects the
         # step and shrinks the trust region; at the initial θ the failure is re-raised with its type
         try:
-            _, pred, _ = ev.evaluate(full(x), jacobian=False)
+            _, pred, _ = ev.evaluate(full(x), jacobian=False, all_failures=first[0])
         except INFEASIBLE:
             if first[0]:
                 raise
@@ -440,7 +482,7 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
                     "its 95 % confidence interval is wider than its value")
                for j, nm in enumerate(form.names) if nm in newly}
         out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
-                  max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov)
+                  max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov, _warm=ev.q)
         out.rejected += ev.rejected
         for nm in newly:
             out.identifiable[nm] = False

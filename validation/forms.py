@@ -12,7 +12,11 @@ vectors*: with EA(λ) = Σ ea_k λ^k, EI(λ) = Σ ei_k λ^k and A(λ) λ = Σ c_
     Q(q; θ) = Q_axial(q; ea(θ)) + Q_bend(q; ei(θ)) + p Q_press(q; c(θ)) + (terms free of θ),
 
 so ∂Q/∂θ_j is one assembly of the potential with the coefficient vectors ∂ea/∂θ_j, ∂ei/∂θ_j, p ∂c/∂θ_j and
-every other load zero.  (The optional tendon routing distance d enters the tendon terms nonlinearly; its
+every other load zero.  A pressure-dependent form scales the stretch laws by factors in p̂ = p / 100 kPa
+(:mod:`ancf.stiffness`): at a state of pressure p the law's coefficient vectors are ea f_A(p), ei f_I(p), still
+linear in what the assembly takes, so the column is the same single assembly with
+∂(ea f_A)/∂θ_j = (∂ea/∂θ_j) f_A + ea ∂f_A/∂θ_j (likewise for EI) at that state's pressure — exact.
+(The optional tendon routing distance d enters the tendon terms nonlinearly; its
 column is a central difference of the assembly — not of a solve — with a relative step of 1e-6.)
 
 Forms (``FORMS``; internal parameters in SI, λ the local stretch):
@@ -26,12 +30,15 @@ form                law                                                         
 ``separate_area``   as ``separate``, A(λ) = A_eff (1 + β (λ − 1))                        + β [−]
 ``quadratic``       EA = EA₁ + s_A (λ − 1) + c_A (λ − 1)²,  EI as ``separate``            EA₁, s_A, c_A [N], EI₁, s_I, D_eff
 ``constant``        EA, EI constant,  A = π D_eff²/4                                     EA [N], EI [N m²], D_eff [m]
+``pressure_ei``     as ``separate``, EI × (1 + pI1 p̂ + pI2 p̂²),  p̂ = p / 100 kPa             EA₁, s_A, EI₁, s_I, pI1 [−], pI2 [−], D_eff
+``pressure_ei_ea``  as ``pressure_ei``, EA × (1 + pA1 p̂)                                   + pA1 [−]
 ==================  ===================================================================  =========================
 
 k₁ = EA(1) rather than the paper's intercept b is fitted (b = k₁ − a is reported) so that the axial
 stiffness at rest — the best-determined quantity — is one parameter, bounded positive.  Every form reports
-the same derived values: ``a``, ``b`` (EA(λ) = a λ + b), ``EA``, ``EI`` (at λ = 1), ``D_a = √(8 EI/EA)`` at
-λ = 1 and ``D_eff``; ``beta`` for the area forms.
+the same derived values: ``a``, ``b`` (EA(λ) = a λ + b), ``EA``, ``EI`` (at λ = 1 and p = 0),
+``D_a = √(8 EI/EA)`` at λ = 1 and ``D_eff``; ``beta`` for the area forms; ``EI_100kPa`` (and ``EA_100kPa``) for
+the pressure forms.
 """
 
 from __future__ import annotations
@@ -44,12 +51,14 @@ import numpy as np
 
 from ancf import ActuatorParams, StiffnessLaw
 from ancf.assembly import assemble
+from ancf.stiffness import P_REF
 from ancf.errors import InputError
 
 __all__ = ["ModelForm", "FORMS", "get_form", "position_matrix", "REPORTED", "MEANINGS", "display_unit"]
 
 #: Derived values every form reports, with units.
-REPORTED = {"a": "N", "b": "N", "EA": "N", "EI": "N m^2", "D_a": "m", "D_eff": "m", "beta": "-", "d": "m"}
+REPORTED = {"a": "N", "b": "N", "EA": "N", "EI": "N m^2", "D_a": "m", "D_eff": "m", "beta": "-", "d": "m",
+            "EI_100kPa": "N m^2", "EA_100kPa": "N"}
 
 #: What each parameter of a form (``ModelForm.names``) and each reported value means (tables of the report).
 MEANINGS = {
@@ -60,6 +69,11 @@ MEANINGS = {
     "cA": "curvature of the axial stiffness, ½ d²EA/dλ²", "EI1": "bending stiffness at rest, EI(1)",
     "sI": "slope of the bending stiffness, dEI/dλ", "EA": "axial stiffness (at rest)", "EI": "bending stiffness (at rest)",
     "d": "tendon routing distance from the axis",
+    "pI1": "pressure coefficient of EI: EI(λ, p) = EI(λ)(1 + pI1 p̂ + pI2 p̂²), p̂ = p/100 kPa",
+    "pI2": "quadratic pressure coefficient of EI (see pI1)",
+    "pA1": "pressure coefficient of EA: EA(λ, p) = EA(λ)(1 + pA1 p̂), p̂ = p/100 kPa",
+    "EI_100kPa": "bending stiffness at rest at 100 kPa, EI(1, 100 kPa)",
+    "EA_100kPa": "axial stiffness at rest at 100 kPa, EA(1, 100 kPa)",
 }
 
 
@@ -78,7 +92,10 @@ class ModelForm:
 
     names / units : internal parameter names and units;  lower / upper : bounds for the fit (SI);
     laws(θ) → (ea, ei, c, d) coefficient vectors (c: A(λ)λ = Σ c_k λ^{k+1} [m²]; d: tendon distance or None);
-    laws_jacobian(θ) → list over θ_j of (∂ea, ∂ei, ∂c) (the distance column is handled separately).
+    laws_jacobian(θ) → list over θ_j of (∂ea, ∂ei, ∂c) (the distance column is handled separately);
+    pressure(θ) → (EA factor coefficients, EI factor coefficients) of the pressure-dependent forms
+    (:meth:`ancf.StiffnessLaw.with_pressure`), None for the others; pressure_jacobian(θ) → list over θ_j of their
+    derivatives.
     """
     name: str
     names: tuple
@@ -90,6 +107,8 @@ class ModelForm:
     fits_distance: bool = False
     description: str = ""
     typical: tuple = ()
+    pressure: Callable | None = None
+    pressure_jacobian: Callable | None = None
 
     @property
     def n(self) -> int:
@@ -134,6 +153,9 @@ class ModelForm:
             law = StiffnessLaw.constant(EA=float(ea[0]), EI=float(ei[0]))
         else:
             law = StiffnessLaw.polynomial(EA=tuple(ea), EI=tuple(ei))
+        if self.pressure is not None:
+            pA, pI = self.pressure(np.asarray(theta, float))
+            law = law.with_pressure(EA=tuple(float(c) for c in pA), EI=tuple(float(c) for c in pI))
         changes = dict(stiffness=law, D_eff=D_eff, pressure_area_slope=beta)
         if d is not None:
             from ancf.params import Tendon
@@ -153,6 +175,11 @@ class ModelForm:
             out["beta"] = float(c[1] / A1)
         if d is not None:
             out["d"] = float(d)
+        if self.pressure is not None:          # the stiffnesses at rest at 100 kPa (p̂ = 1)
+            pA, pI = self.pressure(np.asarray(theta, float))
+            out["EI_100kPa"] = EI1 * _factor(pI, 1.0)
+            if len(pA):
+                out["EA_100kPa"] = EA1 * _factor(pA, 1.0)
         return out
 
     def derived_jacobian(self, theta) -> tuple[list, np.ndarray]:
@@ -177,13 +204,39 @@ class ModelForm:
         zero3 = np.zeros(3)
         T0 = np.zeros(model.m)
         q = np.ascontiguousarray(q, dtype=float)
-        for j, (dea, dei, dc) in enumerate(self.laws_jacobian(theta)):
+        cols = self.laws_jacobian(theta)
+        if self.pressure is not None:
+            # the law at this state's pressure: ea f_A(p̂), ei f_I(p̂); its θ-derivative by the product rule
+            ea, ei, _, _ = self.laws(theta)
+            pA, pI = self.pressure(theta)
+            x = float(pressure) / P_REF
+            fA, fI = _factor(pA, x), _factor(pI, x)
+            pcols = self.pressure_jacobian(theta)
+            cols = [(dea, dei, dc) if dea is None else
+                    (_pad(_vec(dea) * fA, ea * (_factor(dpA, x) - 1.0)),
+                     _pad(_vec(dei) * fI, ei * (_factor(dpI, x) - 1.0)), dc)
+                    for (dea, dei, dc), (dpA, dpI) in zip(cols, pcols)]
+        for j, (dea, dei, dc) in enumerate(cols):
             if dea is None:
                 continue
             _, Q, *_ = assemble(q, model.n, model._N, model._wq, _vec(dea), _vec(dei), float(pressure) * _vec(dc),
                                 zero3, model._E, model._d, model._co, model._so, T0, 0.0, zero3, False, 0)
             out[:, j] = Q
         return out
+
+
+def _factor(coeffs, x: float) -> float:
+    """1 + Σ_j coeffs[j−1] x^j (a pressure factor at p̂ = x; a derivative's coefficients give 1 + its value)."""
+    return 1.0 + sum(float(c) * x ** (j + 1) for j, c in enumerate(coeffs))
+
+
+def _pad(a, b) -> np.ndarray:
+    """a + b for coefficient vectors of possibly different lengths."""
+    a, b = np.atleast_1d(np.asarray(a, float)), np.atleast_1d(np.asarray(b, float))
+    out = np.zeros(max(a.size, b.size))
+    out[:a.size] += a
+    out[:b.size] += b
+    return out
 
 
 def _vec(c) -> np.ndarray:
@@ -303,6 +356,41 @@ def _constant_jac(th, area=False):
             (np.zeros(1), np.zeros(1), np.array([math.pi * th[2] / 2]))]
 
 
+def _pressure_laws(th, area=False, dist=False):
+    """``pressure_ei`` (θ = EA₁, s_A, EI₁, s_I, p_I1, p_I2, D_eff) and ``pressure_ei_ea`` (…, p_I2, p_A1, D_eff):
+    the ``separate`` stretch laws; the pressure factors are :func:`_pressure_factors`."""
+    EA1, sA, EI1, sI = th[:4]
+    De = th[7] if area else th[6]
+    return (np.array([EA1 - sA, sA]), np.array([EI1 - sI, sI]), np.array([math.pi * De * De / 4]),
+            (th[-1] if dist else None))
+
+
+def _pressure_jac(th, area=False):
+    De = th[7] if area else th[6]
+    z2, zc = np.zeros(2), np.zeros(1)
+    cols = [(np.array([1.0, 0.0]), z2, zc), (np.array([-1.0, 1.0]), z2, zc),
+            (z2, np.array([1.0, 0.0]), zc), (z2, np.array([-1.0, 1.0]), zc),
+            (z2, z2, zc), (z2, z2, zc)]
+    if area:
+        cols.append((z2, z2, zc))
+    cols.append((z2, z2, np.array([math.pi * De / 2])))
+    return cols
+
+
+def _pressure_factors(th, with_ea=False, dist=False):
+    """(EA factor coefficients, EI factor coefficients) of the pressure forms (``with_ea``: ``pressure_ei_ea``)."""
+    return ((th[6],) if with_ea else ()), (th[4], th[5])
+
+
+def _pressure_factors_jac(th, with_ea=False, dist=False):
+    n = len(th)
+    out = []
+    for j in range(n):
+        dA = (1.0 if j == 6 else 0.0,) if with_ea else ()
+        out.append((dA, (1.0 if j == 4 else 0.0, 1.0 if j == 5 else 0.0)))
+    return out
+
+
 _BIG = 1e7
 _DEF = {
     "paper": (("k1", "a", "D_a", "D_eff"), ("N", "N", "m", "m"), (1e-3, -_BIG, 1e-4, 1e-4), (_BIG, _BIG, 1.0, 1.0),
@@ -323,11 +411,23 @@ _DEF = {
                                          "pressure area"),
     "constant": (("EA", "EI", "D_eff"), ("N", "N m^2", "m"), (1e-3, 1e-9, 1e-4), (_BIG, _BIG, 1.0), _constant_laws,
                  _constant_jac, False, "constant EA and EI, constant pressure area"),
+    # the pressure forms: the 'area' flag of the shared signature selects the EA factor (pressure_ei_ea)
+    "pressure_ei": (("EA1", "sA", "EI1", "sI", "pI1", "pI2", "D_eff"), ("N", "N", "N m^2", "N m^2", "-", "-", "m"),
+                    (1e-3, -_BIG, 1e-9, -_BIG, -10.0, -10.0, 1e-4), (_BIG, _BIG, _BIG, _BIG, 10.0, 10.0, 1.0),
+                    _pressure_laws, _pressure_jac, False,
+                    "separate linear laws; EI × (1 + pI1 p̂ + pI2 p̂²), p̂ = p/100 kPa; constant pressure area"),
+    "pressure_ei_ea": (("EA1", "sA", "EI1", "sI", "pI1", "pI2", "pA1", "D_eff"),
+                       ("N", "N", "N m^2", "N m^2", "-", "-", "-", "m"),
+                       (1e-3, -_BIG, 1e-9, -_BIG, -10.0, -10.0, -10.0, 1e-4),
+                       (_BIG, _BIG, _BIG, _BIG, 10.0, 10.0, 10.0, 1.0), _pressure_laws, _pressure_jac, True,
+                       "separate linear laws; EI × (1 + pI1 p̂ + pI2 p̂²), EA × (1 + pA1 p̂), p̂ = p/100 kPa; "
+                       "constant pressure area"),
 }
+_PRESSURE_FORMS = {"pressure_ei", "pressure_ei_ea"}
 
 #: Typical size of each signed parameter (:meth:`ModelForm.typical_scale`): the magnitude parameter it is a
 #: slope of, or a number; every other parameter's typical size is its own starting value.
-_TYPICAL = {"a": "k1", "sA": "EA1", "cA": "EA1", "sI": "EI1", "beta": 1.0}
+_TYPICAL = {"a": "k1", "sA": "EA1", "cA": "EA1", "sI": "EI1", "beta": 1.0, "pI1": 1.0, "pI2": 1.0, "pA1": 1.0}
 
 
 def get_form(name: str, fit_distance: bool = False) -> ModelForm:
@@ -339,10 +439,15 @@ def get_form(name: str, fit_distance: bool = False) -> ModelForm:
     if fit_distance:
         names, units, lo, hi = names + ("d",), units + ("m",), lo + (1e-4,), hi + (0.49,)
         typical = typical + (None,)
+    pressure = pressure_jac = None
+    if name in _PRESSURE_FORMS:
+        pressure = lambda th, area=area: _pressure_factors(th, area)                    # noqa: E731
+        pressure_jac = lambda th, area=area: _pressure_factors_jac(th, area)            # noqa: E731
     return ModelForm(name + ("+d" if fit_distance else ""), names, units, lo, hi,
                      lambda th, laws=laws, area=area, fd=fit_distance: laws(th, area, fd),
                      lambda th, jac=jac, area=area, fd=fit_distance: jac(th, area) + ([(None, None, None)] if fd else []),
-                     fit_distance, desc + (", tendon distance fitted" if fit_distance else ""), typical)
+                     fit_distance, desc + (", tendon distance fitted" if fit_distance else ""), typical,
+                     pressure, pressure_jac)
 
 
 FORMS = tuple(_DEF)

@@ -124,7 +124,8 @@ def initial_theta(form, rod: Optional[dict], base: ActuatorParams) -> np.ndarray
     th = {"paper": [EA, 0.0, D_a, D_eff], "paper_area": [EA, 0.0, D_a, D_eff, 0.0],
           "separate": [EA, 0.0, EI, 0.0, D_eff], "separate_area": [EA, 0.0, EI, 0.0, D_eff, 0.0],
           "quadratic": [EA, 0.0, 0.0, EI, 0.0, D_eff],
-          "constant": [EA, EI, D_eff]}[name]
+          "constant": [EA, EI, D_eff], "pressure_ei": [EA, 0.0, EI, 0.0, 0.0, 0.0, D_eff],
+          "pressure_ei_ea": [EA, 0.0, EI, 0.0, 0.0, 0.0, 0.0, D_eff]}[name]
     if form.fits_distance:
         th.append(float(np.mean(base.tendon_distances)))
     return np.array(th, float)
@@ -205,6 +206,13 @@ class IdentificationResult:
             else:
                 lines.append(f"#   {k:6s} NOT IDENTIFIABLE from these data ({f.reasons.get(k, 'see fit.json')}): "
                              "the value below is the fit's optimum, not determined by the data")
+        for nm in f.names:                         # pressure coefficients (dimensionless, per power of p/100 kPa)
+            if nm in ("pI1", "pI2", "pA1"):
+                lo, hi = f.ci95.get(nm, (float("nan"), float("nan")))
+                v = float(f.theta[f.names.index(nm)])
+                lines.append(f"#   {nm:6s} = {v:.6g} per (p/100 kPa)^{2 if nm == 'pI2' else 1}"
+                             + (f"  (95 % CI {lo:.6g} .. {hi:.6g})" if f.identifiable.get(nm) else
+                                "  NOT IDENTIFIABLE from these data"))
         if held:
             lines.append(f"# held: {held}; the intervals above are {f.intervals}")
         text = "\n".join(lines) + "\n" + self.params.to_toml()

@@ -38,6 +38,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from ..assembly import assemble
 from ..errors import CollapsedStateError, ConvergenceError, InputError, LimitError, check_finite, check_scalar
 from .damping import axial_damping
 from .integrator import AlphaCoefficients, StepFailed, StepState, alpha_step
@@ -343,15 +344,27 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
     eidx = np.arange(model.n)[:, None] * 6 + np.arange(12)[None, :]
     vc = model._vc
 
+    law = model.params.stiffness
+
     def parts(q):
         e0 = model._evaluate(q, None, 0.0, (0.0, 0.0, 0.0), False, 1.0, "values")
         lam = np.linalg.norm(np.einsum("kj,ejc->ekc", s1, q[eidx].reshape(model.n, 4, 3)), axis=-1)
         V = float(np.sum(model._wq * sum(c * lam ** (j + 1) for j, c in enumerate(vc))))   # ∫ A(λ) λ dx
-        return e0.energy, e0.lengths, V, model._tip(q)
+        # a pressure-dependent law: the axial and bending energies at p = 0, scaled by their factors at p
+        UA = UB = 0.0
+        if law.pressure_dependent:
+            z3, z1 = np.zeros(3), np.zeros(1)
+            common = (model._E, model._d, model._co, model._so, np.zeros(model.m), 0.0, z3, False, 0)
+            UA = assemble(q, model.n, model._N, model._wq, model._ea, z1, z1, z3, *common)[0]
+            UB = assemble(q, model.n, model._N, model._wq, z1, model._ei, z1, z3, *common)[0]
+        return e0.energy, e0.lengths, V, model._tip(q), UA, UB
 
     def potential(pt, T, pr, F, l0):
-        E0, lq, V, pe = pt
+        E0, lq, V, pe, UA, UB = pt
         Pi = E0 - pr * V - float(F @ pe)
+        if law.pressure_dependent:
+            fA, fI = law.pressure_factors(pr)
+            Pi += (fA - 1.0) * UA + (fI - 1.0) * UB
         if length_mode:
             st = np.maximum(lq - l0, 0.0)
             sc = np.minimum(st, s_hold)

@@ -167,3 +167,11 @@ def test_static_states_of_a_run_read_back(paper_model, ref, tmp_path):
     np.testing.assert_allclose(st.tip_position[0], eq.tip, atol=1e-12)
     assert np.all(np.isnan(st.tip_force))                                    # the rig does not know the load
     assert np.linalg.norm(st.tip_position[0] - ref.tip) < 2e-4
+
+
+def test_mismatched_plant_keeps_a_pressure_dependent_law():
+    from ancf import presets as _presets
+    law = _presets.paper().stiffness.with_pressure(EI=(0.8, 0.2))
+    opts = PlantOptions.mismatched(base=_presets.paper().replace(stiffness=law))
+    assert opts.params.stiffness.EI_pressure == (0.8, 0.2)
+    assert float(opts.params.stiffness.EI(1.0, 100e3)) == pytest.approx(0.95 * 2.0 * float(law.EI(1.0)), rel=1e-12)

@@ -20,6 +20,8 @@ TRUE = {
     "separate_area": [700.0, 900.0, 0.09, 0.15, 0.024, 0.3],
     "quadratic": [700.0, 900.0, 2500.0, 0.09, 0.15, 0.024],
     "constant": [767.2, 0.0839, 0.02605],
+    "pressure_ei": [700.0, 900.0, 0.09, 0.15, 0.8, 0.3, 0.024],
+    "pressure_ei_ea": [700.0, 900.0, 0.09, 0.15, 0.8, 0.3, 0.25, 0.024],
 }
 MARKERS = np.array([0.04, 0.08, 0.12])
 
@@ -145,3 +147,30 @@ def test_bad_inputs_are_typed_errors():
         get_form("cubic")
     with pytest.raises(BellowsError):
         Observations([[1, 0, 0]], [np.nan], [[0, 0, 0]], [False], [[0.16, 0, 0]])
+
+
+def test_held_out_evidence_chooses_the_pressure_form_when_ei_grows_with_pressure():
+    """States of a bellows whose EI grows with pressure like the FEM's (× 1.9 at 100 kPa): the stretch-only
+    form cannot follow them; ``pressure_ei`` recovers the factor, predicts the held-out states exactly and
+    is chosen by the held-out error, with its pressure coefficients identified."""
+    design = default_design()
+    truth = np.array([700.0, 900.0, 0.09, 0.15, 0.55, 0.35, 0.024])
+    form = get_form("pressure_ei")
+    train = synthetic(form, truth, design.training)
+    held = synthetic(form, truth, design.heldout)
+    res = identify.identify(train, BASE, heldout=held, forms=("separate", "pressure_ei"))
+    rows = {r["form"]: r for r in res.comparison}
+    assert res.form == "pressure_ei"
+    assert rows["pressure_ei"]["heldout_rms_tip_m"] < 1e-8
+    assert rows["separate"]["heldout_rms_tip_m"] > 1e-3                  # millimetres off
+    f = res.fits["pressure_ei"]
+    np.testing.assert_allclose(f.theta, truth, rtol=1e-6)
+    assert f.identifiable["pI1"] and f.identifiable["pI2"]
+    assert res.values["EI_100kPa"] == pytest.approx(0.09 * 1.9, rel=1e-6)
+    lo, hi = res.ci95["EI_100kPa"]
+    assert lo < 0.09 * 1.9 < hi and "EA_100kPa" not in res.values
+    assert res.params.stiffness.EI_pressure == pytest.approx((0.55, 0.35), rel=1e-6)
+    text = res.to_toml()
+    assert "#   pI1    = 0.55 per (p/100 kPa)^1  (95 % CI" in text and "EI_pressure_coeffs_per_100kPa" in text
+    from ancf import ActuatorParams
+    assert ActuatorParams.from_toml_string(text) == res.params

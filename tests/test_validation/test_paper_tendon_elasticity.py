@@ -120,3 +120,17 @@ def test_series_stiffness_for_twice():
         assert r["ratio_locked_over_constant"]["nonlinear"][0, 0] == pytest.approx(2.0, rel=0.03)
     assert series_stiffness_for_ratio("paper_scaled") == pytest.approx(312, rel=0.05)
     assert series_stiffness_for_ratio("paper_diameter") == float("inf")
+
+
+def test_closed_form_ratio_of_a_pressure_dependent_law():
+    """EI × 1.9 at 100 kPa (EA unchanged): a = d²/EI falls, so the straight beam's locked / constant ratio
+    falls from the geometry's 2.90 to 1/(1 − ¾ a/(a + b)) with a/b = 8 d²/(1.9 D_a²) — towards the paper's
+    "about twice"; at 0 kPa it is the stretch-only law's."""
+    from ancf import presets
+    p = presets.paper()
+    law = p.stiffness.with_pressure(EI=(0.55, 0.35))
+    prm = p.replace(stiffness=law)
+    assert ratio_closed_form(prm) == pytest.approx(ratio_closed_form(p), rel=1e-14)
+    r = 8 * 0.0275 ** 2 / (1.9 * 0.02959 ** 2)
+    assert ratio_closed_form(prm, pressure=100e3) == pytest.approx(1 / (1 - 0.75 * r / (r + 1)), rel=1e-12)
+    assert ratio_closed_form(prm, pressure=100e3) == pytest.approx(2.43, abs=0.01)

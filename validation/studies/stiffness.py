@@ -141,17 +141,18 @@ def stiffness_vs_tension(pressures: Sequence[float] = (0.0, 25e3, 50e3),
     return res
 
 
-def ratio_closed_form(params: ParamsLike = None, tendon_stiffness=None) -> float:
-    """Locked / constant-tension tip stiffness of the straight, weightless beam with EA(1), EI(1) of the
+def ratio_closed_form(params: ParamsLike = None, tendon_stiffness=None, pressure: float = 0.0) -> float:
+    """Locked / constant-tension tip stiffness of the straight, weightless beam with EA(1, p), EI(1, p) of the
     preset and one tendon at distance d (the first one), series stiffness k_s (None: the preset's, or
-    inextensible): 1 / (1 − ¾ a/(a + b + c)), a = d²/EI, b = 1/EA, c = 1/(k_s L).
+    inextensible): 1 / (1 − ¾ a/(a + b + c)), a = d²/EI, b = 1/EA, c = 1/(k_s L).  ``pressure`` [Pa] only
+    matters for a pressure-dependent law (a stiffer EI at pressure lowers a and the ratio).
 
     For the paper's law family EI = D_a² λ k(λ)/8 and EA ∝ k(λ) with *any* common length factor,
     a/b = 8 d²/D_a² at λ = 1: the ratio is fixed by the geometry d/D_a alone (2.90 for d = 27.5 mm,
     D_a = 29.59 mm), whatever the scaling of k."""
     prm = resolve_params(params)
     ks = tendon_stiffness if tendon_stiffness is not None else prm.tendon_stiffness
-    EA, EI = float(prm.stiffness.EA(1.0)), float(prm.stiffness.EI(1.0))
+    EA, EI = float(prm.stiffness.EA(1.0, pressure)), float(prm.stiffness.EI(1.0, pressure))
     a, b = prm.tendons[0].distance ** 2 / EI, 1.0 / EA
     c = 0.0 if ks is None else 1.0 / (ks * prm.length)
     return 1.0 / (1.0 - 0.75 * a / (a + b + c))
