@@ -6,28 +6,31 @@ end caps.  Identified ANCF parameters (docs/design.md §2–3): EA ≈ 767 N, EI
 D_eff = 26.05 mm.
 
 **Variants.**  ``"soft"`` (the default) is calibrated to the product's ``paper`` reading of the
-stiffness law (docs/paper-readings.md; docs/identification.md §Calibration): the paper's k(λ) and
-D_a² k/8 read as per-unit-length stiffnesses times the actuator length, i.e. EA(1) ≈ 120–155 N,
-EI(1) ≈ 0.013–0.017 N m², D_a ≈ 29.6 mm, D_eff ≈ 26 mm.  A Shore-50A wall (μ = 0.8 MPa) of 2.6 mm with
-convolutions from a 10.5 mm root to a 20 mm crest has them (coarse mesh, condensed cap tangent at zero
-load, :meth:`BellowsModel.equivalent_rod`): EA 131 N, EI 0.0152 N m², D_a 30.4 mm, blocked-force
-D_eff 25.4 mm; the secant D_eff under 60 kPa (free elongation λ = 1.21 read through the reduced model's
-axial law) is 26.1 mm.  It is a soft, extensible bellows: 120 kPa lengthens it by about a third.
+stiffness law (docs/paper-readings.md "FEM calibration targets"; ``bellows calibrate``, docs/identification.md
+§6): EA(1) 122.8 N, EI(1) 0.01343 N m², D_a 29.59 mm, D_eff 26.05 mm.  On the converged FEM (the mixed wall
+element, two elements through the wall; docs/fem.md §3a) a Shore-50A wall (μ = 0.8 MPa) of 3.7 mm with
+convolutions from an 8.5 mm root to a 21.3 mm crest has (default mesh, condensed cap tangent at zero load,
+:meth:`BellowsModel.equivalent_rod`): EA 119 N, EI 0.0134 N m², D_a 30.0 mm, blocked-force D_eff 26.3 mm; the
+secant D_eff under 60 kPa (free elongation λ = 1.19 read through the reduced model's axial law) is 25.1 mm
+(calibration mismatch −3.0 %, +0.1 %, −3.8 %).  It is a soft, extensible bellows: 60 kPa lengthens it by
+19 %.  (The former soft design, a 2.6 mm wall from a 10.5 mm root to a 20 mm crest, was calibrated on the
+displacement element, whose locking made it 39 % too stiff: EA 131 N there, 94.5 N converged.)
 
 ``"stiff"`` reads the law literally (EA = k(λ) ≈ 767 N, EI ≈ 0.084 N m²); a 4 mm wall is needed for that
 with Shore 50A, and such a wall elongates little under pressure (Poisson coupling of the hoop stress
-cancels most of the cap force): D_eff ≈ 12 mm.  ``"deep"`` matches D_eff and D_a at EA ≈ 410 N.
+cancels most of the cap force): D_eff ≈ 13 mm.  ``"deep"`` has deeper convolutions with a 4 mm wall.
 
 ============  ===  =====  ======  =======  =======  =========  ======  ========
 variant        n   t/mm   r_root  r_crest  EA / N  EI / N m²  D_a/mm  D_eff/mm
 ============  ===  =====  ======  =======  =======  =========  ======  ========
-"soft"         8    2.6    10.5    20.0      131    0.0152      30.4   25.4
-"stiff"        8    4.0    12.0    18.0      776    0.084       30.3   12.0
-"deep"         8    4.0    10.5    22.0     ~410    ~0.047      ~31    ~24.5
+"soft"         8    3.7     8.5    21.3      119    0.01345     30.0   26.3
+"stiff"        8    4.0    12.0    18.0      742    0.08528     30.3   13.2
+"deep"         8    4.0    10.5    22.0      211    0.02876     33.0   27.7
 ============  ===  =====  ======  =======  =======  =========  ======  ========
 
-(``r_root`` = inner radius at a root, ``r_crest`` = outer radius at a crest; coarse mesh, ±5 %.)  The
-identification (``bellows identify``) re-measures all of them with the reduced model in the loop.
+(``r_root`` = inner radius at a root, ``r_crest`` = outer radius at a crest; default mesh, mixed element,
+blocked-force D_eff; ``tests/test_fem/test_fem_presets.py`` checks the table.)  The identification
+(``bellows identify``) re-measures all of them with the reduced model in the loop.
 """
 
 from __future__ import annotations
@@ -54,12 +57,13 @@ STATED = {
 #: Every dimension/parameter that the paper does not state, in ONE place: (value, unit, reason).
 GUESSED = {
     "n_convolutions": (8, "-", "sized with EA/EI (see module doc); paper figure not available"),
-    "root_radius": ({"soft": 0.0105, "stiff": 0.012, "deep": 0.0105}, "m",
+    "root_radius": ({"soft": 0.0085, "stiff": 0.012, "deep": 0.0105}, "m",
                     "inner radius at a root; calibrated/sized (module doc)"),
-    "crest_radius": ({"soft": 0.020, "stiff": 0.018, "deep": 0.022}, "m",
+    "crest_radius": ({"soft": 0.0213, "stiff": 0.018, "deep": 0.022}, "m",
                      "outer radius at a crest; calibrated/sized (module doc)"),
-    "wall_thickness": ({"soft": 0.0026, "stiff": 0.004, "deep": 0.004}, "m",
-                       "soft: calibrated to the length-scaled reading; stiff: EA ≈ 767 N with Shore 50A"),
+    "wall_thickness": ({"soft": 0.0037, "stiff": 0.004, "deep": 0.004}, "m",
+                       "soft: calibrated to the length-scaled reading on the converged FEM; stiff: EA ≈ 767 N "
+                       "with Shore 50A"),
     "collar_length": (0.005, "m", "straight bonded length at each cap"),
     "profile": ("sine", "-", "only shape implemented"),
     "cap_mass": (0.018, "kg", "PLA disc Ø60 × 5 mm (must hold tendons at 27.5 mm), ρ = 1250 kg/m³"),
