@@ -124,6 +124,21 @@ def _pardiso_instance():
 
 _LAST_PATTERN: tuple | None = None  # (indptr, indices) of the last analysed matrix
 _OWNER = [0]  # id of the factor object whose numeric factorisation the shared instance holds
+
+
+def _forget_pardiso_in_child() -> None:
+    """A forked worker must not use the parent's PARDISO handle: its internal memory and the analysis it
+    refers to belong to the parent (reusing them crashed forked FEM workers with a segmentation fault when the
+    parent had factorised a matrix of the same pattern before the fork, e.g. the rod estimate of a sweep).
+    The child starts with a fresh instance and a fresh analysis."""
+    global _PARDISO_SOLVER, _LAST_PATTERN
+    _PARDISO_SOLVER = None
+    _LAST_PATTERN = None
+    _OWNER[0] = 0
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_pardiso_in_child)
 #: diagnostics: number of PARDISO symbolic analyses (phase 12) and numeric-only refactorisations (22)
 PARDISO_COUNTS = {"analysis": 0, "refactorization": 0}
 

