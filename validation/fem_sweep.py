@@ -363,12 +363,19 @@ def classify_fem_modes(frequencies_hz, cap_shapes, axis, length: float) -> dict:
     a shape whose cap translation is not small beside its rotation times ``length`` (torsion has none) is
     *axial* when ≥ 90 % of the translation lies along the axis and *bending* when ≥ 90 % lies across it.
     None where no mode of the kind is among those computed."""
+    shapes = np.asarray(cap_shapes, float)
+    translating = [np.linalg.norm(s[:3]) > 0.1 * length * np.linalg.norm(s[3:]) for s in shapes]
+    return first_bending_and_axial(np.asarray(frequencies_hz)[translating], shapes[translating, :3], axis)
+
+
+def first_bending_and_axial(frequencies_hz, translations, axis) -> dict:
+    """The first frequency [Hz] whose point translation (``translations`` (k, 3)) lies ≥ 90 % along ``axis``
+    (axial) and the first whose translation lies ≥ 90 % across it (bending); None where there is none."""
     e = np.asarray(axis, float) / np.linalg.norm(axis)
     out = {"bending_hz": None, "axial_hz": None}
-    for f, s in zip(frequencies_hz, np.asarray(cap_shapes, float)):
-        u, th = s[:3], s[3:]
+    for f, u in zip(frequencies_hz, np.asarray(translations, float)):
         nu = np.linalg.norm(u)
-        if not nu > 0.1 * length * np.linalg.norm(th):
+        if not nu > 0:
             continue
         along = abs(float(u @ e))
         across = float(np.linalg.norm(u - (u @ e) * e))

@@ -51,19 +51,8 @@ def classify_rod_modes(frequencies_hz, tip_shapes, axis) -> dict:
     """The first bending and first axial frequency [Hz] of the reduced model: a shape whose tool-point motion
     (``tip_shapes`` (k, 3)) lies ≥ 90 % along the actuator's ``axis`` is axial, ≥ 90 % across it bending (the
     cable has no torsion).  None where no mode of the kind is among those computed."""
-    e = np.asarray(axis, float) / np.linalg.norm(axis)
-    out = {"bending_hz": None, "axial_hz": None}
-    for f, u in zip(frequencies_hz, np.asarray(tip_shapes, float)):
-        nu = np.linalg.norm(u)
-        if not nu > 0:
-            continue
-        along = abs(float(u @ e))
-        across = float(np.linalg.norm(u - (u @ e) * e))
-        if out["axial_hz"] is None and along > 0.9 * nu:
-            out["axial_hz"] = float(f)
-        elif out["bending_hz"] is None and across > 0.9 * nu:
-            out["bending_hz"] = float(f)
-    return out
+    from .fem_sweep import first_bending_and_axial
+    return first_bending_and_axial(frequencies_hz, tip_shapes, axis)
 
 
 def has_damping(params) -> bool:

@@ -191,37 +191,26 @@ class RigidCapReduction:
         if m is None or not m.matches(K):
             m = self._map = _ReductionMap(self, K)
         data = m.reduce(K.data, Pc)
-        rho = r.reshape(-1, 3)[self.cap_nodes].T  # (3, nc)
-        rr = R @ self.A_cap
-        G = rr @ rho.T - np.sum(rho * rr) * np.eye(3)
-        data[m.pos_cc[3:, 3:].ravel()] += G.ravel()
+        data[m.pos_cc[3:, 3:].ravel()] += self._rigid_link(r, R).ravel()
         if extra_cc is not None:
             data[m.pos_cc.ravel()] += np.asarray(extra_cc, float).ravel()
         return rq, sp.csr_matrix((data, m.indices, m.indptr), shape=(self.n_q, self.n_q))
 
+    def _rigid_link(self, r: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """θθ geometric stiffness Σ_i r_i ρ_iᵀ − (ρ_i · r_i) I of the cap nodes' residual forces (3, 3)."""
+        rho = r.reshape(-1, 3)[self.cap_nodes].T  # (3, nc)
+        rr = R @ self.A_cap
+        return rr @ rho.T - np.sum(rho * rr) * np.eye(3)
+
     def reduce_reference(self, K: sp.spmatrix | None, r: np.ndarray, R: np.ndarray):
-        """Reduced residual ``Pᵀ r`` and tangent ``Pᵀ K P`` + rigid-link geometric stiffness.
-
-        Parameters
-        ----------
-        K : sparse (3n, 3n) or None
-        r : ndarray (3n,)  — full residual (internal − external) [N]
-        R : ndarray (3, 3) — current cap rotation
-
-        Returns
-        -------
-        r_q : ndarray (n_q,)
-        K_q : csr_matrix (n_q, n_q) or None
-        """
+        """:meth:`reduce` by sparse products with the prolongation (the reference it is tested against)."""
         PT = self.prolongation(R, transpose=True)
         rq = PT @ r
         if K is None:
             return rq, None
         P = self.prolongation(R)
         Kq = PT @ (K.tocsr() @ P)
-        rho = r.reshape(-1, 3)[self.cap_nodes].T  # (3, nc)
-        rr = R @ self.A_cap
-        G = rr @ rho.T - np.sum(rho * rr) * np.eye(3)
+        G = self._rigid_link(r, R)
         s = self.n_free + 3
         Kq = Kq + sp.csr_matrix((G.ravel(), (np.repeat(np.arange(s, s + 3), 3), np.tile(np.arange(s, s + 3), 3))),
                                 shape=Kq.shape)
