@@ -43,8 +43,8 @@ QUICK_FORMS = ("paper", "separate", "pressure_ei")
 N_FEM_CASES = len(default_design().cases)
 QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)}, no stiffness-vs-tension study and no FEM modes (the "
               "Dynamics section shows the rod's). The FEM solves of the "
-              f"design's {N_FEM_CASES} load cases still dominate: 7.5 min measured on 2 busy shared cores with an empty "
-              "--cache (less on an idle machine); a re-run whose solves are cached takes seconds.")
+              f"design's {N_FEM_CASES} load cases still dominate: 16 min measured on 2 busy shared cores (load 4–5) with an "
+              "empty --cache (less on an idle machine); a re-run whose solves are cached takes seconds.")
 FREE_PARAMETERS = GEOMETRY_PARAMETERS + MATERIAL_PARAMETERS
 
 # options shared by several commands (typer reads these as defaults)
