@@ -56,6 +56,8 @@ class ValidationResult:
     compliance_error_pct : {"tension": {"mean", "max"}, "locked": {...}} of the matrix error (Frobenius)
     stiffness_error_pct : {"tension"|"locked": {"x"|"y"|"z": max |k_ANCF/k_FEM − 1| × 100}}
     targets : the paper's targets and whether they are met;  params : the reduced model used
+    fem_error : the FEM's own discretisation error beside these errors (:func:`validation.fem_error.assess`;
+    empty when not estimated)
     """
     rows: list
     length: float
@@ -67,11 +69,13 @@ class ValidationResult:
     ratio: dict = field(default_factory=dict)
     targets: dict = field(default_factory=dict)
     failures: list = field(default_factory=list)
+    fem_error: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return to_jsonable({k: getattr(self, k) for k in ("rows", "length", "tip_error_pct", "shape_error_pct",
                                                          "compliance_error_pct", "stiffness_error_pct", "ratio",
-                                                         "targets", "failures")} | {"params": self.params.to_toml()})
+                                                         "targets", "failures")} | {"params": self.params.to_toml()}
+                           | {"fem_discretisation_error": self.fem_error or None})
 
 
 def _max_abs(x) -> float:

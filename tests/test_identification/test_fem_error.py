@@ -128,6 +128,9 @@ def test_verdict_states_a_too_large_fem_error(tiny_estimate):
     assert other["measured"] is False and other["bound_label"] == CASE.label and "not measured" in other["basis"]
     big = assess(val, _fake_estimate(tiny_estimate, 1.5), recs)           # > 3.0 / 3
     assert big["too_large"] is True and big["too_large_states"] == [CASE.label]
+    # the unmeasured state's bound (1.5 % of L) exceeds a third of its own model error (1 %): not ruled out
+    assert not small["not_ruled_out_states"] and big["not_ruled_out_states"] == ["small"]
+    assert big["rows"][1]["too_large"] is None and big["rows"][1]["bound_too_large"] is True
     assert "too large for the verdict to mean anything" in " ".join(big["statements"])
     over = assess(val, _fake_estimate(tiny_estimate, 2.6), recs)          # > the 2.5 % target
     assert any("exceeds the 2.5 % target" in w for w in over["rows"][0]["why"])
@@ -146,3 +149,62 @@ def test_select_cases_takes_the_largest_deformation():
     with pytest.raises(InputError):
         estimate_fem_error(FemSpec(GEO, MAT, TINY), [CASE], levels=4)
     assert math.isfinite(ASSUMED_RATE)
+
+
+@pytest.fixture(scope="module")
+def report_inputs(tiny_estimate):
+    """An identification from synthetic measurements and its 'validation' against records made by a slightly
+    stiffer reduced model standing in for the FEM (no FEM solve)."""
+    from ancf import Model
+    from test_report_cli import _states
+    from test_fit import BASE
+    from validation import identify
+    from validation.compare import compare_records
+    from validation.experiments import default_design
+    from validation.fem_sweep import FemRecord
+    design = default_design()
+    ident = identify.from_measurements(_states(design), BASE, forms=("paper",), gravity=False)
+    other = Model(ident.params.replace(gravity=(0.0, 0.0, 0.0)))
+    L = ident.params.length
+    s = np.linspace(0.0, L, 9)
+    from validation.forms import position_matrix
+    S = position_matrix(ident.params.n_elements, L, s)
+    recs = []
+    for c in design.heldout:
+        eq = other.fk(np.asarray(c.tensions) * 1.1, c.pressure, c.tip_force, check_limits=False)
+        line = (S @ eq.q).reshape(-1, 3)
+        recs.append(FemRecord(c, eq.tip, np.eye(3), line, s, np.zeros(3), np.zeros(3)))
+    val = compare_records(ident.params, recs)
+    assert val.rows
+    return ident, val, recs
+
+
+def _estimate_for(tiny_estimate, label, tip_pct):
+    e = _fake_estimate(tiny_estimate, tip_pct)
+    e.rows[0]["label"] = label
+    return e
+
+
+@pytest.mark.parametrize("tip_pct", [1e-4, 50.0])
+def test_report_and_json_carry_the_fem_error(report_inputs, tiny_estimate, tip_pct, tmp_path):
+    import copy
+    import json
+    from validation.report import write_report
+    ident, val, recs = report_inputs
+    val = copy.deepcopy(val)
+    worst = select_cases(recs, 1)[0].case.label
+    val.fem_error = assess(val, _estimate_for(tiny_estimate, worst, tip_pct), recs)
+    html = write_report(tmp_path / "r.html", ident, val).read_text()
+    assert "3a. The FEM" in html and "FEM discretisation error, tip [% L]" in html
+    assert "not measured; bound ≤" in html                     # the others name the measured bound
+    d = json.loads(json.dumps(val.to_dict()))
+    fe = d["fem_discretisation_error"]
+    assert {"tip_error_pct", "shape_error_pct", "targets", "rows"} <= set(d)          # unchanged keys kept
+    assert fe["estimated"] and len(fe["rows"]) == len(val.rows)
+    assert sum(r["measured"] for r in fe["rows"]) == 1
+    large = "too large for the verdict to mean anything" in html
+    assert large == (tip_pct > 1) == fe["too_large"]
+    # skipped: said so, never a number
+    val.fem_error = assess(val, None, reason="--no-fem-error")
+    html = write_report(tmp_path / "s.html", ident, val).read_text()
+    assert "was not estimated (--no-fem-error)" in html and "too large" not in html
