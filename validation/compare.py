@@ -213,6 +213,14 @@ def check_actuator_matches(params: ActuatorParams, geometry) -> None:
                           "choose its design with --design)")
 
 
+def default_heldout(params: ActuatorParams, geometry) -> list[LoadCase]:
+    """The held-out states of :func:`validation.experiments.default_design` for this actuator's range on the
+    FEM design ``geometry``."""
+    return list(default_design(tension_max=params.tension_max, pressure_max=params.pressure_max,
+                               tendon_distance=geometry.tendon_radius, length=geometry.length,
+                               n_tendons=len(geometry.tendon_angles)).heldout)
+
+
 def validate(params: ActuatorParams, fem_model, states=None, *, workers: Optional[int] = None, scheduler=None,
              cache_dir=None, progress: bool = True, records: Optional[Sequence[FemRecord]] = None) -> ValidationResult:
     """Identified reduced model vs the FEM on held-out states.
@@ -226,10 +234,7 @@ def validate(params: ActuatorParams, fem_model, states=None, *, workers: Optiona
         spec = _spec(fem_model)
         check_actuator_matches(params, spec.geometry)
         if states is None:
-            g = spec.geometry
-            states = default_design(tension_max=params.tension_max, pressure_max=params.pressure_max,
-                                    tendon_distance=g.tendon_radius, length=g.length,
-                                    n_tendons=len(g.tendon_angles)).heldout
+            states = default_heldout(params, spec.geometry)
         elif isinstance(states, Design):
             states = states.heldout
         states = list(states)

@@ -46,7 +46,7 @@ QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)} and no stiffness-vs-t
               "--cache (less on an idle machine); a re-run whose solves are cached takes seconds.")
 FREE_PARAMETERS = GEOMETRY_PARAMETERS + MATERIAL_PARAMETERS
 FEM_ERROR_HELP = ("Measure the FEM's own discretisation error: the held-out states with the largest deformation "
-                  "(2 with --quick, 4 otherwise) solved again on a mesh refined 2× along the profile, the Richardson "
+                  "(2 with --quick, 4 otherwise) solved again with 2× the elements along the profile, the Richardson "
                   "estimate shown beside the model-vs-FEM error (docs/identification.md §4a). --no-fem-error skips "
                   "those solves.")
 
@@ -131,7 +131,7 @@ def _print_validation(val) -> None:
                 verdict = f"bound from {r['bound_label']}" + (", not ruled out: too large" if r.get("bound_too_large")
                                                                else "")
             else:
-                fem, verdict = "not measured", "no measured bound
+                fem, verdict = "not measured", "no measured bound"
             t.add_row(escape(r["label"]), f"{r['model_tip_error_pct']:.2f}", fem, escape(verdict))
         console.print(t)
     for s in fe.get("statements", []):
@@ -242,6 +242,7 @@ def validate_cmd(
                                              "'bellows identify') or a preset name."),
         design: str = typer.Option("paper", help=DESIGN_HELP),
         mesh: str = MESH_OPT,
+        fem_error: bool = typer.Option(True, help=FEM_ERROR_HELP.replace("(2 with --quick, 4 otherwise)", "(4)")),
         workers: Optional[int] = WORKERS_OPT,
         scheduler: Optional[str] = SCHEDULER_OPT,
         cache: pathlib.Path = CACHE_OPT,
@@ -251,14 +252,24 @@ def validate_cmd(
 
     Tip, shape and compliance errors on the held-out states, written to validation.json."""
     from ancf import presets
-    from .compare import check_actuator_matches, validate
+    from .compare import check_actuator_matches, default_heldout, validate
     from .designs import load_design
-    from .fem_sweep import FemSpec
+    from .fem_error import FULL_CASES, assess, for_validation
+    from .fem_sweep import FemSpec, check_cases, run_cases
     p = presets.get(params)
     geo, mat = load_design(design)
     check_actuator_matches(p, geo)
+    spec = FemSpec(geo, mat, mesh)
+    states = default_heldout(p, geo)
+    check_cases(spec, states)
     d = prepare_output_dir(out, ("validation.json",), force=force)
-    val = validate(p, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler, cache_dir=cache)
+    records = run_cases(spec, states, compliance=True, workers=workers, scheduler=scheduler, cache_dir=cache)
+    val = validate(p, spec, records=records)
+    if fem_error:
+        console.print(f"FEM discretisation error: {FULL_CASES} held-out states on a mesh refined 2× along the profile …")
+        for_validation(val, spec, records, FULL_CASES, workers=workers, scheduler=scheduler, cache_dir=cache)
+    else:
+        val.fem_error = assess(val, None, reason="--no-fem-error")
     atomic_write_text(d / "validation.json", json.dumps(val.to_dict(), indent=1))
     _print_validation(val)
     console.print(f"wrote {d / 'validation.json'}")
