@@ -38,7 +38,8 @@ from ancf.export import to_jsonable
 from .experiments import LoadCase
 from .fem_sweep import FemRecord, FemSpec, run_cases
 
-__all__ = ["for_validation", "QUICK_CASES", "FULL_CASES", "ASSUMED_RATE", "TOO_LARGE_SHARE", "FemErrorEstimate", "mesh_level", "refined_level", "richardson",
+__all__ = ["for_validation", "QUICK_CASES", "FULL_CASES", "ASSUMED_RATE", "TOO_LARGE_SHARE", "FemErrorEstimate",
+           "mesh_level", "refined_level", "richardson",
            "deformation_m", "select_cases", "estimate_fem_error", "assess"]
 
 #: convergence rate assumed with two meshes (quadratic elements; the mixed element's displacements converge
@@ -256,9 +257,6 @@ def estimate_fem_error(spec: FemSpec, cases: Sequence[LoadCase], *, records: Opt
                             seconds=time.perf_counter() - t0)
 
 
-def _fmt_pct(v) -> str:
-    return "–" if v is None or not np.isfinite(v) else f"{v:.2f}"
-
 
 def assess(validation, estimate: Optional[FemErrorEstimate], records: Sequence[FemRecord] = (), *,
            tip_target_pct: Optional[float] = None, compliance_target_pct: Optional[float] = None,
@@ -345,7 +343,7 @@ def assess(validation, estimate: Optional[FemErrorEstimate], records: Sequence[F
                           f"{len(too_large)} state(s) — " + " · ".join(notes)
                           + ". Refine the FEM mesh before reading these errors as the reduced model's.")
     elif measured:
-        statements.append(f"On every measured state the FEM's error is below a third of the model-vs-FEM error and "
+        statements.append("On every measured state the FEM's error is below a third of the model-vs-FEM error and "
                           "below the targets: the differences are the reduced model's.")
     unmeasured = [r["label"] for r in rows if not r["measured"]]
     if unmeasured:

@@ -208,3 +208,23 @@ def test_report_and_json_carry_the_fem_error(report_inputs, tiny_estimate, tip_p
     val.fem_error = assess(val, None, reason="--no-fem-error")
     html = write_report(tmp_path / "s.html", ident, val).read_text()
     assert "was not estimated (--no-fem-error)" in html and "too large" not in html
+
+
+@pytest.mark.slow
+def test_cli_validate_measures_the_fem_error(tmp_path):
+    """`bellows validate` on the straight tube: validation.json carries the measured error of the 4 held-out
+    states with the largest deformation and the others' bounds; the terminal shows the table."""
+    import json
+    from test_report_cli import _bellows
+    r = _bellows("validate", "--params", "paper", "--design", "straight_tube", "--workers", "2", "--cache",
+                 tmp_path / "cache", "--out", tmp_path / "v", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    fe = json.loads((tmp_path / "v" / "validation.json").read_text())["fem_discretisation_error"]
+    assert fe["estimated"] and sum(x["measured"] for x in fe["rows"]) == 4
+    assert all(x["fem_tip_error_pct"] >= 0 for x in fe["rows"] if x["measured"])
+    assert "FEM discretisation error beside the model-vs-FEM error" in r.stdout
+    skip = _bellows("validate", "--params", "paper", "--design", "straight_tube", "--no-fem-error", "--cache",
+                    tmp_path / "cache", "--out", tmp_path / "v", "--force", cwd=tmp_path)
+    assert skip.returncode == 0, skip.stderr
+    fe = json.loads((tmp_path / "v" / "validation.json").read_text())["fem_discretisation_error"]
+    assert fe["estimated"] is False and "--no-fem-error" in fe["statements"][0]
