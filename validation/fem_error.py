@@ -353,7 +353,7 @@ def assess(validation, estimate: Optional[FemErrorEstimate], records: Sequence[F
         statements.append(f"On {len(unsure)} state(s) not measured the measured bound does not rule out a FEM error "
                           f"too large for the verdict (or there is no bound): {', '.join(unsure)}.")
     return {"estimated": True, "method": estimate.method, "too_large": bool(too_large), "too_large_states": too_large,
-            "not_ruled_out_states": unsure,
+            "not_ruled_out_states": unsure, "n_measured": len(measured), "max_fem_tip_error_pct": worst_tip,
             "criterion": f"FEM error > {share:.2g} × the model-vs-FEM error, or > the target ({tip_target:g} % of L tip, "
                          f"{c_target:g} % compliance)",
             "rows": to_jsonable(rows), "statements": statements, "estimate": estimate.to_dict()}
