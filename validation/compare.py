@@ -56,6 +56,8 @@ class ValidationResult:
     compliance_error_pct : {"tension": {"mean", "max"}, "locked": {...}} of the matrix error (Frobenius)
     stiffness_error_pct : {"tension"|"locked": {"x"|"y"|"z": max |k_ANCF/k_FEM − 1| × 100}}
     targets : the paper's targets and whether they are met;  params : the reduced model used
+    fem_error : the FEM's own discretisation error beside these errors (:func:`validation.fem_error.assess`;
+    empty when not estimated)
     """
     rows: list
     length: float
@@ -67,11 +69,13 @@ class ValidationResult:
     ratio: dict = field(default_factory=dict)
     targets: dict = field(default_factory=dict)
     failures: list = field(default_factory=list)
+    fem_error: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return to_jsonable({k: getattr(self, k) for k in ("rows", "length", "tip_error_pct", "shape_error_pct",
                                                          "compliance_error_pct", "stiffness_error_pct", "ratio",
-                                                         "targets", "failures")} | {"params": self.params.to_toml()})
+                                                         "targets", "failures")} | {"params": self.params.to_toml()}
+                           | {"fem_discretisation_error": self.fem_error or None})
 
 
 def _max_abs(x) -> float:
@@ -209,6 +213,14 @@ def check_actuator_matches(params: ActuatorParams, geometry) -> None:
                           "choose its design with --design)")
 
 
+def default_heldout(params: ActuatorParams, geometry) -> list[LoadCase]:
+    """The held-out states of :func:`validation.experiments.default_design` for this actuator's range on the
+    FEM design ``geometry``."""
+    return list(default_design(tension_max=params.tension_max, pressure_max=params.pressure_max,
+                               tendon_distance=geometry.tendon_radius, length=geometry.length,
+                               n_tendons=len(geometry.tendon_angles)).heldout)
+
+
 def validate(params: ActuatorParams, fem_model, states=None, *, workers: Optional[int] = None, scheduler=None,
              cache_dir=None, progress: bool = True, records: Optional[Sequence[FemRecord]] = None) -> ValidationResult:
     """Identified reduced model vs the FEM on held-out states.
@@ -222,10 +234,7 @@ def validate(params: ActuatorParams, fem_model, states=None, *, workers: Optiona
         spec = _spec(fem_model)
         check_actuator_matches(params, spec.geometry)
         if states is None:
-            g = spec.geometry
-            states = default_design(tension_max=params.tension_max, pressure_max=params.pressure_max,
-                                    tendon_distance=g.tendon_radius, length=g.length,
-                                    n_tendons=len(g.tendon_angles)).heldout
+            states = default_heldout(params, spec.geometry)
         elif isinstance(states, Design):
             states = states.heldout
         states = list(states)

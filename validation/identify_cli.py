@@ -46,6 +46,10 @@ QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)}, no stiffness-vs-tens
               f"design's {N_FEM_CASES} load cases still dominate: 16 min measured on 2 busy shared cores (load 4–5) with an "
               "empty --cache (less on an idle machine); a re-run whose solves are cached takes seconds.")
 FREE_PARAMETERS = GEOMETRY_PARAMETERS + MATERIAL_PARAMETERS
+FEM_ERROR_HELP = ("Measure the FEM's own discretisation error: the held-out states with the largest deformation "
+                  "(2 with --quick, 4 otherwise) solved again with 2× the elements along the profile, the Richardson "
+                  "estimate shown beside the model-vs-FEM error (docs/identification.md §4a). --no-fem-error skips "
+                  "those solves.")
 
 # options shared by several commands (typer reads these as defaults)
 MESH_OPT = typer.Option("coarse", help=f"FEM mesh level {one_of(MESH_LEVELS)}.")
@@ -115,6 +119,25 @@ def _print_validation(val) -> None:
         console.print(f"target {name} < {t['target']} %: {t['value']:.2f} % — {verdict}")
     for f in val.failures:
         console.print(f"[yellow]not compared: {f['label']} ({f['model']}): {f['error']}[/yellow]")
+    fe = val.fem_error or {}
+    if fe.get("estimated"):
+        t = Table(title="FEM discretisation error beside the model-vs-FEM error (held-out states)")
+        for c in ("state", "model vs FEM, tip [% L]", "FEM error, tip [% L]", "verdict"):
+            t.add_column(escape(c), justify="left" if c in ("state", "verdict") else "right")
+        for r in fe["rows"]:
+            if r["measured"]:
+                fem, verdict = f"{r['fem_tip_error_pct']:.3f}", ("FEM error TOO LARGE" if r["too_large"] else "ok")
+            elif r.get("bound_tip_error_pct") is not None:
+                fem = f"≤ {r['bound_tip_error_pct']:.3f} (bound)"
+                verdict = f"bound from {r['bound_label']}" + (", not ruled out: too large" if r.get("bound_too_large")
+                                                               else "")
+            else:
+                fem, verdict = "not measured", "no measured bound"
+            t.add_row(escape(r["label"]), f"{r['model_tip_error_pct']:.2f}", fem, escape(verdict))
+        console.print(t)
+    for s in fe.get("statements", []):
+        console.print(("[red]" if fe.get("too_large") and "too large" in s else "") + escape(s)
+                      + ("[/red]" if fe.get("too_large") and "too large" in s else ""))
 
 
 def _limits(design: str, tension_max_n: Optional[float], pressure_max_kpa: Optional[float]) -> dict:
@@ -220,6 +243,7 @@ def validate_cmd(
                                              "'bellows identify') or a preset name."),
         design: str = typer.Option("paper", help=DESIGN_HELP),
         mesh: str = MESH_OPT,
+        fem_error: bool = typer.Option(True, help=FEM_ERROR_HELP.replace("(2 with --quick, 4 otherwise)", "(4)")),
         workers: Optional[int] = WORKERS_OPT,
         scheduler: Optional[str] = SCHEDULER_OPT,
         cache: pathlib.Path = CACHE_OPT,
@@ -229,14 +253,24 @@ def validate_cmd(
 
     Tip, shape and compliance errors on the held-out states, written to validation.json."""
     from ancf import presets
-    from .compare import check_actuator_matches, validate
+    from .compare import check_actuator_matches, default_heldout, validate
     from .designs import load_design
-    from .fem_sweep import FemSpec
+    from .fem_error import FULL_CASES, assess, for_validation
+    from .fem_sweep import FemSpec, check_cases, run_cases
     p = presets.get(params)
     geo, mat = load_design(design)
     check_actuator_matches(p, geo)
+    spec = FemSpec(geo, mat, mesh)
+    states = default_heldout(p, geo)
+    check_cases(spec, states)
     d = prepare_output_dir(out, ("validation.json",), force=force)
-    val = validate(p, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler, cache_dir=cache)
+    records = run_cases(spec, states, compliance=True, workers=workers, scheduler=scheduler, cache_dir=cache)
+    val = validate(p, spec, records=records)
+    if fem_error:
+        console.print(f"FEM discretisation error: {FULL_CASES} held-out states on a mesh refined 2× along the profile …")
+        for_validation(val, spec, records, FULL_CASES, workers=workers, scheduler=scheduler, cache_dir=cache)
+    else:
+        val.fem_error = assess(val, None, reason="--no-fem-error")
     atomic_write_text(d / "validation.json", json.dumps(val.to_dict(), indent=1))
     _print_validation(val)
     console.print(f"wrote {d / 'validation.json'}")
@@ -287,6 +321,7 @@ def report_cmd(
         base: Optional[str] = typer.Option(None, help="Required with --measurements: the actuator as built (preset "
                                                       "or .toml)."),
         quick: bool = typer.Option(False, help=QUICK_HELP),
+        fem_error: bool = typer.Option(True, help=FEM_ERROR_HELP),
         tension_max_n: Optional[float] = TMAX_OPT,
         pressure_max_kpa: Optional[float] = PMAX_OPT,
         mesh: str = MESH_OPT,
@@ -315,9 +350,20 @@ def report_cmd(
     else:
         res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance)
         val = compare_records(res.params, [r for r in res.records if r.case.role == "heldout"])
+        _, geo, mat, _ = fem
+        if fem_error:
+            from .fem_error import FULL_CASES, QUICK_CASES, for_validation
+            n = QUICK_CASES if quick else FULL_CASES
+            console.print(f"FEM discretisation error: {n} held-out states on a mesh refined 2× along the profile …")
+            t1 = time.perf_counter()
+            for_validation(val, FemSpec(geo, mat, mesh), res.records, n, workers=workers, scheduler=scheduler,
+                           cache_dir=cache)
+            val.fem_error["seconds"] = time.perf_counter() - t1
+        else:
+            from .fem_error import assess
+            val.fem_error = assess(val, None, reason="--no-fem-error")
         if not quick:
             console.print("stiffness vs tension (Fig. 9 protocol) on the FEM …")
-            _, geo, mat, _ = fem
             stiff = stiffness_vs_tension(res.params, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler,
                                          cache_dir=cache)
     res.modes = _report_modes(res, fem, mesh, cache, quick)

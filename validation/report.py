@@ -9,7 +9,8 @@ no script and no network access.  The template is ``validation/templates/report.
 Sections: identified parameters with 95 % CIs (non-identifiable ones shown as such, never as a number)
 and the closed-form first estimate; the model forms compared on held-out error; parameter correlations;
 error per state; the reduced model vs the FEM on held-out states (tip, shape, compliance, stiffness
-per axis, locked/constant stiffness ratio), shape overlays and compliance ellipses; the Fig. 9 analogue;
+per axis, locked/constant stiffness ratio) beside the FEM's own discretisation error
+(:mod:`validation.fem_error`), shape overlays and compliance ellipses; the Fig. 9 analogue;
 dynamics (the rod's first bending and axial frequencies beside the FEM's, per pressure:
 :mod:`validation.modes_compare`); diagnostics (what the numbers imply, the paper's values beside ours);
 provenance (versions, git revision).
@@ -121,10 +122,46 @@ def _loads(r: dict) -> str:
     return s + (", gravity" if r.get("gravity") else "")
 
 
+def _fem_error_cell(fe: Optional[dict]) -> tuple[str, str]:
+    """(text, css class) of a held-out state's FEM discretisation error (:func:`validation.fem_error.assess`)."""
+    if fe is None:
+        return "not estimated", "na"
+    if fe.get("measured"):
+        return f"{fe['fem_tip_error_pct']:.3f}" + (" — too large" if fe.get("too_large") else ""), \
+            ("bad" if fe.get("too_large") else "")
+    if fe.get("bound_tip_error_pct") is not None:
+        return (f"not measured; bound ≤ {fe['bound_tip_error_pct']:.3f} as measured on {fe['bound_label']} (deformed "
+                "more)" + (" — does not rule out too large" if fe.get("bound_too_large") else "")), "na"
+    return "not measured (no measured bound)", "na"
+
+
+def _fem_error_rows(val: ValidationResult) -> list[dict]:
+    """The measured FEM error rows of the report's discretisation-error table."""
+    fe = val.fem_error or {}
+    est = {r["label"]: r for r in (fe.get("estimate") or {}).get("rows", [])}
+    out = []
+    for r in fe.get("rows", []):
+        if not r.get("measured"):
+            continue
+        e = est.get(r["label"], {})
+        out.append({"label": r["label"], "deformation_mm": _mm(r.get("deformation_m")),
+                    "model_tip_pct": f"{r['model_tip_error_pct']:.2f}", "fem_tip_pct": f"{r['fem_tip_error_pct']:.3f}",
+                    "fem_tip_mm": _mm(r.get("fem_tip_error_m")), "fem_shape_pct": _fmt(r.get("fem_shape_error_pct"), digits=3),
+                    "fem_ct": _fmt(r.get("fem_C_tension_error_pct"), digits=3),
+                    "fem_cl": _fmt(r.get("fem_C_locked_error_pct"), digits=3),
+                    "rate": _fmt(e.get("rate"), digits=3) + (" (observed)" if e.get("rate_observed") else " (assumed)"),
+                    "too_large": bool(r.get("too_large")), "why": "; ".join(r.get("why", [])) or "–"})
+    return out
+
+
 def _validation_rows(val: ValidationResult) -> list[dict]:
     out = []
+    fem = {r["label"]: r for r in (val.fem_error or {}).get("rows", [])}
+    estimated = bool((val.fem_error or {}).get("estimated"))
     for r in val.rows:
+        cell, css = _fem_error_cell(fem.get(r["label"]) if estimated else None)
         out.append({"label": r["label"], "loads": _loads(r), "tip_mm": _mm(r["tip_error_m"]),
+                    "fem_error": cell, "fem_error_class": css,
                     "tip_pct": f"{r['tip_error_pct']:.2f}", "shape_pct": f"{r['shape_error_pct']:.2f}",
                     "ct": _fmt(r.get("C_tension_error_pct"), digits=3), "cl": _fmt(r.get("C_locked_error_pct"), digits=3),
                     "ratio_fem": _fmt(r.get("ratio_z_fem"), digits=3), "ratio_ancf": _fmt(r.get("ratio_z_ancf"), digits=3)})
@@ -285,6 +322,8 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "n_train": ident.train.n, "n_heldout": 0 if ident.heldout is None else ident.heldout.n,
         "parsimony_pct": round(100 * (PARSIMONY - 1)), "form_rows": _form_rows(ident), "figures": b64,
         "validation": validation, "validation_rows": [] if validation is None else _validation_rows(validation),
+        "fem_error": None if validation is None else (validation.fem_error or None),
+        "fem_error_rows": [] if validation is None else _fem_error_rows(validation),
         "validation_failures": "" if validation is None else "; ".join(
             f"{f['label']} ({f['model']}): {f['error']}" for f in validation.failures),
         "stiffness_axes": None if validation is None else validation.stiffness_error_pct or None,

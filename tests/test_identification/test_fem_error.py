@@ -1,0 +1,231 @@
+"""The FEM's discretisation error estimate: the Richardson formula on synthetic numbers of a known rate, the
+estimate against the same case solved by hand on both meshes (a tiny tube), the cache, and the verdict."""
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("skfem")
+
+from ancf.errors import InputError  # noqa: E402
+from fem_reference import BellowsGeometry, BellowsModel, Material, MeshLevel  # noqa: E402
+from validation.experiments import LoadCase  # noqa: E402
+from validation.fem_error import (ASSUMED_RATE, assess, estimate_fem_error, refined_level,  # noqa: E402
+                                  richardson, select_cases)
+from validation.fem_sweep import FemSpec  # noqa: E402
+
+TINY = MeshLevel(2, 1, 12, 1)
+GEO = BellowsGeometry.straight_tube(0.08, 0.015, 0.004, n_segments=2)
+MAT = Material.neo_hookean(0.8e6, 40e6)
+CASE = LoadCase((2.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0), False, "bend", "heldout", "bend 2 N")
+
+
+def test_richardson_recovers_a_known_rate_and_limit():
+    """f_h = f + C h^p on h, h/2, h/4: the observed rate is p and the error of f_h is exact."""
+    f, C, p, h = np.array([0.1, -0.02, 0.03]), np.array([0.004, 0.001, -0.002]), 1.7, 1.0
+    vals = [f + C * (h / 2 ** k) ** p for k in range(3)]
+    est = richardson(vals)
+    assert est["rate_observed"] and est["rate"] == pytest.approx(p, rel=1e-10)
+    assert np.allclose(est["error"], vals[0] - f, rtol=1e-10, atol=0)
+    # two meshes and the right rate given: exact too; the assumed default rate scales by its factor
+    two = richardson(vals[:2], rate=p)
+    assert np.allclose(two["error"], vals[0] - f, rtol=1e-10) and not two["rate_observed"]
+    dflt = richardson(vals[:2])
+    q = ASSUMED_RATE
+    assert dflt["rate"] == q and dflt["norm"] == pytest.approx(np.linalg.norm(vals[0] - vals[1]) * 2 ** q / (2 ** q - 1))
+    # a ratio of 3
+    vals3 = [f + C * (h / 3 ** k) ** p for k in range(3)]
+    assert richardson(vals3, ratio=3)["rate"] == pytest.approx(p, rel=1e-10)
+
+
+def test_richardson_refuses_a_diverging_sequence_and_bad_input():
+    est = richardson([np.array([1.0]), np.array([1.1]), np.array([1.3])])     # differences grow
+    assert not est["converging"] and est["error"] is None and est["rate"] < 0
+    for bad in (dict(values=[np.zeros(2)]), dict(values=[np.zeros(2)] * 4), dict(values=[np.zeros(2), np.zeros(3)]),
+                dict(values=[np.zeros(2)] * 2, rate=0.0), dict(values=[np.zeros(2)] * 2, ratio=1.0)):
+        with pytest.raises(InputError):
+            richardson(bad.pop("values"), **bad)
+
+
+def test_refined_level_doubles_the_profile():
+    assert refined_level("coarse") == MeshLevel(8, 2, 12, 2)
+    assert refined_level(TINY, 2, ("along", "through")) == MeshLevel(4, 2, 12, 2)
+    with pytest.raises(InputError):
+        refined_level("nonsense")
+    with pytest.raises(InputError):
+        refined_level(TINY, 1)
+    with pytest.raises(InputError):
+        refined_level(TINY, 2, ("sideways",))
+
+
+@pytest.fixture(scope="module")
+def tiny_estimate(tmp_path_factory):
+    cache = tmp_path_factory.mktemp("fem_error_cache")
+    spec = FemSpec(GEO, MAT, TINY)
+    est = estimate_fem_error(spec, [CASE], workers=1, progress=False, cache_dir=cache, compliance=True)
+    return est, spec, cache
+
+
+def test_estimate_matches_a_direct_computation_on_both_meshes(tiny_estimate):
+    est, spec, _ = tiny_estimate
+    coarse_model = BellowsModel(GEO, MAT, TINY)
+    coarse = coarse_model.solve(tensions=CASE.tensions, pressure=CASE.pressure)
+    fine_model = BellowsModel(GEO, MAT, MeshLevel(4, 1, 12, 2))
+    fine = fine_model.solve(tensions=CASE.tensions, pressure=CASE.pressure)
+    d = np.linalg.norm(coarse.tip_position - fine.tip_position)
+    assert d > 1e-7                                    # the meshes differ measurably
+    want = d * 2 ** ASSUMED_RATE / (2 ** ASSUMED_RATE - 1)
+    row = est.rows[0]
+    assert row["tip_error_m"] == pytest.approx(want, rel=1e-5)
+    assert row["tip_error_pct"] == pytest.approx(100 * want / GEO.length, rel=1e-5)
+    assert row["shape_error_pct"] >= 0.99 * row["tip_error_pct"]          # the tip is a point of the shape
+    Cc, Cf = (m.tip_compliance(r, mode="tension") for m, r in ((coarse_model, coarse), (fine_model, fine)))
+    want_c = 100 * np.linalg.norm(Cc - Cf) * 4 / 3 / np.linalg.norm(Cf)
+    assert row["C_tension_error_pct"] == pytest.approx(want_c, rel=1e-4)
+    assert "assumed rate p = 2" in est.method and "along the profile" in est.method
+    assert est.to_dict()["levels"][1]["mesh"] == {"n_per_conv": 4, "n_thick": 1, "n_theta": 12, "n_collar": 2}
+
+
+def test_refined_solves_are_cached(tiny_estimate, monkeypatch):
+    est, spec, cache = tiny_estimate
+    import validation.fem_sweep as fs
+    monkeypatch.setattr(fs, "solve_task", lambda task: pytest.fail("solved again instead of read from the cache"))
+    again = estimate_fem_error(spec, [CASE], workers=1, progress=False, cache_dir=cache, compliance=True)
+    assert again.rows[0]["tip_error_m"] == est.rows[0]["tip_error_m"]
+
+
+class _Val:
+    def __init__(self, rows):
+        self.rows = rows
+
+
+def _fake_estimate(tiny_estimate, tip_pct):
+    est, _, _ = tiny_estimate
+    import copy
+    e = copy.deepcopy(est)
+    e.rows[0].update(tip_error_pct=tip_pct, tip_error_m=tip_pct * GEO.length / 100, C_tension_error_pct=None,
+                     C_locked_error_pct=None)
+    return e
+
+
+def _rec(label, bend):
+    """A record whose centreline bends by ``bend`` [m] at the tip."""
+    from validation.fem_sweep import FemRecord
+    s = np.linspace(0, GEO.length, 5)
+    line = np.column_stack([s, np.zeros(5), bend * (s / GEO.length) ** 2])
+    c = LoadCase((0.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0), False, "x", "heldout", label)
+    return FemRecord(c, line[-1], np.eye(3), line, s, np.zeros(3), np.zeros(3))
+
+
+def test_verdict_states_a_too_large_fem_error(tiny_estimate):
+    val = _Val([{"label": CASE.label, "tip_error_pct": 3.0}, {"label": "small", "tip_error_pct": 1.0}])
+    recs = [_rec(CASE.label, 0.02), _rec("small", 0.001)]
+    small = assess(val, _fake_estimate(tiny_estimate, 0.1), recs)
+    assert small["too_large"] is False and "the differences are the reduced model's" in " ".join(small["statements"])
+    # the unmeasured, less deformed state gets the measured bound of the more deformed one, named as such
+    other = small["rows"][1]
+    assert other["measured"] is False and other["bound_label"] == CASE.label and "not measured" in other["basis"]
+    big = assess(val, _fake_estimate(tiny_estimate, 1.5), recs)           # > 3.0 / 3
+    assert big["too_large"] is True and big["too_large_states"] == [CASE.label]
+    # the unmeasured state's bound (1.5 % of L) exceeds a third of its own model error (1 %): not ruled out
+    assert not small["not_ruled_out_states"] and big["not_ruled_out_states"] == ["small"]
+    assert big["rows"][1]["too_large"] is None and big["rows"][1]["bound_too_large"] is True
+    assert "too large for the verdict to mean anything" in " ".join(big["statements"])
+    over = assess(val, _fake_estimate(tiny_estimate, 2.6), recs)          # > the 2.5 % target
+    assert any("exceeds the 2.5 % target" in w for w in over["rows"][0]["why"])
+    # a state deformed more than every measured one has no measured bound: no number is invented
+    recs2 = [_rec(CASE.label, 0.001), _rec("small", 0.02)]
+    r = assess(val, _fake_estimate(tiny_estimate, 0.1), recs2)["rows"][1]
+    assert r["bound_tip_error_pct"] is None and "no measured bound" in r["basis"]
+    assert assess(val, None)["estimated"] is False
+
+
+def test_select_cases_takes_the_largest_deformation():
+    recs = [_rec("a", 0.001), _rec("b", 0.03), _rec("c", 0.01)]
+    assert [r.case.label for r in select_cases(recs, 2)] == ["b", "c"]
+    with pytest.raises(InputError):
+        select_cases(recs, 0)
+    with pytest.raises(InputError):
+        estimate_fem_error(FemSpec(GEO, MAT, TINY), [CASE], levels=4)
+    assert math.isfinite(ASSUMED_RATE)
+
+
+@pytest.fixture(scope="module")
+def report_inputs(tiny_estimate):
+    """An identification from synthetic measurements and its 'validation' against records made by a slightly
+    stiffer reduced model standing in for the FEM (no FEM solve)."""
+    from ancf import Model
+    from test_report_cli import _states
+    from test_fit import BASE
+    from validation import identify
+    from validation.compare import compare_records
+    from validation.experiments import default_design
+    from validation.fem_sweep import FemRecord
+    design = default_design()
+    ident = identify.from_measurements(_states(design), BASE, forms=("paper",), gravity=False)
+    other = Model(ident.params.replace(gravity=(0.0, 0.0, 0.0)))
+    L = ident.params.length
+    s = np.linspace(0.0, L, 9)
+    from validation.forms import position_matrix
+    S = position_matrix(ident.params.n_elements, L, s)
+    recs = []
+    for c in design.heldout:
+        eq = other.fk(np.asarray(c.tensions) * 1.1, c.pressure, c.tip_force, check_limits=False)
+        line = (S @ eq.q).reshape(-1, 3)
+        recs.append(FemRecord(c, eq.tip, np.eye(3), line, s, np.zeros(3), np.zeros(3)))
+    val = compare_records(ident.params, recs)
+    assert val.rows
+    return ident, val, recs
+
+
+def _estimate_for(tiny_estimate, label, tip_pct):
+    e = _fake_estimate(tiny_estimate, tip_pct)
+    e.rows[0]["label"] = label
+    return e
+
+
+@pytest.mark.parametrize("tip_pct", [1e-4, 50.0])
+def test_report_and_json_carry_the_fem_error(report_inputs, tiny_estimate, tip_pct, tmp_path):
+    import copy
+    import json
+    from validation.report import write_report
+    ident, val, recs = report_inputs
+    val = copy.deepcopy(val)
+    worst = select_cases(recs, 1)[0].case.label
+    val.fem_error = assess(val, _estimate_for(tiny_estimate, worst, tip_pct), recs)
+    html = write_report(tmp_path / "r.html", ident, val).read_text()
+    assert "3a. The FEM" in html and "FEM discretisation error, tip [% L]" in html
+    assert "not measured; bound ≤" in html                     # the others name the measured bound
+    d = json.loads(json.dumps(val.to_dict()))
+    fe = d["fem_discretisation_error"]
+    assert {"tip_error_pct", "shape_error_pct", "targets", "rows"} <= set(d)          # unchanged keys kept
+    assert fe["estimated"] and len(fe["rows"]) == len(val.rows)
+    assert sum(r["measured"] for r in fe["rows"]) == 1
+    large = "too large for the verdict to mean anything" in html
+    assert ("below a third of the model-vs-FEM error and below the targets (section 3a)" in html) == (not large)
+    assert large == (tip_pct > 1) == fe["too_large"]
+    # skipped: said so, never a number
+    val.fem_error = assess(val, None, reason="--no-fem-error")
+    html = write_report(tmp_path / "s.html", ident, val).read_text()
+    assert "was not estimated (--no-fem-error)" in html and "too large" not in html
+
+
+@pytest.mark.slow
+def test_cli_validate_measures_the_fem_error(tmp_path):
+    """`bellows validate` on the straight tube: validation.json carries the measured error of the 4 held-out
+    states with the largest deformation and the others' bounds; the terminal shows the table."""
+    import json
+    from test_report_cli import _bellows
+    r = _bellows("validate", "--params", "paper", "--design", "straight_tube", "--workers", "2", "--cache",
+                 tmp_path / "cache", "--out", tmp_path / "v", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    fe = json.loads((tmp_path / "v" / "validation.json").read_text())["fem_discretisation_error"]
+    assert fe["estimated"] and sum(x["measured"] for x in fe["rows"]) == 4
+    assert all(x["fem_tip_error_pct"] >= 0 for x in fe["rows"] if x["measured"])
+    assert "FEM discretisation error beside the model-vs-FEM error" in r.stdout
+    skip = _bellows("validate", "--params", "paper", "--design", "straight_tube", "--no-fem-error", "--cache",
+                    tmp_path / "cache", "--out", tmp_path / "v", "--force", cwd=tmp_path)
+    assert skip.returncode == 0, skip.stderr
+    fe = json.loads((tmp_path / "v" / "validation.json").read_text())["fem_discretisation_error"]
+    assert fe["estimated"] is False and "--no-fem-error" in fe["statements"][0]
