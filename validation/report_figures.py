@@ -39,18 +39,19 @@ def forms_figure(comparison: list) -> bytes:
     rows = [r for r in comparison if "train_rms_tip_m" in r]
     names = [r["form"] + (" *" if r.get("chosen") else "") for r in rows]
     x = np.arange(len(rows))
-    fig, ax = plt.subplots(figsize=(7.0, 3.2))
+    fig, ax = plt.subplots(figsize=(7.0, 3.6))
     bars = [("train RMS", "train_rms_tip_m", "0.7"), ("held-out RMS", "heldout_rms_tip_m", "tab:blue"),
             ("held-out max", "heldout_max_tip_m", "tab:orange")]
     w = 0.8 / len(bars)
     for i, (lab, key, col) in enumerate(bars):
         vals = [1e3 * r.get(key, np.nan) for r in rows]
         ax.bar(x + (i - 1) * w, vals, w, label=lab, color=col)
-    ax.set_xticks(x, names)
+    ax.set_xticks(x, names, rotation=30, ha="right")      # eight form names side by side overlap
     ax.set_ylabel("tip error [mm]")
     ax.set_title("Model forms (* = chosen)")
     ax.legend(frameon=False, fontsize=8)
     ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
     return _png(fig)
 
 
