@@ -210,7 +210,7 @@ class HexAssembler:
     def _pressure_points(self) -> np.ndarray:
         """Gauss points in the pressure basis' coordinates, (3, ne, nq)."""
         if self.PRESSURE_COORDINATES == "physical":
-            return self.basis.global_coordinates().value
+            return np.asarray(self.basis.global_coordinates())
         return np.ascontiguousarray(np.broadcast_to(self.basis.X[:, None, :], (3, self.ne, self.nq)))
 
     def deformation_gradient(self, U: np.ndarray, sl=slice(None)) -> np.ndarray:

@@ -174,3 +174,24 @@ def test_pressure_kernel_equals_numpy_reference_and_fd(mesh):
     assert np.linalg.norm(fd - an) < 1e-7 * np.linalg.norm(an)
     with pytest.raises(ValueError):
         new.assemble(np.zeros((3, 5)), p)
+
+
+def test_pressure_in_reference_or_physical_coordinates(mesh, monkeypatch):
+    """On affine elements (a box) the linear pressure in (ξ, η, ζ) and in (X, Y, Z) span the same space: the same
+    force; on the curved bellows mesh they differ (docs/fem.md §3a)."""
+    from skfem import MeshHex, MeshHex2
+
+    mat = MATERIALS["decoupled NH"]
+    box = MeshHex2.from_mesh(MeshHex.init_tensor(np.linspace(0, 0.02, 3), np.linspace(0, 0.01, 2),
+                                                 np.linspace(0, 0.004, 2)))
+    forces = {}
+    for coords in ("reference", "physical"):
+        monkeypatch.setattr(HexAssembler, "PRESSURE_COORDINATES", coords)
+        for name, m in (("box", box), ("bellows", mesh.mesh)):
+            X = m.doflocs
+            U = np.stack([-40.0 * X[0] * X[2], 0.1 * X[1], 20.0 * X[0] ** 2])   # bending: J varies
+            forces[coords, name] = HexAssembler(m, mat).assemble(U, False)[0]
+    ref, phys = forces["reference", "box"], forces["physical", "box"]
+    assert np.abs(ref - phys).max() <= 1e-9 * np.abs(ref).max()
+    ref, phys = forces["reference", "bellows"], forces["physical", "bellows"]
+    assert np.abs(ref - phys).max() > 1e-4 * np.abs(ref).max()
