@@ -15,8 +15,9 @@ Volume terms (27-point Gauss on each Hex2, ``dphi[a, J, e, q] = ∂N_a/∂X_J``,
 :math:`\psi = \psi_{iso}(F) + \tfrac{\kappa}{2}(J - 1)^2` a full-integration Hex27 locks: 27 pointwise
 constraints :math:`J \approx 1` per element are too many for its displacements when the wall bends.  The
 two-field functional :math:`\int \psi_{iso} + p_h (J - 1) - p_h^2/(2\kappa)` with a pressure
-:math:`p_h \in \mathrm{span}\{1, \hat X, \hat Y, \hat Z\}` per element (discontinuous, the inf–sup stable
-Q2/P1-disc pair; :math:`\hat X = (X - X_c)/h_e` about the element's centroid) is condensed exactly: the
+:math:`p_h \in \mathrm{span}\{1, \xi, \eta, \zeta\}` per element (discontinuous, the Q2/P1-disc pair; linear in
+the element's reference coordinates, which follow a curved wall's thickness direction, or in (X, Y, Z) with
+``HexAssembler.PRESSURE_COORDINATES = "physical"``; :func:`pressure_basis`) is condensed exactly: the
 pressure equation gives :math:`p_h = \kappa\,\Pi(J - 1)` with :math:`\Pi` the element's L² projection on
 that space, and the functional becomes the displacement energy
 
@@ -338,16 +339,18 @@ def check_element(element: str, material: Material) -> None:
 def pressure_basis(X: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The mixed element's pressure basis ``N = [1, X̂, Ŷ, Ẑ]`` at the Gauss points and ``M⁻¹``.
 
-    ``X`` (3, ne, nq) Gauss-point coordinates [m], ``dx`` (ne, nq) weights [m³].  ``X̂ = (X − X_c)/h_e`` about
-    the element's centroid ``X_c`` with ``h_e = V_e^{1/3}`` (a well-conditioned 4×4 ``M``).  Returns
+    ``X`` (3, ne, nq) Gauss-point coordinates (reference ξ, η, ζ or physical [m]), ``dx`` (ne, nq) weights [m³].
+    ``X̂_j = (X_j − X_c,j)/s_j`` about the element's centroid ``X_c`` with ``s_j`` the RMS spread of ``X_j`` over
+    the element (a well-conditioned 4×4 ``M`` for either kind of coordinate; the span is the same).  Returns
     ``pb`` (ne, nq, 4) and ``Mi`` (ne, 4, 4) = ``(Σ_q N Nᵀ dx)⁻¹`` [1/m³].
     """
     V = dx.sum(axis=1)
     Xc = np.einsum("ieq,eq->ie", X, dx) / V
-    h = np.cbrt(V)
+    d = X - Xc[:, :, None]
+    spread = np.sqrt(np.einsum("ieq,eq->ie", d * d, dx) / V)
     pb = np.empty(dx.shape + (4,))
     pb[..., 0] = 1.0
-    pb[..., 1:] = ((X - Xc[:, :, None]) / h[None, :, None]).transpose(1, 2, 0)
+    pb[..., 1:] = (d / spread[:, :, None]).transpose(1, 2, 0)
     M = np.einsum("eqm,eqn,eq->emn", pb, pb, dx)
     return pb, np.linalg.inv(M)
 

@@ -389,9 +389,7 @@ class BellowsModel:
         # follower cap pressure: residual -f, so K[u_c, θ] += -∂f/∂θ = p A [R e_x]_×
         extra_K[0:3, 3:6] -= dpvec
         r, Kq = c.reduce(K, r_full, st.R, extra_cc=extra_K)
-        fext_q = np.empty(c.n_q)
-        fext_q[:s] = f_ext[c.free_dofs]
-        fext_q[s:] = c.cap_rows(st.R).T @ f_ext[c.cap_dofs]
+        fext_q = c.restrict(f_ext, st.R)
         for rr, F in loads:
             Jb = point_jacobian(rr)
             r[s: s + 6] -= Jb.T @ F

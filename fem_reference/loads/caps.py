@@ -164,6 +164,14 @@ class RigidCapReduction:
         Pc[:, 2, 3], Pc[:, 2, 4] = y, -x
         return Pc.reshape(3 * nc, 6)
 
+    def restrict(self, v: np.ndarray, R: np.ndarray, Pc: np.ndarray | None = None) -> np.ndarray:
+        """``Pᵀ v`` of a full nodal vector ``v`` (3n,) → (n_q,); ``Pc``: :meth:`cap_rows` of ``R`` if known."""
+        Pc = self.cap_rows(R) if Pc is None else Pc
+        out = np.empty(self.n_q)
+        out[: self.n_free] = v[self.free_dofs]
+        out[self.n_free:] = Pc.T @ v[self.cap_dofs]
+        return out
+
     def reduce(self, K: sp.spmatrix | None, r: np.ndarray, R: np.ndarray, extra_cc: np.ndarray | None = None):
         """Reduced residual ``Pᵀ r`` and tangent ``Pᵀ K P`` + rigid-link geometric stiffness (see the module
         docstring, "Cost"; the same as :meth:`reduce_reference` to round-off), plus ``extra_cc`` (6, 6) on the
@@ -181,9 +189,7 @@ class RigidCapReduction:
         K_q : csr_matrix (n_q, n_q) or None
         """
         Pc = self.cap_rows(R)
-        rq = np.empty(self.n_q)
-        rq[: self.n_free] = r[self.free_dofs]
-        rq[self.n_free:] = Pc.T @ r[self.cap_dofs]
+        rq = self.restrict(r, R, Pc)
         if K is None:
             return rq, None
         K = K.tocsr()
