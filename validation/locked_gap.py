@@ -1,0 +1,306 @@
+r"""The locked-compliance gap between the FEM and the reduced model on a straight tube, decomposed.
+
+With every taut tendon locked, a small tip load is carried by the tendons' length constraints as well as by
+the body; the locked/constant(tension-held) stiffness ratio measures how much.  On a straight tube the FEM
+and the reduced model agree on the tension-held compliance but not on the locked one
+(docs/identification.md, "The locked-compliance gap").  This module measures why.
+
+**What a locked tendon constrains (first order, straight tube).**  The FEM tendon is a polyline through guide
+points at the roots (:mod:`fem_reference.loads.tendons`); the rod's is the line at distance d from the
+centreline (:mod:`ancf.forces.tendon`).  About a straight state every segment of either path is parallel to
+the axis, so the first variation of the length telescopes to the axial displacement of the anchor:
+
+.. math::
+
+    \delta L_i = e\cdot(\delta x_{anchor,i} - \delta x_{exit,i}) = e\cdot(\delta u_c + \delta\theta\times r_i),
+
+``e`` the unit chord from the base exit to the anchor, ``r_i = R a_i`` the anchor's offset on the cap.  The
+guides (their radial position, the chord between them, the wall deformation at the roots) do not enter:
+the constraint row is a function of the six cap unknowns alone, in both models.  Then the locked tip
+compliance is a function of the tension-held 6×6 cap compliance ``C6`` (``[δu_c; δθ] = C6 [δF; δM]``)
+alone (:func:`locked_from_cap`):
+
+.. math::
+
+    C_l = J C_6 J^T - J C_6 G\,(G^T C_6 G)^{-1} G^T C_6 J^T,
+    \qquad J = [I, -[R a_{tip}]_\times],\quad G = [\,e;\ r_i\times e\,]_{i \in A}.
+
+**Where the models differ: the rotation-free lateral compliance.**  An Euler–Bernoulli rod's lateral tip
+compliances obey ``c_δF = (4/3) c_θF c_δM / c_θM`` (L³/3EI = (4/3)(L²/2EI)²/(L/EI)).  The remainder
+
+.. math::
+
+    s = c_{\delta F} - \tfrac43\, c_{\theta F}\, c_{\delta M} / c_{\theta M}
+
+is lateral tip motion without cap rotation (:func:`shear_compliance`; for a Timoshenko cantilever it is
+exactly L/(k G A)).  A locked tendon constrains the cap's rotation and axial motion only, so ``s`` passes
+unlocked into ``C_l``; a rod that matches the FEM's tension-held ``c_δF`` with bending alone puts ``s`` into
+its rotation, where the tendons lock it.  Hence, with ``r_EB`` the ratio of the bending part alone,
+
+.. math::
+
+    \frac{k_{locked}}{k_{held}} = \frac{1}{(1 - \sigma)/r_{EB} + \sigma},\qquad \sigma = s / c_{\delta F}.
+
+Units: SI throughout (m, N, Pa, N m²); compliances [m/N], rotations per moment [1/(N m)].
+"""
+
+from __future__ import annotations
+
+from typing import Optional, Sequence
+
+import numpy as np
+
+from ancf.errors import InputError
+
+__all__ = ["locked_from_cap", "shear_compliance", "remove_shear", "ideal_line_gradients", "fem_decomposition",
+           "matched_rod", "rod_ratios", "ratio_with_shear", "STATES", "measure", "format_table"]
+
+_EX = np.array([1.0, 0.0, 0.0])
+
+
+def _skew(r) -> np.ndarray:
+    x, y, z = r
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def _point_jacobian(r) -> np.ndarray:
+    """∂x/∂[u_c, θ] (3×6) of a cap point at spatial offset ``r`` [m] (δx = δu_c + δθ × r)."""
+    return np.hstack([np.eye(3), -_skew(r)])
+
+
+def locked_from_cap(C6, tip_offset, anchor_offsets, chords=None) -> np.ndarray:
+    """Locked tip compliance (3×3) [m/N] from the tension-held 6×6 cap compliance and straight-line tendons.
+
+    Parameters
+    ----------
+    C6 : (6, 6) ``[δu_c; δθ] = C6 [δF; δM]`` about the cap centre (may be non-symmetric: follower loads).
+    tip_offset : (3,) spatial offset R a_tip of the tip point from the cap centre [m].
+    anchor_offsets : (k, 3) spatial offsets R a_i of the anchors of the locked tendons [m] (k ≥ 0).
+    chords : (k, 3) unit chord of each tendon (exit → anchor); default the axis e_x.
+
+    The tendons' length rows are ``e·(δu_c + δθ × r_i)`` (the module docstring); with no tendon the result
+    is the tension-held tip compliance."""
+    C6 = np.asarray(C6, float)
+    if C6.shape != (6, 6) or not np.all(np.isfinite(C6)):
+        raise InputError(f"C6 must be a finite 6×6 matrix, got shape {C6.shape}")
+    r = np.atleast_2d(np.asarray(anchor_offsets, float)).reshape(-1, 3)
+    e = np.tile(_EX, (len(r), 1)) if chords is None else np.atleast_2d(np.asarray(chords, float)).reshape(-1, 3)
+    if len(e) != len(r):
+        raise InputError(f"{len(r)} anchors but {len(e)} chords")
+    J = _point_jacobian(np.asarray(tip_offset, float))
+    C = J @ C6 @ J.T
+    if len(r) == 0:
+        return C
+    G = np.column_stack([_point_jacobian(ri).T @ ei for ri, ei in zip(r, e)])    # (6, k): δL = Gᵀ δ[u_c; θ]
+    return C - (J @ C6 @ G) @ np.linalg.solve(G.T @ C6 @ G, G.T @ C6 @ J.T)
+
+
+def shear_compliance(C6, lateral, axis=(1.0, 0.0, 0.0)) -> float:
+    """Rotation-free lateral tip compliance s [m/N] of the cap along unit ``lateral`` (module docstring).
+
+    ``c_δF = uᵀ C_uF u``, ``c_θF = wᵀ C_θF u``, ``c_δM = uᵀ C_uM w``, ``c_θM = wᵀ C_θM w`` with w = axis × u the
+    rotation axis of a bend toward u.  0 for an Euler–Bernoulli cantilever, L/(kGA) for a Timoshenko one."""
+    C6 = np.asarray(C6, float)
+    u = np.asarray(lateral, float)
+    u = u / np.linalg.norm(u)
+    w = np.cross(np.asarray(axis, float), u)
+    c_dF, c_tF = u @ C6[:3, :3] @ u, w @ C6[3:, :3] @ u
+    c_dM, c_tM = u @ C6[:3, 3:] @ w, w @ C6[3:, 3:] @ w
+    return float(c_dF - 4.0 / 3.0 * c_tF * c_dM / c_tM)
+
+
+def remove_shear(C6, s_by_direction: dict) -> np.ndarray:
+    """C6 with the rotation-free compliance ``s`` [m/N] removed along each given unit lateral direction
+    (``{direction tuple: s}``): what an Euler–Bernoulli body with the same rotations would have."""
+    out = np.array(C6, float)
+    for u, s in s_by_direction.items():
+        u = np.asarray(u, float) / np.linalg.norm(u)
+        out[:3, :3] -= s * np.outer(u, u)
+    return out
+
+
+def ratio_with_shear(r_eb: float, share: float) -> float:
+    """Locked/held stiffness ratio of a body whose held lateral compliance has the rotation-free share
+    ``share`` = s/c_δF ∈ [0, 1) and whose bending part alone has the ratio ``r_eb`` (module docstring)."""
+    return 1.0 / ((1.0 - share) / r_eb + share)
+
+
+# --------------------------------------------------------------------------- FEM side
+
+def ideal_line_gradients(model, st) -> np.ndarray:
+    """(n_q, m) gradients of the straight exit→anchor chord length of every tendon of an FEM model
+    (``fem_reference.BellowsModel``) at state ``st``: nonzero on the six cap unknowns only."""
+    g = np.zeros((model.n_dofs, model.m))
+    sl = model.caps.cap_slice
+    for k, tp in enumerate(model.tendons):
+        anchor = model.X_c + st.uc + st.R @ tp.anchor
+        e = anchor - tp.exit_point
+        e = e / np.linalg.norm(e)
+        g[sl, k] = _point_jacobian(st.R @ tp.anchor).T @ e
+    return g
+
+
+def fem_decomposition(model, res, direction=(0.0, 0.0, -1.0)) -> dict:
+    """Decompose the FEM's locked compliance about the equilibrium ``res`` of ``model``.
+
+    Returns (SI) ``length`` (tip x [m]), ``C_tension``, ``C_locked`` (3×3 [m/N], the latter by
+    :func:`validation.fem_sweep.locked_compliance`, as the validation uses), ``active`` (locked taut
+    tendons), ``C6`` (6×6 cap compliance), ``g_deviation`` (largest ‖g − g_line‖/‖g‖ over the tendons: the
+    guided path's length gradient against the straight chord's), ``C_locked_line`` (from ``C6`` and the
+    straight chords, :func:`locked_from_cap`), ``EI_moment`` = ℓ/c_θM, ``EI_tip_force`` = ℓ³/(3 c_δF) [N m²]
+    along z (ℓ the current length), ``shear_z``, ``shear_y`` [m/N] (:func:`shear_compliance`), ``share_z`` =
+    s/c_δF, ``C_locked_no_shear`` (locked compliance of ``C6`` without s) and the z stiffness ratios
+    ``ratio`` (exact), ``ratio_line``, ``ratio_no_shear``."""
+    from fem_reference.solver import factorize
+    from .fem_sweep import locked_compliance
+    st = res.state
+    ev = model.evaluate(st, res.loadcase, tangent=True)
+    fac = factorize(ev["K"], model.linear_solver)
+    E = np.zeros((model.n_dofs, 6))
+    E[model.caps.cap_slice, :] = np.eye(6)
+    C6 = E.T @ fac.solve(E)
+    g, gl = ev["g"], ideal_line_gradients(model, st)
+    dev = float(max(np.linalg.norm(g[:, k] - gl[:, k]) / np.linalg.norm(g[:, k]) for k in range(model.m)))
+    Ct = model.tip_compliance(res, mode="tension")
+    Cl, active = locked_compliance(model, res, direction)
+    tip_off = st.R @ model.a_tip
+    anchors = [st.R @ model.tendons[i].anchor for i in active]
+    chords = []
+    for i in active:
+        a = model.X_c + st.uc + st.R @ model.tendons[i].anchor - model.tendons[i].exit_point
+        chords.append(a / np.linalg.norm(a))
+    C_line = locked_from_cap(C6, tip_off, np.reshape(anchors, (-1, 3)), np.reshape(chords, (-1, 3)))
+    sz, sy = shear_compliance(C6, (0, 0, 1)), shear_compliance(C6, (0, 1, 0))
+    C6n = remove_shear(C6, {(0.0, 0.0, 1.0): sz, (0.0, 1.0, 0.0): sy})
+    C_ns = locked_from_cap(C6n, tip_off, np.reshape(anchors, (-1, 3)), np.reshape(chords, (-1, 3)))
+    Ct_ns = locked_from_cap(C6n, tip_off, np.zeros((0, 3)))
+    ell = float(res.tip_position[0])
+    w = np.array([0.0, -1.0, 0.0])
+    return {"length": ell, "pressure": float(res.loadcase.pressure), "tensions": np.asarray(st.T, float).copy(),
+            "C_tension": Ct, "C_locked": Cl, "active": list(active), "C6": C6, "g_deviation": dev,
+            "C_locked_line": C_line, "EI_moment": ell / float(w @ C6[3:, 3:] @ w),
+            "EI_tip_force": ell ** 3 / (3 * Ct[2, 2]), "shear_z": sz, "shear_y": sy, "share_z": sz / Ct[2, 2],
+            "C_locked_no_shear": C_ns, "ratio": Ct[2, 2] / Cl[2, 2], "ratio_line": Ct[2, 2] / C_line[2, 2],
+            "ratio_no_shear": Ct_ns[2, 2] / C_ns[2, 2]}
+
+
+# --------------------------------------------------------------------------- reduced-model side
+
+def matched_rod(base, length: float, tensions, pressure: float, c_axial: float, c_lateral: float, *,
+                iterations: int = 30, rtol: float = 1e-9):
+    """The reduced model (constant EA, EI) that, straight under ``tensions`` [N] and ``pressure`` [Pa]
+    without gravity, has the tip position x = ``length`` [m], the tension-held axial compliance ``c_axial``
+    and lateral (z) compliance ``c_lateral`` [m/N] — the rod an identification makes of that FEM state.
+
+    ``base`` : :class:`ancf.ActuatorParams` giving L, the tendons, n and the rest.  Returns (params, eq).
+    With W'(λ) = ½ EA (λ³ − λ) the axial compliance L / (½ EA (3λ² − 1)) gives EA, the section force at the
+    stretch λ = length/L gives the pressure area (p A_eff − ΣT = W'(λ)), and EI follows from a multiplicative
+    fixed point on the lateral compliance."""
+    from ancf import Model, StiffnessLaw
+    from ancf import compliance as cp
+    L = base.length
+    lam = length / L
+    T = np.asarray(tensions, float)
+    EA = 2 * L / (c_axial * (3 * lam ** 2 - 1))            # first guesses: the closed forms above
+    A = (0.5 * EA * (lam ** 3 - lam) + T.sum()) / pressure if pressure > 0 else base.A_eff
+    if A <= 0:
+        raise InputError(f"no positive pressure area reaches the stretch {lam:.4f} under these loads")
+    EI = length ** 3 / (3 * c_lateral)
+    params = eq = None
+    for _ in range(iterations):
+        params = base.replace(stiffness=StiffnessLaw.constant(EA, EI), D_eff=float(np.sqrt(4 * A / np.pi)),
+                              gravity=(0.0, 0.0, 0.0), tool_offset=0.0)
+        model = Model(params)
+        eq = model.fk(tuple(T), pressure, check_limits=False)
+        C = cp.tension(model, eq).C_p
+        err = (C[0, 0] / c_axial - 1, C[2, 2] / c_lateral - 1, (eq.tip[0] - length) / length if pressure > 0 else 0.0)
+        if max(abs(x) for x in err) < rtol:
+            break
+        EA *= C[0, 0] / c_axial
+        EI *= C[2, 2] / c_lateral
+        if pressure > 0:
+            A += (length - eq.tip[0]) / (pressure * C[0, 0])  # Newton on the length: ∂x/∂A = p c_xx
+    return params, eq
+
+
+def rod_ratios(params, eq, direction=(0.0, 0.0, -1.0), shear: float = 0.0) -> dict:
+    """Locked/held z stiffness ratio of the reduced model at ``eq`` (exact locked compliance, same taut-set
+    rule as the validation), and with a series rotation-free compliance ``shear`` [m/N] added along z to
+    both compliances (what a shear-flexible rod would give).  Returns ``ratio``, ``ratio_shear``,
+    ``C_tension``, ``C_locked``, ``active``."""
+    from ancf import Model
+    from ancf import compliance as cp
+    model = Model(params)
+    Ct = cp.tension(model, eq).C_p
+    cl = cp.locked(model, eq, method="exact", load_direction=direction)
+    Cl = cl.C_p
+    return {"ratio": Ct[2, 2] / Cl[2, 2], "ratio_shear": (Ct[2, 2] + shear) / (Cl[2, 2] + shear),
+            "C_tension": Ct, "C_locked": Cl, "active": list(cl.active)}
+
+
+#: The straight states measured: (pressure as a fraction of the design's p_max, equal tension [N]).
+STATES = ((0.0, 0.0), (0.5, 0.0), (1.0, 0.0), (0.0, 2.5), (0.5, 2.5), (1.0, 2.5))
+
+
+def measure(design="paper", mesh: str = "coarse", states: Sequence = STATES, *, pressure_max: Optional[float] = None,
+            cache: Optional[str] = None, log=None) -> list[dict]:
+    """Solve the straight ``states`` on the FEM of ``design`` (warm-started in order), decompose each
+    (:func:`fem_decomposition`) and put the matched reduced model beside it (:func:`matched_rod`,
+    :func:`rod_ratios`, with EI matched to the held compliance — the reduced model — and to its bending part
+    c_δF − s with the series shear s added back — the shear-flexible rod).  ``cache``: an ``.npz`` path per
+    state is written/read under this directory.  Returns one dict per state (SI)."""
+    import pathlib
+    from ancf import presets
+    from .designs import design_limits, load_design
+    geo, mat = load_design(design)
+    p_max = design_limits(design)["pressure_max"] if pressure_max is None else float(pressure_max)
+    base = presets.paper().replace(length=geo.length, gravity=(0.0, 0.0, 0.0))
+    model, prev, rows = None, None, []
+    for frac, T in states:
+        p = frac * p_max
+        tens = (T,) * len(geo.tendon_angles)
+        path = None if cache is None else pathlib.Path(cache) / f"{design}_{mesh}_p{p:.0f}_T{T:g}.npz"
+        if path is not None and path.exists():
+            z = np.load(path, allow_pickle=True)
+            fem = z["fem"].item()
+        else:
+            if model is None:
+                from fem_reference import BellowsModel
+                model = BellowsModel(geo, mat, mesh=mesh)
+            res = model.solve(tensions=tens, pressure=p, initial=prev)
+            prev = res
+            fem = fem_decomposition(model, res)
+            if path is not None:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                np.savez(path, fem=np.array(fem, dtype=object))
+        Ct = fem["C_tension"]
+        params, eq = matched_rod(base, fem["length"], tens, p, Ct[0, 0], Ct[2, 2])
+        rod = rod_ratios(params, eq)
+        params_b, eq_b = matched_rod(base, fem["length"], tens, p, Ct[0, 0], Ct[2, 2] - fem["shear_z"])
+        rod_b = rod_ratios(params_b, eq_b, shear=fem["shear_z"])
+        row = {"pressure_Pa": p, "tension_N": T, "fem": fem, "rod_ratio": rod["ratio"],
+               "rod_active": rod["active"], "rod_C_tension": rod["C_tension"], "rod_C_locked": rod["C_locked"], "shear_rod_ratio": rod_b["ratio_shear"],
+               "shear_rod_C_locked_zz": rod_b["C_locked"][2, 2] + fem["shear_z"],
+               "locked_error_pct": 100 * (rod["C_locked"][2, 2] / fem["C_locked"][2, 2] - 1),
+               "shear_locked_error_pct": 100 * ((rod_b["C_locked"][2, 2] + fem["shear_z"]) / fem["C_locked"][2, 2] - 1)}
+        rows.append(row)
+        if log is not None:
+            log(format_table([row], header=not rows[:-1]))
+    return rows
+
+
+def format_table(rows, header: bool = True) -> str:
+    """The measurement as a Markdown table (one line per state)."""
+    out = []
+    if header:
+        out += ["| p [kPa] | T [N] | taut | FEM ratio | FEM, straight-line tendon | max ‖g − g_line‖/‖g‖ | "
+                "EI moment / tip force [N m²] | rotation-free share of c_zz [%] | FEM ratio without it | "
+                "reduced model ratio | locked c_zz, model vs FEM [%] | shear rod ratio | locked c_zz, shear rod vs FEM [%] |",
+                "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        f = r["fem"]
+        out.append(f"| {r['pressure_Pa'] / 1e3:.0f} | {r['tension_N']:g} | {len(f['active'])} | {f['ratio']:.3f} | "
+                   f"{f['ratio_line']:.3f} | {f['g_deviation']:.0e} | {f['EI_moment']:.4f} / {f['EI_tip_force']:.4f} | "
+                   f"{100 * f['share_z']:.1f} | {f['ratio_no_shear']:.3f} | {r['rod_ratio']:.3f} | "
+                   f"{r['locked_error_pct']:+.1f} | {r['shear_rod_ratio']:.3f} | {r['shear_locked_error_pct']:+.1f} |")
+    return "\n".join(out)
