@@ -10,7 +10,9 @@ For every held-out state (loads never used in the fit) both models are solved an
   :func:`ancf.compliance.active_set` and :func:`validation.fem_sweep.locked_compliance`); the FEM's from its
   condensed tangent;
 * per-direction stiffness k(u) = 1/(uᵀ C u) along x, y, z [N/m] and its relative error; the relative error of
-  the whole matrix ‖C_ANCF − C_FEM‖_F / ‖C_FEM‖_F; the locked/constant-tension stiffness ratio along z.
+  the whole matrix ‖C_ANCF − C_FEM‖_F / ‖C_FEM‖_F; the locked/constant-tension stiffness ratio along z, per
+  state side by side (``ratio_per_state``: FEM, reduced model, their difference and the taut tendons of each;
+  on a straight tube the difference is the FEM's rotation-free lateral compliance, docs/identification.md §4b).
 
 Targets (the paper, against experiments): shape error < 2.5 % of L, compliance error < 5 %.  A target is
 ``"met"`` only when it was checked on every held-out state; a state that failed (FEM or ANCF) or gave a NaN
@@ -38,7 +40,7 @@ from .experiments import Design, LoadCase, default_design
 from .fem_sweep import FemRecord, FemSpec, run_cases
 from .forms import position_matrix
 
-__all__ = ["ValidationResult", "validate", "compare_records", "stiffness_vs_tension", "SHAPE_TARGET_PCT",
+__all__ = ["ValidationResult", "validate", "compare_records", "ratio_row", "stiffness_vs_tension", "SHAPE_TARGET_PCT",
            "COMPLIANCE_TARGET_PCT"]
 
 SHAPE_TARGET_PCT = 2.5
@@ -55,6 +57,10 @@ class ValidationResult:
     tip_error_pct : {"mean", "max"} of the tip error in % of L;  shape_error_pct : {"mean", "max"}
     compliance_error_pct : {"tension": {"mean", "max"}, "locked": {...}} of the matrix error (Frobenius)
     stiffness_error_pct : {"tension"|"locked": {"x"|"y"|"z": max |k_ANCF/k_FEM − 1| × 100}}
+    ratio : {"ancf"|"fem": {"mean", "max"}} of the locked/constant vertical stiffness ratio k_z,locked/k_z,held
+    ratio_per_state : one dict per state with compliances: label, pressure_kPa, tensions_N, tip_force_N,
+    ``fem``, ``ancf`` (the ratio [–]), ``difference_pct`` = 100 (ancf/fem − 1), ``taut_fem``, ``taut_ancf``
+    (indices of the locked taut tendons)
     targets : the paper's targets and whether they are met;  params : the reduced model used
     fem_error : the FEM's own discretisation error beside these errors (:func:`validation.fem_error.assess`;
     empty when not estimated)
@@ -67,6 +73,7 @@ class ValidationResult:
     compliance_error_pct: dict = field(default_factory=dict)
     stiffness_error_pct: dict = field(default_factory=dict)
     ratio: dict = field(default_factory=dict)
+    ratio_per_state: list = field(default_factory=list)
     targets: dict = field(default_factory=dict)
     failures: list = field(default_factory=list)
     fem_error: dict = field(default_factory=dict)
@@ -74,7 +81,7 @@ class ValidationResult:
     def to_dict(self) -> dict:
         return to_jsonable({k: getattr(self, k) for k in ("rows", "length", "tip_error_pct", "shape_error_pct",
                                                          "compliance_error_pct", "stiffness_error_pct", "ratio",
-                                                         "targets", "failures")} | {"params": self.params.to_toml()}
+                                                         "ratio_per_state", "targets", "failures")} | {"params": self.params.to_toml()}
                            | {"fem_discretisation_error": self.fem_error or None})
 
 
@@ -168,6 +175,7 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
         out.stiffness_error_pct = {m: {ax: _max_abs([r[f"k_{m}_{ax}_error_pct"] for r in with_c]) for ax in AXES}
                                    for m in ("tension", "locked")}
         out.ratio = {"ancf": _stats([r["ratio_z_ancf"] for r in with_c]), "fem": _stats([r["ratio_z_fem"] for r in with_c])}
+        out.ratio_per_state = [ratio_row(r) for r in with_c]
     bad_shape = failed + [r["label"] for r in rows if not np.isfinite(r["shape_error_pct"])]
     out.targets = {"shape_pct": _target(SHAPE_TARGET_PCT, out.shape_error_pct["max"], bad_shape)}
     if with_c:
@@ -177,6 +185,16 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
             np.isfinite(r["C_tension_error_pct"]) and np.isfinite(r["C_locked_error_pct"]))]
         out.targets["compliance_pct"] = _target(COMPLIANCE_TARGET_PCT, worst, bad_c)
     return out
+
+
+def ratio_row(row: dict) -> dict:
+    """The locked/constant vertical stiffness ratio of one compared state, FEM and reduced model side by side
+    (see :class:`ValidationResult`); NaN difference when either ratio is not finite (a rigid direction)."""
+    f, a = float(row["ratio_z_fem"]), float(row["ratio_z_ancf"])
+    diff = 100 * (a / f - 1) if math.isfinite(a) and math.isfinite(f) and f != 0 else float("nan")
+    return {"label": row["label"], "pressure_kPa": row["pressure_Pa"] / 1e3, "tensions_N": list(row["tensions_N"]),
+            "tip_force_N": list(row["tip_force_N"]), "fem": f, "ancf": a, "difference_pct": diff,
+            "taut_fem": list(row.get("locked_active_fem", [])), "taut_ancf": list(row.get("locked_active_ancf", []))}
 
 
 def _target(target: float, value: float, incomplete: list) -> dict:

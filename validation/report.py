@@ -168,6 +168,20 @@ def _validation_rows(val: ValidationResult) -> list[dict]:
     return out
 
 
+def _ratio_rows(val: ValidationResult) -> list[dict]:
+    """Section 3b: the locked/held vertical stiffness ratio per state, FEM and reduced model side by side."""
+    rows = {r["label"]: r for r in val.rows}
+    out = []
+    for q in val.ratio_per_state:
+        d = q["difference_pct"]
+        out.append({"label": q["label"], "loads": _loads(rows[q["label"]]) if q["label"] in rows else "",
+                    "fem": _fmt(q["fem"], digits=3), "ancf": _fmt(q["ancf"], digits=3),
+                    "difference": f"{d:+.1f}" if np.isfinite(d) else "–",
+                    "taut_fem": ", ".join(str(i + 1) for i in q["taut_fem"]) or "none",
+                    "taut_ancf": ", ".join(str(i + 1) for i in q["taut_ancf"]) or "none"})
+    return out
+
+
 def _matrix(C) -> str:
     return "\n".join(" ".join(f"{1e3 * x:9.3f}" for x in row) for row in np.asarray(C, float))
 
@@ -322,6 +336,7 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "n_train": ident.train.n, "n_heldout": 0 if ident.heldout is None else ident.heldout.n,
         "parsimony_pct": round(100 * (PARSIMONY - 1)), "form_rows": _form_rows(ident), "figures": b64,
         "validation": validation, "validation_rows": [] if validation is None else _validation_rows(validation),
+        "ratio_rows": [] if validation is None else _ratio_rows(validation),
         "fem_error": None if validation is None else (validation.fem_error or None),
         "fem_error_rows": [] if validation is None else _fem_error_rows(validation),
         "validation_failures": "" if validation is None else "; ".join(

@@ -88,3 +88,31 @@ def test_a_failed_or_nan_state_makes_the_targets_incomplete_not_met():
     val = compare_records(BASE, recs)
     assert val.targets["shape_pct"]["status"] == "met" and val.targets["shape_pct"]["met"] is True
     assert val.targets["compliance_pct"]["status"] == "incomplete" and not val.targets["compliance_pct"]["met"]
+
+
+def test_ratio_per_state_shows_both_models_side_by_side():
+    """A reference with a series rotation-free lateral compliance s along z (what the FEM has, §4b) added to both
+    of its compliances: per state its ratio is (c_t + s)/(c_l + s) and the model's c_t/c_l, computed here from
+    the model's own compliances; the difference is their quotient − 1; validation.json carries the rows."""
+    import json
+    s = 5e-3                                                   # [m/N]
+    recs = _records(BASE)
+    want, model = [], Model(BASE)
+    for r in recs:
+        eq = model.fk(r.case.tensions, r.case.pressure, r.case.tip_force, check_limits=False)
+        r.extra["locked_active"] = list(cp.locked(model, eq, method="exact", load_direction=(0, 0, -1)).active)
+        ct, cl = r.compliance_tension[2, 2], r.compliance_locked[2, 2]
+        want.append(((ct + s) / (cl + s), ct / cl))
+        r.compliance_tension = r.compliance_tension + s * np.diag([0.0, 0.0, 1.0])
+        r.compliance_locked = r.compliance_locked + s * np.diag([0.0, 0.0, 1.0])
+    val = compare_records(BASE, recs)
+    assert [q["label"] for q in val.ratio_per_state] == [c.label for c in CASES]
+    for q, (rf, ra), c in zip(val.ratio_per_state, want, CASES):
+        assert q["fem"] == pytest.approx(rf, rel=1e-9)
+        assert q["ancf"] == pytest.approx(ra, rel=1e-9)
+        assert q["difference_pct"] == pytest.approx(100 * (ra / rf - 1), rel=1e-9)
+        assert q["difference_pct"] > 0                           # the shear-free model locks stiffer
+        assert q["pressure_kPa"] == pytest.approx(c.pressure / 1e3)
+        assert q["taut_fem"] == q["taut_ancf"] and q["taut_ancf"]
+    d = json.loads(json.dumps(val.to_dict()))
+    assert d["ratio_per_state"][0]["fem"] == pytest.approx(want[0][0], rel=1e-9)

@@ -119,3 +119,21 @@ def test_a_straight_tube_is_described_as_a_tube(separate_result):
     text = " ".join(re.sub(r"<[^>]+>", " ", html).split())
     assert "3-D FEM of the straight tube" in text and "convolution" not in text
     assert np.isfinite(fem.fit.theta).all()
+
+
+def test_the_ratio_table_shows_fem_and_model_per_state(separate_result):
+    """Section 3b: one row per state with the FEM's and the reduced model's locked/held ratio and their
+    difference, from ValidationResult.ratio_per_state."""
+    from validation.compare import ratio_row
+    res = separate_result
+    val = _validation(res.params)
+    val.rows[0]["locked_active_fem"], val.rows[0]["locked_active_ancf"] = [0], [0, 1]
+    val.ratio_per_state = [ratio_row(r) for r in val.rows]
+    html = build_report(res, val, figures={})
+    table = next(t for t in _tables(html) if "difference, reduced vs FEM [%]" in t["head"])
+    rows = [r for r in table["rows"] if r]
+    assert len(rows) == 1
+    cells = dict(zip(table["head"], rows[0]))
+    assert cells["ratio, FEM [–]"] == "2.1" and cells["ratio, reduced model [–]"] == "1.9"
+    assert cells["difference, reduced vs FEM [%]"] == f"{100 * (1.9 / 2.1 - 1):+.1f}"
+    assert cells["taut, FEM"] == "1" and cells["taut, reduced model"] == "1, 2"
