@@ -248,7 +248,9 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
         d.append(f"Locked/constant-tension vertical stiffness ratio on the held-out states: FEM "
                  f"{val.ratio['fem']['mean']:.2f} (max {val.ratio['fem']['max']:.2f}), reduced model "
                  f"{val.ratio['ancf']['mean']:.2f} "
-                 f"(max {val.ratio['ancf']['max']:.2f}); the paper reports \"about twice\".")
+                 f"(max {val.ratio['ancf']['max']:.2f}); the paper reports \"about twice\". The FEM's is lower where its tip "
+                 "moves sideways without turning (shear-like, growing with pressure), which locked tendons cannot hold and "
+                 "the reduced model has no term for (section 3b; docs/identification.md §4b).")
     if val is not None and val.failures:
         d.append(f"{len(val.failures)} held-out state(s) could not be compared: "
                  + "; ".join(f"{f['label']} ({f['model']}: {f['error']})" for f in val.failures))
