@@ -192,7 +192,8 @@ def matched_rod(base, length: float, tensions, pressure: float, c_axial: float, 
     without gravity, has the tip position x = ``length`` [m], the tension-held axial compliance ``c_axial``
     and lateral (z) compliance ``c_lateral`` [m/N] — the rod an identification makes of that FEM state.
 
-    ``base`` : :class:`ancf.ActuatorParams` giving L, the tendons, n and the rest.  Returns (params, eq).
+    ``base`` : :class:`ancf.ActuatorParams` giving L, the tendons, n, the tool offset and the rest (gravity is
+    switched off).  Returns (params, eq).
     With W'(λ) = ½ EA (λ³ − λ) the axial compliance L / (½ EA (3λ² − 1)) gives EA, the section force at the
     stretch λ = length/L gives the pressure area (p A_eff − ΣT = W'(λ)), and EI follows from a multiplicative
     fixed point on the lateral compliance."""
@@ -209,7 +210,7 @@ def matched_rod(base, length: float, tensions, pressure: float, c_axial: float, 
     params = eq = None
     for _ in range(iterations):
         params = base.replace(stiffness=StiffnessLaw.constant(EA, EI), D_eff=float(np.sqrt(4 * A / np.pi)),
-                              gravity=(0.0, 0.0, 0.0), tool_offset=0.0)
+                              gravity=(0.0, 0.0, 0.0))
         model = Model(params)
         eq = model.fk(tuple(T), pressure, check_limits=False)
         C = cp.tension(model, eq).C_p
@@ -250,11 +251,11 @@ def measure(design="paper", mesh: str = "coarse", states: Sequence = STATES, *, 
     c_δF − s with the series shear s added back — the shear-flexible rod).  ``cache``: an ``.npz`` path per
     state is written/read under this directory.  Returns one dict per state (SI)."""
     import pathlib
-    from ancf import presets
     from .designs import design_limits, load_design
+    from .identify import fem_base_params
     geo, mat = load_design(design)
     p_max = design_limits(design)["pressure_max"] if pressure_max is None else float(pressure_max)
-    base = presets.paper().replace(length=geo.length, gravity=(0.0, 0.0, 0.0))
+    base = fem_base_params(geo, mat, pressure_max=p_max).replace(gravity=(0.0, 0.0, 0.0))
     model, prev, rows = None, None, []
     for frac, T in states:
         p = frac * p_max
