@@ -280,7 +280,8 @@ def measure(design="paper", mesh: str = "coarse", states: Sequence = STATES, *, 
         params_b, eq_b = matched_rod(base, fem["length"], tens, p, Ct[0, 0], Ct[2, 2] - fem["shear_z"])
         rod_b = rod_ratios(params_b, eq_b, shear=fem["shear_z"])
         row = {"pressure_Pa": p, "tension_N": T, "fem": fem, "rod_ratio": rod["ratio"],
-               "rod_active": rod["active"], "rod_C_tension": rod["C_tension"], "rod_C_locked": rod["C_locked"], "shear_rod_ratio": rod_b["ratio_shear"],
+               "rod_active": rod["active"], "rod_C_tension": rod["C_tension"], "rod_C_locked": rod["C_locked"],
+               "shear_rod_ratio": rod_b["ratio_shear"],
                "shear_rod_C_locked_zz": rod_b["C_locked"][2, 2] + fem["shear_z"],
                "locked_error_pct": 100 * (rod["C_locked"][2, 2] / fem["C_locked"][2, 2] - 1),
                "shear_locked_error_pct": 100 * ((rod_b["C_locked"][2, 2] + fem["shear_z"]) / fem["C_locked"][2, 2] - 1)}
