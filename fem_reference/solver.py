@@ -36,7 +36,7 @@ import scipy.sparse.linalg as spla
 
 from ancf.errors import ConfigError
 
-__all__ = ["NewtonStats", "StepFailed", "available_solvers", "factorize"]
+__all__ = ["NewtonStats", "StepFailed", "available_solvers", "factorize", "symmetric_inertia"]
 
 
 @contextmanager
@@ -104,47 +104,53 @@ class _SpluFactor:
         return self.lu.solve(np.asarray(b, float))
 
 
-_PARDISO_SOLVER = None
-
-
-def _pardiso_instance():
-    """One shared ``PyPardisoSolver(mtype=11)`` per process.
+class _Slot:
+    """One shared ``PyPardisoSolver`` of a matrix type per process, the sparsity pattern it last analysed and
+    the factor object whose numeric factorisation it holds.
 
     Creating a ``PyPardisoSolver`` globs the file system for the MKL library (0.5–0.8 s measured; avoided
-    where :func:`_mkl_rt_hint` finds it), more than a whole factorisation of the test meshes.  Sharing is safe: ``solve`` re-factorises if it
-    is handed a matrix other than the one last factorised (pypardiso compares a hash).
-    """
-    global _PARDISO_SOLVER
-    if _PARDISO_SOLVER is None:
-        pypardiso = _import_pypardiso()
-        with _mkl_rt_hint():
-            _PARDISO_SOLVER = pypardiso.PyPardisoSolver(mtype=11)
-    return _PARDISO_SOLVER
+    where :func:`_mkl_rt_hint` finds it), more than a whole factorisation of the test meshes.  Sharing is
+    safe: a factor re-factorises when the instance holds another's factorisation (``owner``)."""
+
+    def __init__(self, mtype: int):
+        self.mtype = mtype
+        self.solver = None
+        self.pattern: tuple | None = None
+        self.owner = 0
+
+    def instance(self):
+        if self.solver is None:
+            pypardiso = _import_pypardiso()
+            with _mkl_rt_hint():
+                self.solver = pypardiso.PyPardisoSolver(mtype=self.mtype)
+        return self.solver
+
+    def forget(self) -> None:
+        self.solver, self.pattern, self.owner = None, None, 0
 
 
-_LAST_PATTERN: tuple | None = None  # (indptr, indices) of the last analysed matrix
-_OWNER = [0]  # id of the factor object whose numeric factorisation the shared instance holds
+#: real non-symmetric LU (mtype 11) and real symmetric indefinite LDLᵀ (mtype −2)
+_SLOTS = {11: _Slot(11), -2: _Slot(-2)}
 
 
 def _forget_pardiso_in_child() -> None:
-    """A forked worker must not use the parent's PARDISO handle: its internal memory and the analysis it
-    refers to belong to the parent (reusing them crashed forked FEM workers with a segmentation fault when the
+    """A forked worker must not use the parent's PARDISO handles: their internal memory and the analyses they
+    refer to belong to the parent (reusing them crashed forked FEM workers with a segmentation fault when the
     parent had factorised a matrix of the same pattern before the fork, e.g. the rod estimate of a sweep).
-    The child starts with a fresh instance and a fresh analysis."""
-    global _PARDISO_SOLVER, _LAST_PATTERN
-    _PARDISO_SOLVER = None
-    _LAST_PATTERN = None
-    _OWNER[0] = 0
+    The child starts with fresh instances and fresh analyses."""
+    for slot in _SLOTS.values():
+        slot.forget()
 
 
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_forget_pardiso_in_child)
 #: diagnostics: number of PARDISO symbolic analyses (phase 12) and numeric-only refactorisations (22)
-PARDISO_COUNTS = {"analysis": 0, "refactorization": 0}
+PARDISO_COUNTS = {"analysis": 0, "refactorization": 0, "symmetric": 0}
 
 
 class _PardisoFactor:
-    """PARDISO LU (real non-symmetric, METIS ordering, MKL defaults for scaling/matching/pivoting).
+    """PARDISO: LU (real non-symmetric, ``mtype=11``) or LDLᵀ (real symmetric indefinite, ``mtype=-2``, the
+    upper triangle of a symmetric matrix), METIS ordering, MKL defaults for scaling/matching/pivoting.
 
     - The symbolic analysis (ordering + symbolic factorisation: ~60 % of a phase-12 call, 3.8 of
       5.7 s on the 97k-DOF reference tangent) is reused when the sparsity pattern equals the last one
@@ -156,22 +162,23 @@ class _PardisoFactor:
 
     _counter = 0
 
-    def __init__(self, A, reuse_analysis: bool = True):
+    def __init__(self, A, reuse_analysis: bool = True, mtype: int = 11):
         self.A = A.tocsr()
         self.A.sort_indices()
-        self.ps = _pardiso_instance()
+        self.slot = _SLOTS[mtype]
+        self.ps = self.slot.instance()
         _PardisoFactor._counter += 1
         self.token = _PardisoFactor._counter
         self.reuse_analysis = reuse_analysis
         self._factor()
 
     def _factor(self):
-        global _LAST_PATTERN
-        ps, A = self.ps, self.A
+        ps, A, slot = self.ps, self.A, self.slot
         try:
             ps._check_A(A)
-            reuse = (self.reuse_analysis and _LAST_PATTERN is not None
-                     and np.array_equal(_LAST_PATTERN[0], A.indptr) and np.array_equal(_LAST_PATTERN[1], A.indices))
+            last = slot.pattern
+            reuse = (self.reuse_analysis and last is not None
+                     and np.array_equal(last[0], A.indptr) and np.array_equal(last[1], A.indices))
             PARDISO_COUNTS["refactorization" if reuse else "analysis"] += 1
             ps.factorized_A = None
             ps.set_phase(22 if reuse else 12)
@@ -180,19 +187,143 @@ class _PardisoFactor:
         except AttributeError:  # pragma: no cover - pypardiso internals changed: public path
             ps.factorize(A)
             self._fast = False
-        _LAST_PATTERN = (A.indptr.copy(), A.indices.copy())
-        _OWNER[0] = self.token
+        slot.pattern = (A.indptr.copy(), A.indices.copy())
+        slot.owner = self.token
 
     def solve(self, b):
         b = np.asarray(b, float)
         if not self._fast:  # pragma: no cover
             return self.ps.solve(self.A, np.ascontiguousarray(b)).reshape(b.shape)
-        if _OWNER[0] != self.token:  # another factor used the shared instance meanwhile
+        if self.slot.owner != self.token:  # another factor used the shared instance meanwhile
             self._factor()
         bb = np.asfortranarray(b if b.ndim == 2 else b[:, None])
         self.ps.set_phase(33)
         x = self.ps._call_pardiso(self.A, bb)
         return x.reshape(b.shape)
+
+
+#: at most this many rows/columns may carry the antisymmetric part for the symmetric factorisation (Woodbury)
+MAX_ASYMMETRIC_ROWS = 24
+#: iterative refinements tried before the Woodbury correction (:meth:`_NearlySymmetricFactor.solve`)
+REFINEMENTS = 4
+#: a refinement whose correction is below this fraction of |x| ends it (LU's own error is ~1e-10 here)
+REFINED = 1e-9
+#: antisymmetric entries below this fraction of the largest |entry| of A are round-off (dropped)
+ASYMMETRY_ROUNDOFF = 1e-14
+
+
+class _SymmetricMaps:
+    """Index maps of one structurally symmetric CSR pattern (sorted indices): ``perm`` with
+    ``Aᵀ.data == A.data[perm]`` and ``upper``, the entries on and above the diagonal, with the CSR arrays of
+    the upper triangle.  Built once per pattern (the Newton iterations of a solve share one pattern)."""
+
+    def __init__(self, A: sp.csr_matrix):
+        n = A.shape[0]
+        rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(A.indptr))
+        cols = A.indices.astype(np.int64)
+        key = rows * n + cols                         # sorted (CSR with sorted indices)
+        tkey = cols * n + rows
+        pos = np.searchsorted(key, tkey)
+        ok = (pos < key.size) & (key[np.minimum(pos, key.size - 1)] == tkey)
+        self.symmetric_pattern = bool(ok.all())
+        self.perm = pos if self.symmetric_pattern else None
+        self.upper = cols >= rows
+        self.indptr_u = np.concatenate(([0], np.cumsum(np.bincount(rows[self.upper], minlength=n)))).astype(
+            A.indptr.dtype)
+        self.indices_u = A.indices[self.upper].copy()
+        self.pattern = (A.indptr.copy(), A.indices.copy())
+
+    def matches(self, A) -> bool:
+        return np.array_equal(self.pattern[0], A.indptr) and np.array_equal(self.pattern[1], A.indices)
+
+
+_SYM_MAPS: list = [None]
+
+
+class _NearlySymmetricFactor:
+    """Solve ``K x = b`` for a matrix that is symmetric except in a few rows and columns ``E`` (the FEM tangent:
+    the hyperelastic, pressure and tendon parts are symmetric; the rotational stiffness of dead loads on the
+    rigid cap is not) with a symmetric factorisation, exactly.
+
+    ``K = S + A`` with ``S = (K + Kᵀ)/2`` and ``A = (K − Kᵀ)/2 = P a Pᵀ`` (``P`` selects ``E``, ``a`` dense
+    k × k): PARDISO's LDLᵀ of S (half the time of K's LU, measured: 0.3 vs 0.6–0.9 s on the default mesh) and
+    the Sherman–Morrison–Woodbury identity
+
+        K⁻¹ b = y − Z (I + a Pᵀ Z)⁻¹ a Pᵀ y,      y = S⁻¹ b,  Z = S⁻¹ P   (k extra solves, once).
+
+    The inertia of S (``n_negative``: PARDISO's count of negative pivots of the Bunch–Kaufman LDLᵀ, exact by
+    Sylvester's law unless pivots were perturbed, ``n_perturbed``) is the stability information of a
+    tangent whose symmetric part it is.
+    """
+
+    def __init__(self, K: sp.csr_matrix, maps: _SymmetricMaps, E: np.ndarray, a: np.ndarray, S_data: np.ndarray,
+                 exact: bool = True):
+        U = sp.csr_matrix((S_data[maps.upper], maps.indices_u, maps.indptr_u), shape=K.shape)
+        self.fac = _PardisoFactor(U, mtype=-2)
+        PARDISO_COUNTS["symmetric"] += 1
+        iparm = self.fac.ps.iparm if hasattr(self.fac.ps, "iparm") else None
+        self.n_negative = int(iparm[22]) if iparm is not None else None
+        self.n_perturbed = int(iparm[13]) if iparm is not None else None
+        self.E, self.a, self.K, self.exact = E, a, K, exact
+        self.Z = self.M = None
+        self.refinements = 0
+
+    def _woodbury(self, y):
+        if self.Z is None:
+            P = np.zeros((self.K.shape[0], self.E.size))
+            P[self.E, np.arange(self.E.size)] = 1.0
+            self.Z = self.fac.solve(P)
+            self.M = np.eye(self.E.size) + self.a @ self.Z[self.E]
+        return y - self.Z @ np.linalg.solve(self.M, self.a @ y[self.E])
+
+    def solve(self, b):
+        """``K⁻¹ b`` (b: (n,) or (n, k)).  With few right-hand sides: iterative refinement with S
+        (``x ← x + S⁻¹(b − K x)``, contraction ‖S⁻¹A‖ ≪ 1: one or two solves of one column each) until the
+        correction is below :data:`REFINED` of |x|; the Woodbury form (k + |E| solves, then exact) when it contracts slowly or
+        for many right-hand sides.  Not ``exact``: ``S⁻¹ b`` (a Newton step with the symmetric part of the
+        tangent: its error, ‖S⁻¹A‖ ≈ 1e-4 relative on the FEM tangent, leaves Newton's convergence as it is, and
+        the residual that decides convergence is exact)."""
+        b = np.asarray(b, float)
+        y = self.fac.solve(b)
+        if not self.E.size or not self.exact:
+            return y
+        if self.Z is not None or (b.ndim == 2 and b.shape[1] > 2):
+            return self._woodbury(y)
+        x, last = y, np.inf
+        for _ in range(REFINEMENTS):
+            dx = self.fac.solve(b - self.K @ x)
+            self.refinements += 1
+            x = x + dx
+            size = float(np.abs(dx).max())
+            if size <= REFINED * float(np.abs(x).max()):
+                return x
+            if size > 0.1 * last:
+                break
+            last = size
+        return self._woodbury(y)
+
+
+def _nearly_symmetric(K: sp.csr_matrix, exact: bool = True):
+    """The factor of :class:`_NearlySymmetricFactor` if ``K`` qualifies (structurally symmetric pattern, the
+    antisymmetric part in at most :data:`MAX_ASYMMETRIC_ROWS` rows), else None."""
+    K = K.tocsr()
+    if not K.has_sorted_indices:
+        K = K.copy()
+        K.sort_indices()
+    maps = _SYM_MAPS[0]
+    if maps is None or not maps.matches(K):
+        maps = _SymmetricMaps(K)
+        _SYM_MAPS[0] = maps
+    if not maps.symmetric_pattern:
+        return None
+    d, dt = K.data, K.data[maps.perm]
+    anti = 0.5 * (d - dt)
+    big = np.abs(anti) > ASYMMETRY_ROUNDOFF * max(float(np.abs(d).max(initial=0.0)), 1e-300)
+    rows = np.unique(np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))[big]) if big.any() else np.zeros(0, int)
+    if rows.size > MAX_ASYMMETRIC_ROWS:
+        return None
+    a = np.asarray(K[rows][:, rows].toarray() - K[rows][:, rows].toarray().T) * 0.5 if rows.size else np.zeros((0, 0))
+    return _NearlySymmetricFactor(K, maps, rows, a, 0.5 * (d + dt), exact)
 
 
 class _UmfpackFactor:  # pragma: no cover - optional
@@ -211,16 +342,35 @@ class _UmfpackFactor:  # pragma: no cover - optional
         return np.column_stack([self.lu.solve(b[:, j]) for j in range(b.shape[1])])
 
 
-def factorize(A: sp.spmatrix, method: str = "auto"):
+def symmetric_inertia(K: sp.spmatrix):
+    """``(n_negative, solve)`` of the symmetric part ``S = (K + Kᵀ)/2`` from PARDISO's LDLᵀ: the number of negative
+    eigenvalues of S (Sylvester's law on the Bunch–Kaufman pivots) and ``solve(b) = S⁻¹ b``; None when PARDISO
+    is not installed, S's pattern is not symmetric, K is not nearly symmetric or pivots were perturbed (the count
+    is then not exact) — the caller uses another factorisation."""
+    if "pardiso" not in available_solvers():
+        return None
+    f = _nearly_symmetric(sp.csr_matrix(K), exact=False)
+    if f is None or f.n_negative is None or f.n_perturbed:
+        return None
+    return f.n_negative, f.fac.solve
+
+
+def factorize(A: sp.spmatrix, method: str = "auto", exact: bool = True):
     """Factorise a square sparse matrix; returns an object with ``solve(b)`` (b: (n,) or (n, k)).
 
-    ``method``: ``"auto"`` (pardiso if importable, else splu), ``"pardiso"``, ``"splu"`` (symmetric
+    ``method``: ``"auto"`` (pardiso if importable, else splu), ``"pardiso"`` (a symmetric LDLᵀ with a
+    low-rank correction when the matrix is symmetric but for a few rows — :class:`_NearlySymmetricFactor` —
+    else LU), ``"pardiso_lu"`` (always LU), ``"splu"`` (symmetric
     mode, MMD on AᵀA), ``"splu_partial_pivoting"`` (SuperLU defaults except the ordering; benchmark
-    only), ``"umfpack"`` (if scikit-umfpack is installed).
+    only), ``"umfpack"`` (if scikit-umfpack is installed).  ``exact=False`` lets a nearly symmetric matrix be
+    solved with its symmetric part alone (Newton steps; see :class:`_NearlySymmetricFactor`).
     """
     if method == "auto":
         method = available_solvers()[0]
     if method == "pardiso":
+        f = _nearly_symmetric(A, exact)
+        return f if f is not None else _PardisoFactor(A)
+    if method == "pardiso_lu":
         return _PardisoFactor(A)
     if method == "pardiso_no_reuse":
         return _PardisoFactor(A, reuse_analysis=False)
@@ -253,8 +403,10 @@ class NewtonStats:
     n_factorizations: int = 0
     n_iterations: int = 0
     steps: list = field(default_factory=list)
+    #: load steps that failed and were cut back: {"lam", "reason", "residuals"}
+    failed_steps: list = field(default_factory=list)
 
     def as_dict(self) -> dict:
         return dict(t_assembly=self.t_assembly, t_linear=self.t_linear, t_total=self.t_total,
                     n_factorizations=self.n_factorizations, n_iterations=self.n_iterations,
-                    n_steps=len(self.steps))
+                    n_steps=len(self.steps), n_failed_steps=len(self.failed_steps))

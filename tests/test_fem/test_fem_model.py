@@ -158,3 +158,22 @@ def test_cap_reduction_equals_the_sparse_triple_product(model, loaded):
     assert np.abs(rq - rq_ref).max() <= 1e-13 * np.abs(rq_ref).max()
     assert abs(Kq - Kq_ref.tocsr()).max() <= 1e-13 * abs(Kq_ref).max()
     assert model.caps.reduce(None, r, st.R)[1] is None
+
+
+def test_step_control_does_not_change_the_answer(model, monkeypatch):
+    """Intermediate load steps converged loosely (STEP_RTOL) and failing steps cut after STALL_ITERATIONS give
+    the equilibrium of tight steps without the stall rule, to the solve's tolerance; a failed step is abandoned
+    after at most STALL_ITERATIONS + 1 residuals when it stalls."""
+    import fem_reference.model as fm
+    kw = dict(tensions=(4.0, 0.0, 0.0), pressure=60e3, n_steps=1)
+    fast = model.solve(**kw)
+    assert all(len(f["residuals"]) <= fm.STALL_ITERATIONS + 1 for f in fast.stats.failed_steps
+               if f["reason"].startswith("not converging"))
+    monkeypatch.setattr(fm, "STEP_RTOL", 1e-12)
+    monkeypatch.setattr(fm, "STALL_ITERATIONS", 10 ** 6)
+    tight = model.solve(**kw)
+    L = model.geometry.length
+    assert np.abs(fast.tip_position - tight.tip_position).max() < 1e-8 * L
+    assert np.abs(fast.state.U - tight.state.U).max() < 1e-8 * L
+    # the loose steps do less work: fewer Newton iterations for the same path
+    assert fast.stats.n_iterations < tight.stats.n_iterations

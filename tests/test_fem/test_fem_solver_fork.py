@@ -23,7 +23,7 @@ def _matrix(n, shift):
 
 
 def _child(queue, n):
-    state = (solver._PARDISO_SOLVER is None, solver._LAST_PATTERN is None)
+    state = tuple(x for slot in solver._SLOTS.values() for x in (slot.solver is None, slot.pattern is None))
     A = _matrix(n, 1.0)
     x = factorize(A, "pardiso").solve(np.ones(n ** 3))
     queue.put((state, float(np.abs(A @ x - 1.0).max())))
@@ -34,8 +34,9 @@ def test_a_forked_child_factorises_with_a_fresh_pardiso_handle():
     if "fork" not in mp.get_all_start_methods():
         pytest.skip("no fork on this platform")
     n = 16
-    factorize(_matrix(n, 0.0), "pardiso").solve(np.ones(n ** 3))    # the parent's handle and analysis
-    assert solver._PARDISO_SOLVER is not None and solver._LAST_PATTERN is not None
+    factorize(_matrix(n, 0.0), "pardiso").solve(np.ones(n ** 3))    # the parent's handles and analyses:
+    factorize(_matrix(n, 0.0), "pardiso_lu").solve(np.ones(n ** 3))  # symmetric LDLᵀ and LU
+    assert all(slot.solver is not None and slot.pattern is not None for slot in solver._SLOTS.values())
     ctx = mp.get_context("fork")
     q = ctx.Queue()
     p = ctx.Process(target=_child, args=(q, n))
@@ -43,6 +44,6 @@ def test_a_forked_child_factorises_with_a_fresh_pardiso_handle():
     p.join(60)
     assert p.exitcode == 0
     fresh, residual = q.get(timeout=5)
-    assert fresh == (True, True)
+    assert fresh == (True,) * 2 * len(solver._SLOTS)
     assert residual < 1e-10
-    assert solver._PARDISO_SOLVER is not None          # the parent keeps its own
+    assert all(slot.solver is not None for slot in solver._SLOTS.values())          # the parent keeps its own

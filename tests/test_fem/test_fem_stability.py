@@ -44,3 +44,21 @@ def test_buckling_onset_against_euler(tube):
         lo, hi = (mid, hi) if tube.stability(res) == 0 else (lo, mid)
     # coarse mesh and rigid end caps stiffen the column by several percent (straight-tube tests: 3-4 %)
     assert 0.95 < 0.5 * (lo + hi) / P_EULER < 1.15
+
+
+def test_pardiso_inertia_counts_what_superlu_counts(tube):
+    """The stability check's fast path (PARDISO's LDLᵀ of the symmetric part) and its fallback (SuperLU with
+    diagonal pivots) give the same count on a stable and on a buckled state."""
+    from fem_reference.solver import available_solvers, symmetric_inertia
+    if "pardiso" not in available_solvers():
+        pytest.skip("pypardiso is not installed")
+    for push, expected in ((0.5, 0), (1.5, 2)):
+        res = tube.solve(tip_force=(-push * P_EULER, 0, 0), check_limits=False, check_stability=False)
+        K = tube.evaluate(res.state, res.loadcase)["K"]
+        fast = symmetric_inertia(K)
+        assert fast is not None and fast[0] == expected
+        tube.linear_solver = "splu"
+        try:
+            assert tube.stability(res) == expected          # the SuperLU path
+        finally:
+            tube.linear_solver = "auto"
