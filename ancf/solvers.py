@@ -37,31 +37,54 @@ class SolveInfo:
 
 @njit(cache=True)
 def _chol_solve_kernel(H, g, shift):
-    """Solve (H + shift I) x = g by Cholesky; returns (ok, x).  ok is False if not positive definite."""
+    """Solve (H + shift I) x = g by Cholesky; returns (ok, x).  ok is False if not positive definite.
+
+    H (n, n) symmetric; only its lower triangle is read.  The factorisation follows H's envelope (profile):
+    row i of the factor is zero left of row i's first non-zero entry of H, so those columns are skipped.  The
+    skipped terms are products with exact zeros, so the result is the same, bit for bit, as the dense
+    loops; the ANCF tangents are banded (half-bandwidth 11 in free coordinates), which makes this several
+    times cheaper than the dense factorisation at n = 6."""
     n = H.shape[0]
     Lm = np.zeros((n, n))
     x = np.zeros(n)
+    first = np.empty(n, np.int64)       # first non-zero column of row i (the envelope; i for a zero row)
+    for i in range(n):
+        f = i
+        for j in range(i):
+            if H[i, j] != 0.0:
+                f = j
+                break
+        first[i] = f
+    last = np.empty(n, np.int64)        # last row whose envelope reaches column j
+    for j in range(n):
+        last[j] = j
+    for i in range(n):
+        for j in range(first[i], i):
+            if i > last[j]:
+                last[j] = i
     for j in range(n):
         s = H[j, j] + shift
-        for k in range(j):
+        for k in range(first[j], j):
             s -= Lm[j, k] * Lm[j, k]
         if not (s > 0.0):
             return False, x
         Lm[j, j] = np.sqrt(s)
-        for i in range(j + 1, n):
+        for i in range(j + 1, last[j] + 1):
+            if first[i] > j:
+                continue
             s = H[i, j]
-            for k in range(j):
+            for k in range(max(first[i], first[j]), j):
                 s -= Lm[i, k] * Lm[j, k]
             Lm[i, j] = s / Lm[j, j]
     y = np.empty(n)
     for i in range(n):
         s = g[i]
-        for k in range(i):
+        for k in range(first[i], i):
             s -= Lm[i, k] * y[k]
         y[i] = s / Lm[i, i]
     for i in range(n - 1, -1, -1):
         s = y[i]
-        for k in range(i + 1, n):
+        for k in range(i + 1, last[i] + 1):
             s -= Lm[k, i] * x[k]
         x[i] = s / Lm[i, i]
     return True, x
