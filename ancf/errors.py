@@ -120,13 +120,18 @@ class InfeasibleTargetError(BellowsError, ValueError):
     violated : list[str]
         Human-readable list of the bounds that the unconstrained solution violates,
         e.g. ``["T2 >= 0 N (needs -0.41 N)"]``.
+    state : ancf.Equilibrium or None
+        The equilibrium at ``tensions`` (its tip is ``nearest``), verified like any FK result (admissible,
+        inside the stiffness law's range, stable), or None when the solver could not verify one.  A controller
+        that saturates commands it without solving the FK again.
     """
 
-    def __init__(self, message: str, *, target, nearest=None, tensions=None, violated=()):
+    def __init__(self, message: str, *, target, nearest=None, tensions=None, violated=(), state=None):
         self.target = np.asarray(target, float)
         self.nearest = None if nearest is None else np.asarray(nearest, float)
         self.tensions = None if tensions is None else np.asarray(tensions, float)
         self.violated = list(violated)
+        self.state = state
         super().__init__(message)
 
 

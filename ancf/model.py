@@ -50,6 +50,7 @@ from .errors import (
     check_scalar,
 )
 from .params import ActuatorParams
+from . import compiled_bounded as _cb
 from . import compiled_solvers as _cs
 from .solvers import SolveInfo, minimize_newton, solve_root
 from .textfmt import vector
@@ -784,7 +785,8 @@ class Model:
                 return eq
         # bounded reduced solve over the tensions: feasible solution or nearest reachable point
         unconstrained = None if sol is None else sol[1]
-        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability)
+        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability,
+                                warm=tensions0 is not None)
 
     def _ik_newton(self, z0, T0, pd, pr, F, tol, tol_position, max_iter):
         nz, m = self.nz, self.m
@@ -817,7 +819,32 @@ class Model:
         x, info = solve_root(fun, x0, tol=tol_w, max_iter=max_iter, name="ik", weights=w)
         return x[:nz], x[nz:], info
 
-    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability=True):
+    #: Solve the bounded IK (nearest reachable tip) by the compiled projected Gauss–Newton
+    #: (:mod:`ancf.compiled_bounded`) before falling back to ``scipy.optimize.least_squares``; False: scipy only
+    #: (the reference the compiled loop is tested against).
+    fast_bounded_ik = True
+
+    def _ik_bounded_fast(self, z0, x0, lo, hi, pd, pr, F, tol):
+        """(T (m,) [N], z (nz,), SolveInfo of the FK at T, FK evaluations) from the compiled projected
+        Gauss–Newton of :mod:`ancf.compiled_bounded`, or None when it did not converge."""
+        ea, ei = self._coeffs(float(pr))
+        status, T, z, H, energy, lengths, it, nfev, dist = _cb.ik_bounded(
+            np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(z0, dtype=float), lo, hi,
+            np.ascontiguousarray(pd, dtype=float), self._q_fix, self._P_c, self._P is not None, self.n, self._N,
+            self._wq, ea, ei, float(pr) * self._vc, self._mg, self._E, self._d, self._co, self._so,
+            self.params.tool_offset, self._tip_weight + F, float(tol), 25, 100, 1e-12)
+        if status != _cs.CONVERGED:
+            return None
+        # values None: the energy and lengths are assembled again at z (the loop's last FK was corrected by one
+        # Newton step after its energy and lengths were computed); H there is positive definite (checked)
+        return T, z, SolveInfo(int(it), float(dist), [], H, True, None), int(nfev)
+
+    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability=True, warm=False):
+        """Bounded solve over T ∈ [T_min, T_max]: the feasible solution (least Σ T² for more than 3 tendons) or
+        InfeasibleTargetError with the nearest reachable tip.  The compiled projected Gauss–Newton starts from
+        the caller's tensions0 ``T0`` when ``warm`` (with ``z0`` its state: the previous state of a control loop,
+        next to the answer), else from scipy's start, the clipped unconstrained solution; scipy's
+        ``least_squares`` from its own start when the compiled loop does not converge."""
         p = self.params
         state = {"z": z0, "info": None}
         lo, hi = np.full(self.m, p.tension_min), np.full(self.m, p.tension_max)
@@ -840,11 +867,17 @@ class Model:
             return self._reduce_vec(self._tip_jacobian(q)) @ dz
 
         x0 = np.clip(T0 if unconstrained is None else unconstrained, lo, hi)
-        res = so.least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", xtol=1e-14, ftol=1e-15,
-                               gtol=1e-15, max_nfev=200)
-        T = res.x
-        nfev = int(res.nfev)
-        z = solve_fk(T)
+        start = np.clip(T0, lo, hi) if warm else x0
+        fast = self._ik_bounded_fast(z0, start, lo, hi, pd, pr, F, tol) if self.fast_bounded_ik else None
+        if fast is not None:
+            T, z, info, nfev = fast
+            state["z"], state["info"] = z, info
+        else:           # the compiled loop did not converge: scipy's trust-region reflective on the same problem
+            res = so.least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", xtol=1e-14, ftol=1e-15,
+                                   gtol=1e-15, max_nfev=200)
+            T = res.x
+            nfev = int(res.nfev)
+            z = solve_fk(T)
         q = self._to_full(z)
         err = float(np.linalg.norm(self._tip(q) - pd))
         feasible = err <= max(tol_position * 10, 1e-8)
@@ -879,12 +912,18 @@ class Model:
             violated = [f"T{i + 1} at {'lower' if T[i] <= lo[i] + 1e-9 else 'upper'} bound"
                         for i in range(self.m) if T[i] <= lo[i] + 1e-9 or T[i] >= hi[i] - 1e-9]
         near = self._tip(q)
+        try:            # the FK state at the nearest tensions, verified (its factorised tangent is kept)
+            info = state["info"]
+            nearest_state = self._result(q, np.array(T, float), pr, F, info, self._values(q, T, pr, F, info), "fk",
+                                         H=info.matrix)
+        except (CollapsedStateError, UnstableEquilibriumError):
+            nearest_state = None
         raise InfeasibleTargetError(
             f"IK target {vector(pd, 'mm', 1e3, 3)} is not reachable with tensions in "
             f"[{p.tension_min:g}, {p.tension_max:g}] N at p = {pr / 1e3:g} kPa: violated "
             f"{'; '.join(violated) or 'no bound (solver stalled)'}; nearest reachable tip "
             f"{vector(near, 'mm', 1e3, 3)} ({err * 1e3:.3f} mm away) with tensions "
-            f"{vector(T, 'N', 1.0, 4)}", target=pd, nearest=near, tensions=T, violated=violated)
+            f"{vector(T, 'N', 1.0, 4)}", target=pd, nearest=near, tensions=T, violated=violated, state=nearest_state)
 
     # ----------------------------------------------------------------------------- locked FK
     def rest_lengths(self, eq: Equilibrium) -> np.ndarray:

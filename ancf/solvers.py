@@ -36,18 +36,18 @@ class SolveInfo:
 
 
 @njit(cache=True)
-def _chol_solve_kernel(H, g, shift):
-    """Solve (H + shift I) x = g by Cholesky; returns (ok, x).  ok is False if not positive definite.
+def _chol_factor(H, shift):
+    """Cholesky factor of H + shift I (H (n, n) symmetric; only its lower triangle is read).
 
-    H (n, n) symmetric; only its lower triangle is read.  The factorisation follows H's envelope (profile):
-    row i of the factor is zero left of row i's first non-zero entry of H, so those columns are skipped.  The
-    skipped terms are products with exact zeros, so the result is the same, bit for bit, as the dense
-    loops; the ANCF tangents are banded (half-bandwidth 11 in free coordinates), which makes this several
-    times cheaper than the dense factorisation at n = 6."""
+    Returns (ok, L (n, n) lower, first (n,), last (n,)): ``first[i]`` is the first non-zero column of row i of
+    H (its envelope; the factor is zero left of it), ``last[j]`` the last row whose envelope reaches column j.
+    The loops skip what lies outside the envelope: products with exact zeros, so the factor is the same, bit
+    for bit, as the dense loops'; the ANCF tangents are banded (half-bandwidth 11 in free coordinates), which
+    makes this several times cheaper than a dense factorisation at n = 6.  ok is False (the rest undefined)
+    when the matrix is not positive definite."""
     n = H.shape[0]
     Lm = np.zeros((n, n))
-    x = np.zeros(n)
-    first = np.empty(n, np.int64)       # first non-zero column of row i (the envelope; i for a zero row)
+    first = np.empty(n, np.int64)
     for i in range(n):
         f = i
         for j in range(i):
@@ -55,7 +55,7 @@ def _chol_solve_kernel(H, g, shift):
                 f = j
                 break
         first[i] = f
-    last = np.empty(n, np.int64)        # last row whose envelope reaches column j
+    last = np.empty(n, np.int64)
     for j in range(n):
         last[j] = j
     for i in range(n):
@@ -67,7 +67,7 @@ def _chol_solve_kernel(H, g, shift):
         for k in range(first[j], j):
             s -= Lm[j, k] * Lm[j, k]
         if not (s > 0.0):
-            return False, x
+            return False, Lm, first, last
         Lm[j, j] = np.sqrt(s)
         for i in range(j + 1, last[j] + 1):
             if first[i] > j:
@@ -76,6 +76,14 @@ def _chol_solve_kernel(H, g, shift):
             for k in range(max(first[i], first[j]), j):
                 s -= Lm[i, k] * Lm[j, k]
             Lm[i, j] = s / Lm[j, j]
+    return True, Lm, first, last
+
+
+@njit(cache=True)
+def _chol_apply(Lm, first, last, g):
+    """x (n,) with L Lᵀ x = g for a factor of :func:`_chol_factor`."""
+    n = g.size
+    x = np.zeros(n)
     y = np.empty(n)
     for i in range(n):
         s = g[i]
@@ -87,7 +95,17 @@ def _chol_solve_kernel(H, g, shift):
         for k in range(i + 1, last[i] + 1):
             s -= Lm[k, i] * x[k]
         x[i] = s / Lm[i, i]
-    return True, x
+    return x
+
+
+@njit(cache=True)
+def _chol_solve_kernel(H, g, shift):
+    """Solve (H + shift I) x = g by Cholesky (:func:`_chol_factor`, envelope-aware); returns (ok, x).  ok is
+    False if that matrix is not positive definite (x then zero)."""
+    ok, Lm, first, last = _chol_factor(H, shift)
+    if not ok:
+        return False, np.zeros(H.shape[0])
+    return True, _chol_apply(Lm, first, last, g)
 
 
 def _chol_solve(H: np.ndarray, g: np.ndarray, shift: float = 0.0):
