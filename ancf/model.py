@@ -826,18 +826,23 @@ class Model:
 
     def _ik_bounded_fast(self, z0, x0, lo, hi, pd, pr, F, tol):
         """(T (m,) [N], z (nz,), SolveInfo of the FK at T, FK evaluations) from the compiled projected
-        Gauss–Newton of :mod:`ancf.compiled_bounded`, or None when it did not converge."""
+        Gauss–Newton of :mod:`ancf.compiled_bounded`, or None when it did not converge (or its last state is not
+        an equilibrium to ``tol``)."""
         ea, ei = self._coeffs(float(pr))
-        status, T, z, H, energy, lengths, it, nfev, dist = _cb.ik_bounded(
+        status, T, z, H, _, _, it, nfev, _ = _cb.ik_bounded(
             np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(z0, dtype=float), lo, hi,
             np.ascontiguousarray(pd, dtype=float), self._q_fix, self._P_c, self._P is not None, self.n, self._N,
             self._wq, ea, ei, float(pr) * self._vc, self._mg, self._E, self._d, self._co, self._so,
             self.params.tool_offset, self._tip_weight + F, float(tol), 25, 100, 1e-12)
         if status != _cs.CONVERGED:
             return None
-        # values None: the energy and lengths are assembled again at z (the loop's last FK was corrected by one
-        # Newton step after its energy and lengths were computed); H there is positive definite (checked)
-        return T, z, SolveInfo(int(it), float(dist), [], H, True, None), int(nfev)
+        # the loop's last FK was corrected by one Newton step after its energy and lengths were computed: assemble
+        # them again at z and verify the equilibrium there (‖Q‖ < tol; H, positive definite, was checked)
+        ev = self._evaluate(self._to_full(z), T, pr, F, hessian=False, lengths="values")
+        res = float(np.linalg.norm(self._reduce_vec(ev.Q)))
+        if not res < tol:
+            return None
+        return T, z, SolveInfo(int(it), res, [res], H, True, (ev.energy, ev.lengths)), int(nfev)
 
     def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability=True, warm=False):
         """Bounded solve over T ∈ [T_min, T_max]: the feasible solution (least Σ T² for more than 3 tendons) or
