@@ -42,7 +42,13 @@ from .forces.axial import add_axial
 from .forces.bending import add_bending
 from .forces.gravity import add_gravity
 from .forces.pressure import add_pressure, add_stretch_length
-from .forces.tendon import add_tendon, density_lower_bound, slack_density, slack_terms, tendon_length_density
+from .forces.tendon import (
+    add_tendon,
+    density_lower_bound,
+    slack_density,
+    slack_terms,
+    tendon_length_density,
+)
 from .forces.tip_load import add_tip_load
 
 #: Admissibility thresholds and status codes (module docstring).

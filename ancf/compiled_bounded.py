@@ -28,8 +28,16 @@ import numpy as np
 from numba import njit
 
 from .assembly import assemble
-from .compiled_solvers import (CONVERGED, NOT_CONVERGED, fk_newton, reduce_rows, reduce_vec, tip_jacobian,
-                               tip_position, to_full)
+from .compiled_solvers import (
+    CONVERGED,
+    NOT_CONVERGED,
+    fk_newton,
+    reduce_rows,
+    reduce_vec,
+    tip_jacobian,
+    tip_position,
+    to_full,
+)
 from .solvers import _chol_apply, _chol_factor
 
 #: Status of :func:`ik_bounded` besides ``CONVERGED``/``NOT_CONVERGED``: an FK failed or was unstable, the box

@@ -60,8 +60,7 @@ def _chol_factor(H, shift):
         last[j] = j
     for i in range(n):
         for j in range(first[i], i):
-            if i > last[j]:
-                last[j] = i
+            last[j] = max(last[j], i)
     for j in range(n):
         s = H[j, j] + shift
         for k in range(first[j], j):

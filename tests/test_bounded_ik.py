@@ -63,7 +63,7 @@ def test_nearest_reachable_point_is_the_least_squares_one(name, warm):
     * never a worse objective than the product's scipy path, the same violated bounds and message."""
     m = MODELS[name]
     targets, ref = _targets(m, 6, seed=4)
-    kw = dict(q0=ref.q, tensions0=ref.tensions) if warm else {}
+    kw = {"q0": ref.q, "tensions0": ref.tensions} if warm else {}
     span = m.params.tension_max - m.params.tension_min
     out = 0
     for target, F in targets:
@@ -100,10 +100,10 @@ def test_nearest_point_is_optimal_by_finite_differences_of_cold_fk_solves(name):
             continue
         T = exc.tensions
 
-        def tip(TT):
+        def tip(TT, F=F):
             return m.fk(TT, P, F, check_limits=False).tip
 
-        def f(TT):
+        def f(TT, target=target):
             r = tip(TT) - target
             return 0.5 * r @ r
         h = 1e-4
@@ -136,7 +136,7 @@ def test_tip_sensitivity_is_the_finite_difference_jacobian():
     F = np.array([0.0, 0.1, -0.2])
     eq = m.fk(T, P, F)
     ea, ei = m.stiffness_coefficients(P)
-    ok, z, tip, J, dz_dT, H, *_ = cb.tip_sensitivity(
+    ok, _, tip, J, *_ = cb.tip_sensitivity(
         m.to_free(eq.q), T, m._q_fix, m._P_c, m._P is not None, m.n, m._N, m._wq, ea, ei, P * m._vc, m._mg, m._E,
         m._d, m._co, m._so, m.params.tool_offset, m.total_tip_load(F), m.default_tol, 25)
     assert ok
@@ -166,7 +166,9 @@ def test_box_subproblem_against_scipy_bounded_least_squares(seed):
     Aa = np.vstack([A, np.sqrt(mu) * np.eye(m)])                 # the same regularised problem
     ref = lsq_linear(Aa, np.concatenate([b, np.zeros(m)]), bounds=(lo, hi + 1e-300 * (hi == lo)),
                      method="trf", tol=1e-15, lsmr_tol="auto")
-    cost = lambda v: np.sum((Aa @ v - np.concatenate([b, np.zeros(m)])) ** 2)   # noqa: E731
+
+    def cost(v):
+        return np.sum((Aa @ v - np.concatenate([b, np.zeros(m)])) ** 2)
     assert cost(x) <= cost(ref.x) * (1 + 1e-9) + 1e-30
     np.testing.assert_allclose(x, ref.x, rtol=0, atol=1e-7 * (1 + np.abs(ref.x).max()))
     assert np.all(x[state < 0] == lo[state < 0]) and np.all(x[state > 0] == hi[state > 0])
