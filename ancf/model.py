@@ -825,24 +825,28 @@ class Model:
     fast_bounded_ik = True
 
     def _ik_bounded_fast(self, z0, x0, lo, hi, pd, pr, F, tol):
-        """(T (m,) [N], z (nz,), SolveInfo of the FK at T, FK evaluations) from the compiled projected
-        Gauss–Newton of :mod:`ancf.compiled_bounded`, or None when it did not converge (or its last state is not
-        an equilibrium to ``tol``)."""
+        """(T (m,) [N], z (nz,), SolveInfo of the FK at T, FK evaluations, tangent parts (H, J_p, J_l) at z) from
+        the compiled projected Gauss–Newton of :mod:`ancf.compiled_bounded`, or None when it did not converge (or
+        its last state is not an equilibrium to ``tol``)."""
         ea, ei = self._coeffs(float(pr))
-        status, T, z, H, _, _, it, nfev, _ = _cb.ik_bounded(
+        status, T, z, _, _, _, it, nfev, _ = _cb.ik_bounded(
             np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(z0, dtype=float), lo, hi,
             np.ascontiguousarray(pd, dtype=float), self._q_fix, self._P_c, self._P is not None, self.n, self._N,
             self._wq, ea, ei, float(pr) * self._vc, self._mg, self._E, self._d, self._co, self._so,
             self.params.tool_offset, self._tip_weight + F, float(tol), 25, 100, 1e-12)
         if status != _cs.CONVERGED:
             return None
-        # the loop's last FK was corrected by one Newton step after its energy and lengths were computed: assemble
-        # them again at z and verify the equilibrium there (‖Q‖ < tol; H, positive definite, was checked)
-        ev = self._evaluate(self._to_full(z), T, pr, F, hessian=False, lengths="values")
+        # the loop's last FK was corrected by one Newton step after its last assembly: assemble again at z, verify
+        # the equilibrium there (‖Q‖ < tol; the stability of this very H is checked by _result) and keep the
+        # tangent parts (H, J_p, J_l) for the compliances at the state the controller will command
+        q = self._to_full(z)
+        ev = self._evaluate(q, T, pr, F)
         res = float(np.linalg.norm(self._reduce_vec(ev.Q)))
         if not res < tol:
             return None
-        return T, z, SolveInfo(int(it), res, [res], H, True, (ev.energy, ev.lengths)), int(nfev)
+        H = self._reduce_mat(ev.K)
+        parts = (H, self._reduce_vec(self._tip_jacobian(q)), self._reduce_vec(ev.J_l))
+        return T, z, SolveInfo(int(it), res, [res], H, None, (ev.energy, ev.lengths)), int(nfev), parts
 
     def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability=True, warm=False):
         """Bounded solve over T ∈ [T_min, T_max]: the feasible solution (least Σ T² for more than 3 tendons) or
@@ -874,9 +878,10 @@ class Model:
         x0 = np.clip(T0 if unconstrained is None else unconstrained, lo, hi)
         start = np.clip(T0, lo, hi) if warm else x0
         fast = self._ik_bounded_fast(z0, start, lo, hi, pd, pr, F, tol) if self.fast_bounded_ik else None
+        parts = fast_info = None
         if fast is not None:
-            T, z, info, nfev = fast
-            state["z"], state["info"] = z, info
+            T, z, fast_info, nfev, parts = fast
+            state["z"], state["info"] = z, fast_info
         else:           # the compiled loop did not converge: scipy's trust-region reflective on the same problem
             res = so.least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", xtol=1e-14, ftol=1e-15,
                                    gtol=1e-15, max_nfev=200)
@@ -917,10 +922,12 @@ class Model:
             violated = [f"T{i + 1} at {'lower' if T[i] <= lo[i] + 1e-9 else 'upper'} bound"
                         for i in range(self.m) if T[i] <= lo[i] + 1e-9 or T[i] >= hi[i] - 1e-9]
         near = self._tip(q)
-        try:            # the FK state at the nearest tensions, verified (its factorised tangent is kept)
+        try:            # the FK state at the nearest tensions, verified (the compiled path's tangent kept on it)
             info = state["info"]
             nearest_state = self._result(q, np.array(T, float), pr, F, info, self._values(q, T, pr, F, info), "fk",
                                          H=info.matrix)
+            if parts is not None and info is fast_info:          # the parts belong to this state
+                self._keep_tangent_parts(nearest_state, parts)
         except (CollapsedStateError, UnstableEquilibriumError):
             nearest_state = None
         raise InfeasibleTargetError(

@@ -220,6 +220,15 @@ def test_the_state_handed_on_is_the_verified_fk_at_the_nearest_tensions(name):
     np.testing.assert_allclose(eq.tendon_lengths, fk.tendon_lengths, rtol=0, atol=1e-12)
     Q = m.reduce_vec(m.residual(eq.q, eq.tensions, P, F))
     assert np.linalg.norm(Q) < m.default_tol
+    # the tangent the bounded solve kept for the compliances is the one assembled at this state
+    from ancf import compliance as cp
+    assert m._tangent_parts(eq) is not None
+    kept = (cp.tension(m, eq).C_p, cp.locked(m, eq).C_p)
+    for attr in ("_compliance_parts", "_compliance_solves"):
+        eq.__dict__.pop(attr, None)
+    fresh = (cp.tension(m, eq).C_p, cp.locked(m, eq).C_p)
+    for a, b in zip(kept, fresh, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)
 
 
 def test_reachable_four_tendon_target_gives_the_same_least_total_tension():
