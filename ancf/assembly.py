@@ -24,7 +24,11 @@ searches of :mod:`ancf.solvers` then step back; nothing is divided by zero), whe
 * 1 + t·e1 < ``FRAME_MIN`` = 0.01 at a quadrature point or at the tip slope, t = r_x/|r_x| (``REVERSED``:
   the section has turned more than ≈172° from the base axis);
 * a tendon's length density |r_c,x| < ``TENDON_MIN`` = 0.2 at a quadrature point (``FOLDED``), whether the
-  tendon is taut or slack (the rule does not depend on the loads).
+  tendon is taut or slack (the rule does not depend on the loads).  For a slack tendon in a Newton loop
+  (``need_lengths`` 0, no length wanted) the density is computed only where the cheap lower bound
+  :func:`ancf.forces.tendon.density_lower_bound` (|a| − d |P b|/|a|, exact for a bend towards the tendon)
+  does not already guarantee the rule — everywhere but near folding; the rule costs ≈ 1/3 of an assembly with
+  three slack tendons otherwise.
 
 The thresholds leave a wide margin around the operating range (paper preset at T = 5 N, 0–120 kPa: bends
 up to 90°, 1 + t·e1 ≥ 1.02, |r_c,x| ≥ 0.65).  :func:`state_status` applies the same rules and says which
@@ -38,7 +42,13 @@ from .forces.axial import add_axial
 from .forces.bending import add_bending
 from .forces.gravity import add_gravity
 from .forces.pressure import add_pressure, add_stretch_length
-from .forces.tendon import add_tendon, slack_density, slack_terms, tendon_length_density
+from .forces.tendon import (
+    add_tendon,
+    density_lower_bound,
+    slack_density,
+    slack_terms,
+    tendon_length_density,
+)
 from .forces.tip_load import add_tip_load
 
 #: Admissibility thresholds and status codes (module docstring).
@@ -46,6 +56,8 @@ STRETCH_MIN = 0.2
 FRAME_MIN = 0.01
 TENDON_MIN = 0.2
 OK, NONFINITE, COLLAPSED, REVERSED, FOLDED = 0, 1, 2, 3, 4
+#: The slack tendons' rule is taken as satisfied where the density's lower bound exceeds TENDON_MIN by this factor.
+SLACK_BOUND_MARGIN = 1.001
 
 
 @njit(cache=True)
@@ -104,6 +116,39 @@ def state_status(q, n_el, N, E, d, co, so):
                 return code, e, k, i, v
     code, v = slope_status(q[q.size - 3:], E)
     return code, n_el, -1, -1, v
+
+
+@njit(cache=True)
+def tendon_lengths(q, n_el, N, wq, E, d, co, so):
+    """Tendon lengths l_c (m,) [m] at the full coordinates q, nothing else (the lengths of
+    :func:`assemble` with ``need_lengths`` 1, from the shared slack-tendon terms for three or more tendons);
+    NaN for a state outside the domain (module docstring's rules).  For Newton loops that assemble without
+    lengths and want them only at the solution."""
+    m = d.size
+    lc = np.zeros(m)
+    a = np.empty(3)
+    b = np.empty(3)
+    for e in range(n_el):
+        off = 6 * e
+        for k in range(wq.size):
+            Nk = N[k]
+            _interpolate(Nk, q, off, 1, a)
+            _interpolate(Nk, q, off, 2, b)
+            if slope_status(a, E)[0] != OK:
+                lc[:] = np.nan
+                return lc
+            if m >= 3:
+                s_ok, u0, V2, V3 = slack_terms(a, b, E)
+            for i in range(m):
+                if m >= 3:
+                    wi = slack_density(s_ok, u0, V2, V3, d[i], co[i], so[i])
+                else:
+                    wi = tendon_length_density(a, b, E, d[i], co[i], so[i])
+                if not (wi >= TENDON_MIN):
+                    lc[:] = np.nan
+                    return lc
+                lc[i] += wq[k] * wi
+    return lc
 
 
 @njit(cache=True)
@@ -178,10 +223,15 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
             has_p = True
     # three or more slack tendons: their densities from two evaluations per point (forces.tendon.slack_terms)
     n_slack = 0
+    d_slack = 0.0
     for i in range(m):
         if T[i] == 0.0 and need_lengths < 2:
             n_slack += 1
+            d_slack = max(d_slack, abs(d[i]))
     shared = n_slack >= 3
+    # without lengths (Newton loops) a slack tendon only needs the admissibility rule: skipped at points where
+    # forces.tendon.density_lower_bound already guarantees it for every slack tendon (with a margin for round-off)
+    bound_rule = need_lengths == 0 and n_slack > 0
     for e in range(n_el):
         off = 6 * e
         for k in range(nq):
@@ -207,12 +257,15 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
                 arc += add_stretch_length(a, sc, ga)
                 if need_lengths == 2:
                     _scatter(off, Nk, ga, zero9, Jarc, H, False)
-            if shared:
+            rule_holds = bound_rule and density_lower_bound(a, b, d_slack) >= SLACK_BOUND_MARGIN * TENDON_MIN
+            if shared and not rule_holds:
                 s_ok, u0, V2, V3 = slack_terms(a, b, E)
             for i in range(m):
                 if T[i] == 0.0 and need_lengths < 2:
                     # a slack tendon: no force, but its path must be admissible too (the rule does not
                     # depend on the loads, and its length is a result)
+                    if rule_holds:
+                        continue
                     if shared:
                         wi = slack_density(s_ok, u0, V2, V3, d[i], co[i], so[i])
                     else:

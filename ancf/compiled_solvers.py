@@ -29,7 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .assembly import assemble
+from .assembly import assemble, tendon_lengths
+from .kinematics import _rodrigues
 from .solvers import _chol_solve_kernel
 
 #: Status codes of the compiled loops.
@@ -95,15 +96,16 @@ def is_positive_definite(H):
 
 @njit(cache=True)
 def _fk_eval(z, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F):
-    """(Π, ∇Π (nz,), ∇²Π (nz, nz), usable, tendon lengths (m,)) at free coordinates z."""
+    """(Π, ∇Π (nz,), ∇²Π (nz, nz), usable) at free coordinates z (no tendon lengths: the loop computes them
+    once, at the solution)."""
     q = to_full(z, q_fix, P, use_P)
-    En, Q, K, lc, _, _, _ = assemble(q, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, True, 1)
+    En, Q, K, _, _, _, _ = assemble(q, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, True, 0)
     nz = z.size
     if not np.isfinite(En):
-        return np.inf, np.zeros(nz), np.zeros((nz, nz)), False, lc
+        return np.inf, np.zeros(nz), np.zeros((nz, nz)), False
     g = reduce_vec(Q, P, use_P)
     H = reduce_mat(K, P, use_P)
-    return En, g, H, _all_finite(g) and _all_finite(H), lc
+    return En, g, H, _all_finite(g) and _all_finite(H)
 
 
 @njit(cache=True)
@@ -111,18 +113,20 @@ def fk_newton(z0, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h,
     """Newton on Π(z) from z0 (module docstring).
 
     Returns (status, z (nz,), iterations, history (k,) of ‖∇Π‖₂, ∇²Π (nz, nz) at z, positive definite, Π [J]
-    and tendon lengths (m,) [m] at z)."""
+    and tendon lengths (m,) [m] at z; the lengths are zero unless CONVERGED)."""
     x = z0.copy()
     hist = np.empty(max_iter + 1)
-    En, g, H, ok, lc = _fk_eval(x, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F)
+    En, g, H, ok = _fk_eval(x, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F)
+    no_lengths = np.zeros(d.size)
     if not ok:
         hist[0] = np.inf
-        return BAD_START, x, 0, hist[:1], H, False, En, lc
+        return BAD_START, x, 0, hist[:1], H, False, En, no_lengths
     hist[0] = _norm(g)
     nh = 1
     for it in range(max_iter):
         gn = hist[nh - 1]
         if gn < tol:
+            lc = tendon_lengths(to_full(x, q_fix, P, use_P), n, N, wq, E, d, co, so)
             return CONVERGED, x, it, hist[:nh], H, is_positive_definite(H), En, lc
         scale = 1e-12
         for i in range(H.shape[0]):
@@ -141,7 +145,7 @@ def fk_newton(z0, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h,
         accepted = False
         for _ in range(30):
             xn = x + alpha * dx
-            Et, gt, Ht, okt, lt = _fk_eval(xn, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F)
+            Et, gt, Ht, okt = _fk_eval(xn, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F)
             if okt and (Et <= En + 1e-4 * alpha * slope or
                         (abs(Et - En) <= 1e-14 * max(1.0, abs(En)) and _norm(gt) < hist[nh - 1])):
                 accepted = True
@@ -149,10 +153,10 @@ def fk_newton(z0, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h,
             alpha *= 0.5
         if not accepted:
             break
-        x, En, g, H, lc = xn, Et, gt, Ht, lt
+        x, En, g, H = xn, Et, gt, Ht
         hist[nh] = _norm(g)
         nh += 1
-    return NOT_CONVERGED, x, nh - 1, hist[:nh], H, False, En, lc
+    return NOT_CONVERGED, x, nh - 1, hist[:nh], H, False, En, no_lengths
 
 
 @njit(cache=True)
@@ -177,6 +181,16 @@ def tip_position(q, h):
     """p_end = r_{n+1} + h t (as :func:`ancf.kinematics.tip_position`)."""
     a = q[-3:]
     return q[-6:-3] + h * a / _norm(a)
+
+
+@njit(cache=True)
+def tip_pose(q, h, e1):
+    """(p_end (3,) [m], frame defined, tip rotation R (3, 3)) — :func:`ancf.kinematics.tip_position` and
+    :func:`ancf.kinematics.tip_rotation` in one compiled call (q: an admissible state, |r_x| > 0 at the tip)."""
+    a = q[-3:]
+    t = a / _norm(a)
+    ok, R = _rodrigues(t, e1)
+    return q[-6:-3] + h * t, ok, R
 
 
 @njit(cache=True)

@@ -20,6 +20,7 @@ with one ``except``.  Each subclass also derives from the matching builtin (``Va
 
 from __future__ import annotations
 
+import math
 from typing import Sequence
 
 import numpy as np
@@ -119,13 +120,18 @@ class InfeasibleTargetError(BellowsError, ValueError):
     violated : list[str]
         Human-readable list of the bounds that the unconstrained solution violates,
         e.g. ``["T2 >= 0 N (needs -0.41 N)"]``.
+    state : ancf.Equilibrium or None
+        The equilibrium at ``tensions`` (its tip is ``nearest``), verified like any FK result (admissible,
+        inside the stiffness law's range, stable), or None when the solver could not verify one.  A controller
+        that saturates commands it without solving the FK again.
     """
 
-    def __init__(self, message: str, *, target, nearest=None, tensions=None, violated=()):
+    def __init__(self, message: str, *, target, nearest=None, tensions=None, violated=(), state=None):
         self.target = np.asarray(target, float)
         self.nearest = None if nearest is None else np.asarray(nearest, float)
         self.tensions = None if tensions is None else np.asarray(tensions, float)
         self.violated = list(violated)
+        self.state = state
         super().__init__(message)
 
 
@@ -150,7 +156,8 @@ def check_finite(name: str, value, shape: tuple[int, ...] | None = None) -> np.n
     arr = np.asarray(raw, dtype=np.float64, order="C")
     if shape is not None and arr.shape != tuple(shape):
         raise InputError(f"{name} must have shape {tuple(shape)}, got {arr.shape}")
-    if not np.isfinite(arr).all():
+    # small arrays (the loads and tensions of every solve) through Python floats: ≈ 8× cheaper than a ufunc
+    if not (all(map(math.isfinite, arr.ravel().tolist())) if arr.size <= 64 else np.isfinite(arr).all()):
         bad = np.flatnonzero(~np.isfinite(arr.ravel()))
         where = (f"{float(arr.ravel()[0])}" if arr.ndim == 0 else
                  f"{bad.size} of {arr.size} entries, the first {float(arr.ravel()[bad[0]])} at flat index {bad[0]}")

@@ -29,6 +29,7 @@ Solvers:
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 from typing import Optional
 
@@ -49,6 +50,7 @@ from .errors import (
     check_scalar,
 )
 from .params import ActuatorParams
+from . import compiled_bounded as _cb
 from . import compiled_solvers as _cs
 from .solvers import SolveInfo, minimize_newton, solve_root
 from .textfmt import vector
@@ -149,6 +151,7 @@ class Model:
         self._so = np.sin(p.tendon_angles)
         self._g = np.asarray(p.gravity, float)
         self._mg = p.line_mass * self._g
+        self._tip_weight = p.tip_mass * self._g               # [N] (3,)
         self.q_ref = kin.reference_q(self.n, p.length, p.base_axis)
         # free-coordinate map q = q_fix + P z
         if p.free_base_stretch:
@@ -236,11 +239,13 @@ class Model:
     def _check_inputs(self, tensions, pressure, tip_force, check_limits: bool):
         p = self.params
         T = check_finite("tensions", tensions, (self.m,)) if tensions is not None else np.zeros(self.m)
-        pr = float(check_finite("pressure", pressure, ()))
+        # a plain finite float (the common case) needs no array round trip
+        pr = (pressure if type(pressure) is float and math.isfinite(pressure)
+              else float(check_finite("pressure", pressure, ())))
         F = check_finite("tip_force", tip_force, (3,))
         self._check_law_pressure(pr)
         if check_limits:
-            for i, t in enumerate(T):
+            for i, t in enumerate(T.tolist()):
                 if t < p.tension_min - 1e-12 or t > p.tension_max + 1e-12:
                     raise LimitError(f"tension T{i + 1} = {t:g} N is outside the actuator's limits "
                                      f"[{p.tension_min:g}, {p.tension_max:g}] N (check_limits=False analyses "
@@ -450,7 +455,10 @@ class Model:
         Hr, stable = self._verify(q, H, JA, solver, check_stability,
                                   positive_definite=info.positive_definite if JA is None else None)
         # q is a converged, admissible state (finite energy: its tip slope passed the assembly's rules)
-        eq = Equilibrium(q=q, tip=self._tip(q), tip_rotation=kin.tip_rotation(q, self._e1),
+        tip, frame_ok, R = _cs.tip_pose(q, self.params.tool_offset, self._e1)
+        if not frame_ok:
+            R = kin.tip_rotation(q, self._e1)           # raises CollapsedStateError naming the fold
+        eq = Equilibrium(q=q, tip=tip, tip_rotation=R,
                          tendon_lengths=ev.lengths.copy(), tensions=np.array(T, float), pressure=pr,
                          tip_force=np.array(F, float), iterations=info.iterations,
                          residual_norm=info.residual_norm, energy=ev.energy, solver=solver, slack=slack,
@@ -605,8 +613,10 @@ class Model:
         or loads outside the actuator's limits (``check_limits=False`` to analyse them anyway).
         """
         tol, max_iter = self._check_solver_options(tol, max_iter)
-        if tensions is not None and np.ndim(tensions) == 1 and len(tensions) != self.m:
-            raise InputError(f"tensions needs {self.m} values (one per tendon), got {len(tensions)}")
+        if tensions is not None:
+            tensions = check_finite("tensions", tensions)
+            if tensions.ndim == 1 and tensions.size != self.m:
+                raise InputError(f"tensions needs {self.m} values (one per tendon), got {tensions.size}")
         T, pr, F = self._check_inputs(tensions, pressure, tip_force, check_limits)
         z0 = self._initial_z(q0)
         z, info = self._fk_z(z0, T, pr, F, tol, max_iter)
@@ -664,12 +674,15 @@ class Model:
         """:func:`~ancf.solvers.minimize_newton` on Π(z) at ``load`` × (T, p, F, gravity), run by the compiled
         loop :func:`ancf.compiled_solvers.fk_newton` (same algorithm; ``_fk_fun`` is the Python form of the
         same potential).  Returns (z, SolveInfo) or raises ConvergenceError like ``minimize_newton``."""
-        Ts = np.ascontiguousarray(T * load, dtype=float)
-        Ftot = self.total_tip_load(F * load, gravity_scale=load)
+        if load == 1.0:               # the common case: the checked arrays as they are
+            Ts, Ftot, mg = np.ascontiguousarray(T, dtype=float), self._tip_weight + F, self._mg
+        else:
+            Ts = np.ascontiguousarray(T * load, dtype=float)
+            Ftot, mg = self.total_tip_load(F * load, gravity_scale=load), self._mg * load
         ea, ei = self._coeffs(float(pr * load))      # the law at the pressure of this load step
         status, z, it, hist, H, pd, energy, lengths = _cs.fk_newton(
             np.ascontiguousarray(z0, dtype=float), self._q_fix, self._P_c, self._P is not None, self.n, self._N,
-            self._wq, ea, ei, float(pr * load) * self._vc, self._mg * load, self._E, self._d,
+            self._wq, ea, ei, float(pr * load) * self._vc, mg, self._E, self._d,
             self._co, self._so, Ts, self.params.tool_offset, Ftot, float(tol), int(max_iter))
         history = hist.tolist()
         if status == _cs.CONVERGED:
@@ -772,7 +785,8 @@ class Model:
                 return eq
         # bounded reduced solve over the tensions: feasible solution or nearest reachable point
         unconstrained = None if sol is None else sol[1]
-        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability)
+        return self._ik_bounded(z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability,
+                                warm=tensions0 is not None)
 
     def _ik_newton(self, z0, T0, pd, pr, F, tol, tol_position, max_iter):
         nz, m = self.nz, self.m
@@ -805,7 +819,41 @@ class Model:
         x, info = solve_root(fun, x0, tol=tol_w, max_iter=max_iter, name="ik", weights=w)
         return x[:nz], x[nz:], info
 
-    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability=True):
+    #: Solve the bounded IK (nearest reachable tip) by the compiled projected Gauss–Newton
+    #: (:mod:`ancf.compiled_bounded`) before falling back to ``scipy.optimize.least_squares``; False: scipy only
+    #: (the reference the compiled loop is tested against).
+    fast_bounded_ik = True
+
+    def _ik_bounded_fast(self, z0, x0, lo, hi, pd, pr, F, tol):
+        """(T (m,) [N], z (nz,), SolveInfo of the FK at T, FK evaluations, tangent parts (H, J_p, J_l) at z) from
+        the compiled projected Gauss–Newton of :mod:`ancf.compiled_bounded`, or None when it did not converge (or
+        its last state is not an equilibrium to ``tol``)."""
+        ea, ei = self._coeffs(float(pr))
+        status, T, z, _, _, _, it, nfev, _ = _cb.ik_bounded(
+            np.ascontiguousarray(x0, dtype=float), np.ascontiguousarray(z0, dtype=float), lo, hi,
+            np.ascontiguousarray(pd, dtype=float), self._q_fix, self._P_c, self._P is not None, self.n, self._N,
+            self._wq, ea, ei, float(pr) * self._vc, self._mg, self._E, self._d, self._co, self._so,
+            self.params.tool_offset, self._tip_weight + F, float(tol), 25, 100, 1e-12)
+        if status != _cs.CONVERGED:
+            return None
+        # the loop's last FK was corrected by one Newton step after its last assembly: assemble again at z, verify
+        # the equilibrium there (‖Q‖ < tol; the stability of this very H is checked by _result) and keep the
+        # tangent parts (H, J_p, J_l) for the compliances at the state the controller will command
+        q = self._to_full(z)
+        ev = self._evaluate(q, T, pr, F)
+        res = float(np.linalg.norm(self._reduce_vec(ev.Q)))
+        if not res < tol:
+            return None
+        H = self._reduce_mat(ev.K)
+        parts = (H, self._reduce_vec(self._tip_jacobian(q)), self._reduce_vec(ev.J_l))
+        return T, z, SolveInfo(int(it), res, [res], H, None, (ev.energy, ev.lengths)), int(nfev), parts
+
+    def _ik_bounded(self, z0, T0, pd, pr, F, tol, tol_position, unconstrained, check_stability=True, warm=False):
+        """Bounded solve over T ∈ [T_min, T_max]: the feasible solution (least Σ T² for more than 3 tendons) or
+        InfeasibleTargetError with the nearest reachable tip.  The compiled projected Gauss–Newton starts from
+        the caller's tensions0 ``T0`` when ``warm`` (with ``z0`` its state: the previous state of a control loop,
+        next to the answer), else from scipy's start, the clipped unconstrained solution; scipy's
+        ``least_squares`` from its own start when the compiled loop does not converge."""
         p = self.params
         state = {"z": z0, "info": None}
         lo, hi = np.full(self.m, p.tension_min), np.full(self.m, p.tension_max)
@@ -828,11 +876,18 @@ class Model:
             return self._reduce_vec(self._tip_jacobian(q)) @ dz
 
         x0 = np.clip(T0 if unconstrained is None else unconstrained, lo, hi)
-        res = so.least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", xtol=1e-14, ftol=1e-15,
-                               gtol=1e-15, max_nfev=200)
-        T = res.x
-        nfev = int(res.nfev)
-        z = solve_fk(T)
+        start = np.clip(T0, lo, hi) if warm else x0
+        fast = self._ik_bounded_fast(z0, start, lo, hi, pd, pr, F, tol) if self.fast_bounded_ik else None
+        parts = fast_info = None
+        if fast is not None:
+            T, z, fast_info, nfev, parts = fast
+            state["z"], state["info"] = z, fast_info
+        else:           # the compiled loop did not converge: scipy's trust-region reflective on the same problem
+            res = so.least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", xtol=1e-14, ftol=1e-15,
+                                   gtol=1e-15, max_nfev=200)
+            T = res.x
+            nfev = int(res.nfev)
+            z = solve_fk(T)
         q = self._to_full(z)
         err = float(np.linalg.norm(self._tip(q) - pd))
         feasible = err <= max(tol_position * 10, 1e-8)
@@ -867,12 +922,20 @@ class Model:
             violated = [f"T{i + 1} at {'lower' if T[i] <= lo[i] + 1e-9 else 'upper'} bound"
                         for i in range(self.m) if T[i] <= lo[i] + 1e-9 or T[i] >= hi[i] - 1e-9]
         near = self._tip(q)
+        try:            # the FK state at the nearest tensions, verified (the compiled path's tangent kept on it)
+            info = state["info"]
+            nearest_state = self._result(q, np.array(T, float), pr, F, info, self._values(q, T, pr, F, info), "fk",
+                                         H=info.matrix)
+            if parts is not None and info is fast_info:          # the parts belong to this state
+                self._keep_tangent_parts(nearest_state, parts)
+        except (CollapsedStateError, UnstableEquilibriumError):
+            nearest_state = None
         raise InfeasibleTargetError(
             f"IK target {vector(pd, 'mm', 1e3, 3)} is not reachable with tensions in "
             f"[{p.tension_min:g}, {p.tension_max:g}] N at p = {pr / 1e3:g} kPa: violated "
             f"{'; '.join(violated) or 'no bound (solver stalled)'}; nearest reachable tip "
             f"{vector(near, 'mm', 1e3, 3)} ({err * 1e3:.3f} mm away) with tensions "
-            f"{vector(T, 'N', 1.0, 4)}", target=pd, nearest=near, tensions=T, violated=violated)
+            f"{vector(T, 'N', 1.0, 4)}", target=pd, nearest=near, tensions=T, violated=violated, state=nearest_state)
 
     # ----------------------------------------------------------------------------- locked FK
     def rest_lengths(self, eq: Equilibrium) -> np.ndarray:

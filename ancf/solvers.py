@@ -36,35 +36,75 @@ class SolveInfo:
 
 
 @njit(cache=True)
-def _chol_solve_kernel(H, g, shift):
-    """Solve (H + shift I) x = g by Cholesky; returns (ok, x).  ok is False if not positive definite."""
+def _chol_factor(H, shift):
+    """Cholesky factor of H + shift I (H (n, n) symmetric; only its lower triangle is read).
+
+    Returns (ok, L (n, n) lower, first (n,), last (n,)): ``first[i]`` is the first non-zero column of row i of
+    H (its envelope; the factor is zero left of it), ``last[j]`` the last row whose envelope reaches column j.
+    The loops skip what lies outside the envelope: products with exact zeros, so the factor is the same, bit
+    for bit, as the dense loops'; the ANCF tangents are banded (half-bandwidth 11 in free coordinates), which
+    makes this several times cheaper than a dense factorisation at n = 6.  ok is False (the rest undefined)
+    when the matrix is not positive definite."""
     n = H.shape[0]
     Lm = np.zeros((n, n))
-    x = np.zeros(n)
+    first = np.empty(n, np.int64)
+    for i in range(n):
+        f = i
+        for j in range(i):
+            if H[i, j] != 0.0:
+                f = j
+                break
+        first[i] = f
+    last = np.empty(n, np.int64)
+    for j in range(n):
+        last[j] = j
+    for i in range(n):
+        for j in range(first[i], i):
+            last[j] = max(last[j], i)
     for j in range(n):
         s = H[j, j] + shift
-        for k in range(j):
+        for k in range(first[j], j):
             s -= Lm[j, k] * Lm[j, k]
         if not (s > 0.0):
-            return False, x
+            return False, Lm, first, last
         Lm[j, j] = np.sqrt(s)
-        for i in range(j + 1, n):
+        for i in range(j + 1, last[j] + 1):
+            if first[i] > j:
+                continue
             s = H[i, j]
-            for k in range(j):
+            for k in range(max(first[i], first[j]), j):
                 s -= Lm[i, k] * Lm[j, k]
             Lm[i, j] = s / Lm[j, j]
+    return True, Lm, first, last
+
+
+@njit(cache=True)
+def _chol_apply(Lm, first, last, g):
+    """x (n,) with L Lᵀ x = g for a factor of :func:`_chol_factor`."""
+    n = g.size
+    x = np.zeros(n)
     y = np.empty(n)
     for i in range(n):
         s = g[i]
-        for k in range(i):
+        for k in range(first[i], i):
             s -= Lm[i, k] * y[k]
         y[i] = s / Lm[i, i]
     for i in range(n - 1, -1, -1):
         s = y[i]
-        for k in range(i + 1, n):
+        for k in range(i + 1, last[i] + 1):
             s -= Lm[k, i] * x[k]
         x[i] = s / Lm[i, i]
-    return True, x
+    return x
+
+
+@njit(cache=True)
+def _chol_solve_kernel(H, g, shift):
+    """Solve (H + shift I) x = g by Cholesky (:func:`_chol_factor`, envelope-aware); returns (ok, x).  ok is
+    False if that matrix is not positive definite (x then zero)."""
+    ok, Lm, first, last = _chol_factor(H, shift)
+    if not ok:
+        return False, np.zeros(H.shape[0])
+    return True, _chol_apply(Lm, first, last, g)
 
 
 def _chol_solve(H: np.ndarray, g: np.ndarray, shift: float = 0.0):

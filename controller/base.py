@@ -124,8 +124,8 @@ class Controller(abc.ABC):
     def _reach(self, target: np.ndarray, load: np.ndarray) -> tuple:
         """The IK state for the tip ``target`` [m] under the tip load ``load`` [N], or — when no tensions inside
         their bounds reach it (:class:`~ancf.errors.InfeasibleTargetError`) — the nearest reachable state: the
-        FK at the tensions the bounded IK found, warm-started from the last state.  Returns (state, saturated,
-        note)."""
+        equilibrium at the tensions the bounded IK found (the error's verified ``state``, else the FK there
+        warm-started from the last state).  Returns (state, saturated, note)."""
         try:
             eq = self.model.ik(target, self.pressure, load, q0=self.state.q, tensions0=self.state.tensions)
             return eq, False, ""
@@ -137,7 +137,8 @@ class Controller(abc.ABC):
         """(state, note) at the tensions of ``exc`` — the nearest reachable point the bounded IK found."""
         if exc.tensions is None:
             raise exc
-        eq = self.model.fk(exc.tensions, self.pressure, load, q0=self.state.q)
+        # the bounded IK hands on the verified equilibrium at those tensions (else: the FK from the last state)
+        eq = exc.state if exc.state is not None else self.model.fk(exc.tensions, self.pressure, load, q0=self.state.q)
         note = (f"saturated: target {1e3 * np.linalg.norm(eq.tip - target):.2f} mm out of reach "
                 f"({'; '.join(exc.violated) or 'bounds'}); nearest reachable state commanded")
         return eq, note

@@ -47,7 +47,10 @@ set-point stepped towards the commanded target at no more than the rig's speed l
 set-point per cycle, not a jump), and statusword, position, following error and current arrive by TPDO.  A
 drive whose heartbeat stops for ``heartbeat_timeout`` or whose TPDOs stop for ``pdo_timeout`` is a
 :class:`~hardware.errors.DriveFault` ("silent drive") at the next :meth:`Epos4Drive.check`, which every command
-and the rig's health check call; an EMCY is a DriveFault in both modes.
+and the rig's health check call; an EMCY is a DriveFault in both modes.  The mode is chosen per drive for a
+whole run (rig file ``cyclic``); why a cyclic run does not switch to profile position for slow moves — the
+interpolator already makes every move of a run a speed-limited ramp of at most ``max_step`` — is in
+docs/rig.md ("Why a run does not switch a drive ...").
 
 Units at this boundary: tendon length ``l`` [m] ↔ counts ``c = round((l − zero_length) ·
 counts_per_metre)``.  Travel limits are checked (:class:`~hardware.limits.SafetyLimits`) before any

@@ -221,3 +221,31 @@ def test_degenerate_tip_slope_is_inadmissible_not_a_division_by_zero():
     assert m._fk_fun(np.array([1.0, 0.0, 0.0]), 0.0, np.zeros(3))(m.to_free(q), True)[0] == np.inf
     with pytest.raises(CollapsedStateError):
         m.evaluate(q, (1.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0))
+
+
+def test_envelope_cholesky_solves_like_a_dense_factorisation():
+    """solvers._chol_solve_kernel follows the matrix's envelope (skips the zeros left of each row's first
+    non-zero): against numpy's dense Cholesky on banded, irregular-envelope and full SPD matrices, with a
+    shift, and it still refuses an indefinite matrix whose failing pivot lies inside the envelope."""
+    from ancf.solvers import _chol_solve_kernel
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 7, 36, 43):
+        for band in (0, 1, 3, 11, n):
+            A = rng.normal(size=(n, n))
+            A = A @ A.T + n * np.eye(n)
+            A[np.abs(np.subtract.outer(np.arange(n), np.arange(n))) > band] = 0.0
+            if n > 7:                                    # an entry far outside the band, and a zero inside it
+                A[n - 1, 1] = A[1, n - 1] = 0.3
+                A[5, 4] = A[4, 5] = 0.0
+            g = rng.normal(size=n)
+            for shift in (0.0, 2.5):
+                ok, x = _chol_solve_kernel(A, g, shift)
+                L = np.linalg.cholesky(A + shift * np.eye(n))
+                assert ok
+                np.testing.assert_allclose(x, np.linalg.solve(L.T, np.linalg.solve(L, g)), rtol=1e-10,
+                                           atol=1e-12 * np.abs(x).max())
+            if n > 7:
+                B = A.copy()
+                B[n - 1, n - 1] = -1.0                   # fails at the last pivot, reached through the far entry
+                assert not _chol_solve_kernel(B, g, 0.0)[0]
+                assert _chol_solve_kernel(B, g, 1.0 + np.abs(B).sum())[0]

@@ -171,6 +171,30 @@ def slack_density(ok, u0, V2, V3, d, co, so):
 
 
 @njit(cache=True)
+def density_lower_bound(a, b, d):
+    """A lower bound of the length density |r_c,x| [-] of every tendon at distance ≤ ``d`` [m] (any angle θ)
+    at one point, from a = r_x and b = r_xx (3,) only — no tendon kernel:
+
+        |r_c,x| ≥ |a| − d |P b| / |a|,      P = I − t tᵀ,  t = a/|a|.
+
+    Why: g(t) = R(t) o is a unit vector normal to t (R takes e1 to t, o ⊥ e1).  For δ ⊥ t the frame turns by
+    ω = t × δ + τ t (τ: its twist about t), so dg = ω × g and t·dg = g·(t × ω) = −g·δ, whatever τ.  With
+    u = r_c,x = a + d (∂g/∂t) δ, δ = P b/|a|: |u| ≥ t·u = |a| − d g·δ ≥ |a| − d |P b|/|a|.  Attained (to
+    round-off) by a planar bend in the plane of e1 and t towards the tendon (θ on the bending side: g = δ/|δ|,
+    τ = 0).  The assembly skips the slack tendons' admissibility rule (|r_c,x| ≥ 0.2) where this bound already
+    guarantees it; −inf for a = 0."""
+    la2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2]
+    if not (la2 > 0.0):
+        return -np.inf
+    tb = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / la2          # (t·b)/|a|
+    pb2 = 0.0
+    for c in range(3):
+        v = b[c] - tb * a[c]                                       # (P b)_c
+        pb2 += v * v
+    return np.sqrt(la2) - d * np.sqrt(pb2 / la2)
+
+
+@njit(cache=True)
 def add_tendon(a, b, E, d, co, so, T, scale, g, H, gl, want_H):
     """Add T × scale × (gradient, Hessian) of the length density into the (a, b) blocks (3:9) of g, H and
     scale × gradient into gl (9,), the tendon's own length gradient.  Returns the density w itself (NaN

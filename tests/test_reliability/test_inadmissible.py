@@ -251,3 +251,84 @@ def test_issue_state_from_report_quick_is_inadmissible(need):
     code, e, k, i, v = _status(M, ISSUE_Q)
     assert (code, e, k) == (assembly.REVERSED, 0, 1) and v == 0.0
     assert "element 1, quadrature point 2 points back along the base axis" in M.inadmissibility(ISSUE_Q)
+
+
+# ------------------------------------------------------------------ the slack tendons' rule, skipped by a bound
+@settings(max_examples=300, **SETTINGS)
+@given(hnp.arrays(np.float64, 3, elements=st.floats(-1.0, 1.0)), st.floats(0.2, 3.0),
+       hnp.arrays(np.float64, 3, elements=st.floats(-1.0, 1.0)), st.floats(-2.0, 2.0),
+       st.floats(0.0, 2 * np.pi), st.floats(1e-3, 0.1))
+def test_density_lower_bound_is_below_every_tendons_density(t, lam, bdir, log_b, theta, d):
+    """forces.tendon.density_lower_bound(a, b, d) ≤ |r_c,x| of a tendon at any angle and any distance ≤ d
+    (the exact kernel), wherever the frame is defined — the assembly skips the slack tendons' rule on it."""
+    from ancf.forces.tendon import density_lower_bound
+    E = M._E
+    if np.linalg.norm(t) < 1e-3 or np.linalg.norm(bdir) < 1e-3:
+        return
+    t = t / np.linalg.norm(t)
+    if 1 + t @ E[:, 0] < assembly.FRAME_MIN:
+        return
+    a, b = lam * t, 10 ** log_b * bdir / np.linalg.norm(bdir)
+    lb = density_lower_bound(a, b, d)
+    for dd in (d, 0.5 * d):
+        w = tendon_length_density(a, b, E, dd, np.cos(theta), np.sin(theta))
+        assert lb <= w + 1e-12 * max(1.0, abs(w))
+
+
+@pytest.mark.parametrize("phi", [0.0, 0.4, 1.2, 2.5])
+@pytest.mark.parametrize("psi", [0.0, 1.0, 4.0])
+def test_density_lower_bound_is_attained_by_a_bend_towards_the_tendon(phi, psi):
+    """A section turned by φ from e1 in the plane of e1 and o_ψ = cos ψ e2 + sin ψ e3, bending further in that
+    plane (b = λ²κ n plus a tangential part), the tendon at θ = ψ: |r_c,x| equals the bound exactly
+    (λ |1 − κ d|).  A bound that was too optimistic would exceed the density here, one with a needless factor
+    (a bend-angle-dependent frame-rate bound, say) would fall below it."""
+    from ancf.forces.tendon import density_lower_bound
+    E, d, lam = M._E, 0.0275, 1.1
+    o = np.cos(psi) * E[:, 1] + np.sin(psi) * E[:, 2]
+    t = np.cos(phi) * E[:, 0] + np.sin(phi) * o
+    n = -np.sin(phi) * E[:, 0] + np.cos(phi) * o
+    for kappa in (0.0, 5.0, 25.0):
+        a, b = lam * t, lam ** 2 * kappa * n + 0.7 * t
+        w = tendon_length_density(a, b, E, d, np.cos(psi), np.sin(psi))
+        assert w == pytest.approx(lam * abs(1 - kappa * d), rel=1e-12, abs=1e-13)
+        assert density_lower_bound(a, b, d) == pytest.approx(w, rel=1e-12, abs=1e-13)
+
+
+@pytest.mark.parametrize("model", ["paper", "four_tendon"])
+@pytest.mark.parametrize("plane_deg", [0.0, 20.0, 40.0])
+def test_slack_rule_with_the_bound_agrees_with_the_rules_near_folding(model, plane_deg):
+    """All tendons slack, no lengths wanted (need_lengths 0: the rule may be skipped where the bound holds):
+    planar arcs whose curvature sweeps across the folding limit of the tendon nearest the bending side — the
+    assembly is finite exactly where state_status (the exact rule, no bound) calls the state admissible."""
+    base = presets.paper() if model == "paper" else presets.four_tendon()
+    short = Model(base.replace(n_elements=8, length=0.04))
+    E, d = short._E, float(np.max(short._d))
+    ph = np.radians(plane_deg)
+    nrm = np.cos(ph) * E[:, 1] + np.sin(ph) * E[:, 2]
+    s = np.linspace(0.0, short.params.length, short.n + 1)
+    seen = set()
+    for kappa in np.linspace(0.2 / d, 1.5 / d, 53):
+        q = np.zeros(short.ndof)
+        for j, sj in enumerate(s):
+            q[6 * j:6 * j + 3] = np.sin(kappa * sj) / kappa * E[:, 0] + (1 - np.cos(kappa * sj)) / kappa * nrm
+            q[6 * j + 3:6 * j + 6] = np.cos(kappa * sj) * E[:, 0] + np.sin(kappa * sj) * nrm
+        ok = _status(short, q)[0] == assembly.OK
+        seen.add(ok)
+        for want_H in (True, False):
+            assert np.isfinite(_assemble(short, q, np.zeros(short.m), want_H, 0)[0]) == ok
+    assert seen == {True, False}                   # the sweep crossed the limit
+
+
+def test_tendon_lengths_kernel_equals_the_assembly_and_refuses_folded_paths():
+    """assembly.tendon_lengths (the lengths a Newton loop computes once, at its solution) against the
+    assembly's own lengths, and NaN on an inadmissible state."""
+    from ancf.assembly import tendon_lengths
+    rng = np.random.default_rng(3)
+    for m in (M, M4):
+        for _ in range(4):
+            eq = m.fk(rng.uniform(0, 4, m.m), rng.uniform(0, 100e3), rng.normal(0, 0.3, 3))
+            for T in (eq.tensions, np.zeros(m.m)):
+                ref = _assemble(m, eq.q, T, False, 2)[3]
+                got = tendon_lengths(eq.q, m.n, m._N, m._wq, m._E, m._d, m._co, m._so)
+                np.testing.assert_allclose(got, ref, rtol=1e-14, atol=0)
+    assert np.all(np.isnan(tendon_lengths(_clamped_zero(M), M.n, M._N, M._wq, M._E, M._d, M._co, M._so)))
