@@ -153,17 +153,21 @@ def test_bad_inputs_are_typed_errors():
         Observations([[1, 0, 0]], [np.nan], [[0, 0, 0]], [False], [[0.16, 0, 0]])
 
 
+def _identify_synthetic(name, truth, forms):
+    """Identify ``forms`` on the default design's training states made by form ``name`` at ``truth``, held out
+    on its held-out states: (result, comparison rows by form)."""
+    design, form = default_design(), get_form(name)
+    train, held = synthetic(form, truth, design.training), synthetic(form, truth, design.heldout)
+    res = identify.identify(train, BASE, heldout=held, forms=forms)
+    return res, {r["form"]: r for r in res.comparison}
+
+
 def test_held_out_evidence_chooses_the_pressure_form_when_ei_grows_with_pressure():
     """States of a bellows whose EI grows with pressure like the FEM's (× 1.9 at 100 kPa): the stretch-only
     form cannot follow them; ``pressure_ei`` recovers the factor, predicts the held-out states exactly and
     is chosen by the held-out error, with its pressure coefficients identified."""
-    design = default_design()
     truth = np.array([700.0, 900.0, 0.09, 0.15, 0.55, 0.35, 0.024])
-    form = get_form("pressure_ei")
-    train = synthetic(form, truth, design.training)
-    held = synthetic(form, truth, design.heldout)
-    res = identify.identify(train, BASE, heldout=held, forms=("separate", "pressure_ei"))
-    rows = {r["form"]: r for r in res.comparison}
+    res, rows = _identify_synthetic("pressure_ei", truth, ("separate", "pressure_ei"))
     assert res.form == "pressure_ei"
     assert rows["pressure_ei"]["heldout_rms_tip_m"] < 1e-8
     assert rows["separate"]["heldout_rms_tip_m"] > 1e-3                  # millimetres off
@@ -184,13 +188,8 @@ def test_held_out_evidence_chooses_the_shear_form_when_the_tip_has_a_rotation_fr
     """States of a bellows with the FEM's series rotation-free tip compliance (s = 0.5 → 3.8 mm/N from 0 to
     100 kPa): ``pressure_ei_shear`` recovers s₀, s₁ exactly, is chosen by the held-out error over
     ``pressure_ei``, reports s at 0 and 100 kPa and writes an actuator file with the shear key."""
-    design = default_design()
     truth = np.array([700.0, 900.0, 0.09, 0.15, 0.55, 0.35, 0.024, 0.5e-3, 3.3e-3])
-    form = get_form("pressure_ei_shear")
-    train = synthetic(form, truth, design.training)
-    held = synthetic(form, truth, design.heldout)
-    res = identify.identify(train, BASE, heldout=held, forms=("pressure_ei", "pressure_ei_shear"))
-    rows = {r["form"]: r for r in res.comparison}
+    res, rows = _identify_synthetic("pressure_ei_shear", truth, ("pressure_ei", "pressure_ei_shear"))
     assert res.form == "pressure_ei_shear"
     assert rows["pressure_ei_shear"]["heldout_rms_tip_m"] < 1e-8
     assert rows["pressure_ei"]["heldout_rms_tip_m"] > 1e-5
