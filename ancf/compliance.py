@@ -268,7 +268,7 @@ def pressure_sensitivity(model: Model, eq: Equilibrium, hold: str = "tensions",
     gp = model.reduce_vec(model.dQ_dp(eq.q, eq.pressure))
     nz, m = H.shape[0], model.m
     sh = _shear(model, eq)
-    Jx, dx_p = (Jp, np.zeros(3)) if sh is None else (Jp + sh[0], sh[2])     # tool point: J, ∂x/∂p at fixed q
+    Jx, dx_p = (Jp, None) if sh is None else (Jp + sh[0], sh[2])     # tool point: J, ∂x/∂p at fixed q
     dT = np.zeros(m)
     if hold == "tensions":
         dz = -np.linalg.solve(H, gp)
@@ -277,7 +277,7 @@ def pressure_sensitivity(model: Model, eq: Equilibrium, hold: str = "tensions",
             raise InputError(f"hold='tip' needs exactly 3 tendons (a square IK system), the actuator has {m}")
         K = np.zeros((nz + 3, nz + 3))
         K[:nz, :nz], K[:nz, nz:], K[nz:, :nz] = H, Jl.T, Jx
-        x = np.linalg.solve(K, np.concatenate([-gp, -dx_p]))
+        x = np.linalg.solve(K, np.concatenate([-gp, np.zeros(3) if dx_p is None else -dx_p]))
         dz, dT = x[:nz], x[nz:]
     else:
         if active is None:
@@ -293,7 +293,8 @@ def pressure_sensitivity(model: Model, eq: Equilibrium, hold: str = "tensions",
         dz = x[:nz]
         dT[A] = x[nz:]
     dq = _full(model, dz[:, None])[:, 0]
-    return PressureSensitivity(dq_dp=dq, dtip_dp=Jx @ dz + dx_p, dT_dp=dT, hold=hold)
+    dtip = Jx @ dz if dx_p is None else Jx @ dz + dx_p
+    return PressureSensitivity(dq_dp=dq, dtip_dp=dtip, dT_dp=dT, hold=hold)
 
 
 def directional_stiffness(C: np.ndarray, direction) -> float:

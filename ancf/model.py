@@ -396,7 +396,8 @@ class Model:
         return self.evaluate(q, hessian=False).J_l
 
     def tip(self, q) -> np.ndarray:
-        """Tool point p_end [m]."""
+        """Tool point of the rod p_end = r(L) + h t [m] (3,), without the series shear offset that
+        ``Equilibrium.tip`` and :meth:`tool_point` include (:mod:`ancf.shear`)."""
         return kin.tip_position(self._q_tip(q), self.params.tool_offset)
 
     def _tip(self, q) -> np.ndarray:
@@ -853,8 +854,8 @@ class Model:
     def _ik_rod(self, target, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None, tensions0=None, *,
                 tol: Optional[float] = None, tol_position: float = 1e-9, max_iter: int = 60,
                 check_limits: bool = True, check_stability: bool = True) -> Equilibrium:
-        """Inverse kinetostatics (p_d [m], p [Pa], F_e [N]) → (q, T) with T_min ≤ T ≤ T_max
-        (paper Sec. III-A, eq. 2).
+        """The rod's IK (:meth:`ik` without the shear correction: ``target`` is p_end).  Inverse kinetostatics
+        (p_d [m], p [Pa], F_e [N]) → (q, T) with T_min ≤ T ≤ T_max (paper Sec. III-A, eq. 2).
 
         Raises InfeasibleTargetError (naming the violated bound and giving the nearest reachable tip)
         when no tensions inside the bounds reach the target, ConvergenceError if a solve fails.
