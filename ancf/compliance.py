@@ -26,6 +26,14 @@ Three forms of C'_p:
   system (14)), again by pseudo-inverse, δq = H_IK⁺ [J_pᵀ; 0; 0] δF.  An approximation; the paper uses it
   as the gradient of LACC's load observer.
 
+Series shear compliance (:mod:`ancf.shear`).  With s(p) ≠ 0 the tool point is x = p_end(q) + u(q, F),
+u = s P⊥ F, and q the rod's equilibrium (unchanged by the term).  For any of the forms above, whose rod
+response is δq = C_q δF,
+
+    C_p = (J_p + J_u) C_q + s P⊥,     J_u = ∂u/∂q = s (∂P⊥/∂q) F,
+
+(``C_q`` stays the rod's).  The taut-set rules use the tendon lengths, which the term does not change.
+
 Stiffness along a unit direction u: k(u) = 1 / (uᵀ C u)  [N/m].
 
 Response to the pressure (:func:`pressure_sensitivity`).  With g_p = ∂Q/∂p (:meth:`ancf.Model.dQ_dp`: the
@@ -34,6 +42,9 @@ volume term and, for a pressure-dependent stiffness law, the stiffness terms), a
 * tensions held (FK):  H δq = −g_p δp;
 * tip held (IK, three tendons):  [H J_lᵀ; J_p 0] [δq; δT] = [−g_p; 0] δp;
 * lengths held (locked FK, taut set A):  [H J_Aᵀ; J_A −diag(1/k_s)] [δq; δT_A] = [−g_p; 0] δp.
+
+With a shear compliance the tool point moves by δx = (J_p + J_u) δq + (ds/dp) P⊥F δp, and the IK holds the
+tool point: its rows read (J_p + J_u) δq = −(ds/dp) P⊥F δp.
 """
 
 from __future__ import annotations
@@ -103,6 +114,28 @@ def _solves(model: Model, eq: Equilibrium):
     return out
 
 
+def _shear(model: Model, eq: Equilibrium):
+    """(J_u (3, nz) = ∂u/∂z, s P⊥ (3, 3), ∂u/∂p (3,)) of the series shear compliance at ``eq``, or None
+    without one (module docstring; :mod:`ancf.shear`)."""
+    parts = model._shear_parts(eq.q, float(eq.pressure), eq.tip_force)
+    if parts is None:
+        return None
+    u, Ju, PF, s, ds = parts
+    a = eq.q[-3:]
+    t = a / np.linalg.norm(a)
+    return model.reduce_vec(Ju), s * (np.eye(3) - np.outer(t, t)), ds * PF
+
+
+def _tool(model: Model, eq: Equilibrium, Jp: np.ndarray, Cq: np.ndarray) -> np.ndarray:
+    """Tool-point compliance (3, 3) [m/N] from the rod's response Cq (nz, 3): J_p Cq, plus the shear terms
+    (J_u Cq + s P⊥) when the actuator has a shear compliance."""
+    sh = _shear(model, eq)
+    if sh is None:
+        return Jp @ Cq
+    Ju, sP, _ = sh
+    return (Jp + Ju) @ Cq + sP
+
+
 def _full(model: Model, Cz: np.ndarray) -> np.ndarray:
     """Map free-coordinate sensitivities (nz, 3) to full coordinates (ndof, 3)."""
     if model._P is None:
@@ -115,7 +148,7 @@ def _full(model: Model, Cz: np.ndarray) -> np.ndarray:
 def tension(model: Model, eq: Equilibrium) -> Compliance:
     """Constant-tension, constant-pressure compliance (eqs. 8–10)."""
     _, Jp, _, Cq, _ = _solves(model, eq)
-    return Compliance(C_p=Jp @ Cq, C_q=_full(model, Cq), active=(), mode="tension", method="exact")
+    return Compliance(C_p=_tool(model, eq, Jp, Cq), C_q=_full(model, Cq), active=(), mode="tension", method="exact")
 
 
 def _kkt(HiJp, JA, HiJA, cs: float = 0.0):
@@ -201,7 +234,7 @@ def locked(model: Model, eq: Equilibrium, method: str = "exact", active: Optiona
         stack = np.vstack([H, constraint_weight * Jp, constraint_weight * JA])
         rhs = np.vstack([Jp.T, np.zeros((3 + len(A), 3))])
         Cq = np.linalg.pinv(stack) @ rhs
-    return Compliance(C_p=Jp @ Cq, C_q=_full(model, Cq), active=tuple(A), mode="locked", method=method,
+    return Compliance(C_p=_tool(model, eq, Jp, Cq), C_q=_full(model, Cq), active=tuple(A), mode="locked", method=method,
                       dT_dF=dT)
 
 
@@ -234,6 +267,8 @@ def pressure_sensitivity(model: Model, eq: Equilibrium, hold: str = "tensions",
     H, Jp, Jl, _, _ = _solves(model, eq)
     gp = model.reduce_vec(model.dQ_dp(eq.q, eq.pressure))
     nz, m = H.shape[0], model.m
+    sh = _shear(model, eq)
+    Jx, dx_p = (Jp, None) if sh is None else (Jp + sh[0], sh[2])     # tool point: J, ∂x/∂p at fixed q
     dT = np.zeros(m)
     if hold == "tensions":
         dz = -np.linalg.solve(H, gp)
@@ -241,8 +276,8 @@ def pressure_sensitivity(model: Model, eq: Equilibrium, hold: str = "tensions",
         if m != 3:
             raise InputError(f"hold='tip' needs exactly 3 tendons (a square IK system), the actuator has {m}")
         K = np.zeros((nz + 3, nz + 3))
-        K[:nz, :nz], K[:nz, nz:], K[nz:, :nz] = H, Jl.T, Jp
-        x = np.linalg.solve(K, np.concatenate([-gp, np.zeros(3)]))
+        K[:nz, :nz], K[:nz, nz:], K[nz:, :nz] = H, Jl.T, Jx
+        x = np.linalg.solve(K, np.concatenate([-gp, np.zeros(3) if dx_p is None else -dx_p]))
         dz, dT = x[:nz], x[nz:]
     else:
         if active is None:
@@ -258,7 +293,8 @@ def pressure_sensitivity(model: Model, eq: Equilibrium, hold: str = "tensions",
         dz = x[:nz]
         dT[A] = x[nz:]
     dq = _full(model, dz[:, None])[:, 0]
-    return PressureSensitivity(dq_dp=dq, dtip_dp=Jp @ dz, dT_dp=dT, hold=hold)
+    dtip = Jx @ dz if dx_p is None else Jx @ dz + dx_p
+    return PressureSensitivity(dq_dp=dq, dtip_dp=dtip, dT_dp=dT, hold=hold)
 
 
 def directional_stiffness(C: np.ndarray, direction) -> float:

@@ -52,6 +52,7 @@ from .errors import (
 from .params import ActuatorParams
 from . import compiled_bounded as _cb
 from . import compiled_solvers as _cs
+from . import shear as _shear
 from .solvers import SolveInfo, minimize_newton, solve_root
 from .textfmt import vector
 
@@ -72,7 +73,8 @@ class Evaluation:
 class Equilibrium:
     """A converged equilibrium.  Arrays in SI units (m, N, Pa).
 
-    q (ndof,), tip (3,) tool point p_end [m], tip_rotation (3, 3), tendon_lengths (m,) [m],
+    q (ndof,), tip (3,) tool point [m]: p_end plus, with a shear compliance s(p), the rotation-free offset
+    s P⊥ F (:meth:`Model.tool_point`, :mod:`ancf.shear`), tip_rotation (3, 3), tendon_lengths (m,) [m],
     tensions (m,) [N], slack (m,) [m] (locked FK only, else None), active (tuple of taut tendon indices,
     locked FK only), pressure [Pa], tip_force (3,) [N], converged (always True: failures raise),
     iterations, residual_norm, energy [J], solver, stable (True: the reduced Hessian is positive definite;
@@ -183,6 +185,9 @@ class Model:
         # series compliance of each tendon path 1/k_s [m/N] (0: inextensible)
         self._cs = 0.0 if p.tendon_stiffness is None else 1.0 / p.tendon_stiffness
         self._lam_range = p.stiffness.valid_stretch_range
+        # series rotation-free tip compliance s(p) [m/N] (ancf.shear); none: every output as without it
+        self._shear = tuple(p.shear_compliance)
+        self._has_shear = any(c != 0.0 for c in self._shear)
 
     # ----------------------------------------------------------------------------- coordinate maps
     def to_free(self, q: np.ndarray) -> np.ndarray:
@@ -244,6 +249,7 @@ class Model:
               else float(check_finite("pressure", pressure, ())))
         F = check_finite("tip_force", tip_force, (3,))
         self._check_law_pressure(pr)
+        self._check_shear_pressure(pr)
         if check_limits:
             for i, t in enumerate(T.tolist()):
                 if t < p.tension_min - 1e-12 or t > p.tension_max + 1e-12:
@@ -395,7 +401,8 @@ class Model:
         return self.evaluate(q, hessian=False).J_l
 
     def tip(self, q) -> np.ndarray:
-        """Tool point p_end [m]."""
+        """Tool point of the rod p_end = r(L) + h t [m] (3,), without the series shear offset that
+        ``Equilibrium.tip`` and :meth:`tool_point` include (:mod:`ancf.shear`)."""
         return kin.tip_position(self._q_tip(q), self.params.tool_offset)
 
     def _tip(self, q) -> np.ndarray:
@@ -407,6 +414,59 @@ class Model:
     def tip_jacobian(self, q) -> np.ndarray:
         """∂p_end/∂q (3, ndof)."""
         return kin.tip_position_jacobian(self._q_tip(q), self.params.tool_offset)
+
+    # series shear compliance (ancf.shear) -------------------------------------------------------
+    def shear_compliance(self, pressure: float = 0.0) -> float:
+        """s(p) [m/N] at ``pressure`` [Pa]: the series rotation-free tip compliance (0 without one)."""
+        pr = float(check_finite("pressure", pressure, ()))
+        self._check_shear_pressure(pr)
+        return _shear.compliance(self._shear, pr)
+
+    def _check_shear_pressure(self, pr: float) -> None:
+        """InputError when s(p) < 0 at ``pr`` [Pa] (only reachable with check_limits=False outside the
+        actuator's pressure range, over which the parameters checked it)."""
+        if self._has_shear and not _shear.compliance(self._shear, pr) >= 0:
+            raise InputError(f"the shear compliance s = {_shear.compliance(self._shear, pr):.4g} m/N < 0 at p = "
+                             f"{pr / 1e3:g} kPa: the actuator's shear_compliance is not valid there")
+
+    def _shear_parts(self, q, pr: float, F):
+        """(u (3,), ∂u/∂q (3, ndof), ∂u/∂s = P⊥F_tot (3,), s, ds/dp) at full coordinates ``q``, pressure ``pr``
+        [Pa] and external tip force ``F`` (3,) [N] (plus the tip mass's weight), or None without a shear
+        compliance (:mod:`ancf.shear`)."""
+        if not self._has_shear:
+            return None
+        a = q[-3:]
+        Ft = self.total_tip_load(F)
+        s = _shear.compliance(self._shear, pr)
+        J = np.zeros((3, self.ndof))
+        J[:, -3:] = _shear.offset_jacobian(a, s, Ft)
+        return (_shear.offset(a, s, Ft), J, _shear.offset(a, 1.0, Ft), s,
+                _shear.compliance_derivative(self._shear, pr))
+
+    def shear_offset(self, q, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """u = s(p) (I − t tᵀ) F_tot [m] (3,): the tool point's rotation-free displacement at full coordinates
+        ``q`` under the tip force ``tip_force`` [N] plus the tip mass's weight (zero without a shear compliance)."""
+        q = self._q_tip(q)
+        pr = float(check_finite("pressure", pressure, ()))
+        F = check_finite("tip_force", tip_force, (3,))
+        self._check_shear_pressure(pr)
+        parts = self._shear_parts(q, pr, F)
+        return np.zeros(3) if parts is None else parts[0]
+
+    def tool_point(self, q, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """The tool point [m] (3,) at full coordinates ``q``: p_end(q) + :meth:`shear_offset` — what
+        ``Equilibrium.tip`` holds (:meth:`tip` is p_end alone)."""
+        return self.tip(q) + self.shear_offset(q, pressure, tip_force)
+
+    def tool_jacobian(self, q, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """∂(tool point)/∂q (3, ndof) at fixed loads: ∂p_end/∂q + ∂u/∂q (:mod:`ancf.shear`)."""
+        q = self._q_tip(q)
+        pr = float(check_finite("pressure", pressure, ()))
+        F = check_finite("tip_force", tip_force, (3,))
+        self._check_shear_pressure(pr)
+        parts = self._shear_parts(q, pr, F)
+        J = self._tip_jacobian(q)
+        return J if parts is None else J + parts[1]
 
     def _q_tip_frame(self, q) -> np.ndarray:
         """q with a tip slope on which the Rodrigues frame is defined (the assembly's slope rules)."""
@@ -458,6 +518,8 @@ class Model:
         tip, frame_ok, R = _cs.tip_pose(q, self.params.tool_offset, self._e1)
         if not frame_ok:
             R = kin.tip_rotation(q, self._e1)           # raises CollapsedStateError naming the fold
+        if self._has_shear:                     # the tool point: p_end + s P⊥ F (ancf.shear)
+            tip = tip + self._shear_parts(q, float(pr), F)[0]
         eq = Equilibrium(q=q, tip=tip, tip_rotation=R,
                          tendon_lengths=ev.lengths.copy(), tensions=np.array(T, float), pressure=pr,
                          tip_force=np.array(F, float), iterations=info.iterations,
@@ -743,7 +805,69 @@ class Model:
            tol: Optional[float] = None, tol_position: float = 1e-9, max_iter: int = 60,
            check_limits: bool = True, check_stability: bool = True) -> Equilibrium:
         """Inverse kinetostatics (p_d [m], p [Pa], F_e [N]) → (q, T) with T_min ≤ T ≤ T_max
-        (paper Sec. III-A, eq. 2).
+        (paper Sec. III-A, eq. 2); ``target`` is the tool point (``Equilibrium.tip``).
+
+        Raises InfeasibleTargetError (naming the violated bound and giving the nearest reachable tool point)
+        when no tensions inside the bounds reach the target, ConvergenceError if a solve fails.
+        With more than 3 tendons the solution is not unique: the one with the least Σ T² is returned.
+        The state returned is a stable equilibrium at the tensions found (UnstableEquilibriumError
+        otherwise, unless ``check_stability=False``).  The pressure is checked against the actuator's
+        limits (``check_limits=False`` skips that; the tensions always stay inside their bounds).
+
+        With a shear compliance s(p) (:mod:`ancf.shear`) the tool point is p_end(q) + u(q), u = s P⊥ F: the
+        rod's IK is solved for the corrected target p_d − u, u taken at the previous solution, until the tool
+        point is within ``tol_position`` of p_d (a fixed point; u turns with the tip tangent only, so each
+        pass shrinks the error by about s |F| / L).  Without one this is the rod's IK itself."""
+        if not self._has_shear:
+            return self._ik_rod(target, pressure, tip_force, q0, tensions0, tol=tol, tol_position=tol_position,
+                                max_iter=max_iter, check_limits=check_limits, check_stability=check_stability)
+        tol_position = check_scalar("tol_position", tol_position, low=1e-15, high=1e-2, unit="m")
+        pd = check_finite("target", target, (3,))
+        _, pr, F = self._check_inputs(None, pressure, tip_force, check_limits)
+        T0 = np.zeros(self.m) if tensions0 is None else check_finite("tensions0", tensions0, (self.m,))
+        if q0 is None:                          # the rod IK's own default start, shared
+            p = self.params
+            q0 = self.fk(np.clip(T0, p.tension_min, p.tension_max), pr, F, check_limits=check_limits).q
+        u = self._shear_parts(self._q_tip_frame(q0), pr, F)[0]
+        err_hist = []
+        for _ in range(50):
+            try:
+                eq = self._ik_rod(pd - u, pr, F, q0, T0, tol=tol, tol_position=max(0.5 * tol_position, 1e-15),
+                                  max_iter=max_iter, check_limits=check_limits, check_stability=check_stability)
+            except InfeasibleTargetError as exc:
+                # the corrected target of a pass may lie just outside the reachable set while the tool point
+                # target does not: go on from the nearest state until u stops changing
+                if exc.tensions is None:
+                    raise
+                try:
+                    near = self.fk(exc.tensions, pr, F, q0=q0, check_limits=False, check_stability=False)
+                except (ConvergenceError, CollapsedStateError):
+                    raise exc from None
+                u_near = near.tip - self._tip(near.q)
+                if np.linalg.norm(u_near - u) > 0.5 * tol_position:
+                    u, q0, T0 = u_near, near.q, np.asarray(exc.tensions, float)
+                    err_hist.append(float(np.linalg.norm(near.tip - pd)))
+                    continue
+                raise InfeasibleTargetError(
+                    f"IK target {vector(pd, 'mm', 1e3, 3)} (tool point, shear offset {vector(u, 'mm', 1e3, 3)}): "
+                    f"{exc}; nearest reachable tool point {vector(near.tip, 'mm', 1e3, 3)}", target=pd,
+                    nearest=near.tip, tensions=exc.tensions, violated=exc.violated) from None
+            err = float(np.linalg.norm(eq.tip - pd))
+            err_hist.append(err)
+            if err <= tol_position:
+                return eq
+            u = eq.tip - self._tip(eq.q)
+            q0, T0 = eq.q, eq.tensions
+        raise ConvergenceError("the IK's shear correction of the target did not converge (tool point errors "
+                               f"{', '.join(f'{e:.3g}' for e in err_hist[-4:])} m)", solver="ik",
+                               iterations=len(err_hist), residual_norm=err_hist[-1], tolerance=tol_position,
+                               history=err_hist)
+
+    def _ik_rod(self, target, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), q0=None, tensions0=None, *,
+                tol: Optional[float] = None, tol_position: float = 1e-9, max_iter: int = 60,
+                check_limits: bool = True, check_stability: bool = True) -> Equilibrium:
+        """The rod's IK (:meth:`ik` without the shear correction: ``target`` is p_end).  Inverse kinetostatics
+        (p_d [m], p [Pa], F_e [N]) → (q, T) with T_min ≤ T ≤ T_max (paper Sec. III-A, eq. 2).
 
         Raises InfeasibleTargetError (naming the violated bound and giving the nearest reachable tip)
         when no tensions inside the bounds reach the target, ConvergenceError if a solve fails.

@@ -50,6 +50,8 @@ UNITS: dict[str, dict[str, float]] = {
     # coefficients of powers of the normalised pressure p̂ = p/100 kPa (ancf.stiffness, pressure factors);
     # only this spelling: a coefficient of (p/1 kPa)^j would need a different factor per power
     "pressure_polynomial": {"per_100kPa": 1.0},
+    # coefficients s_j [m/N] of s(p) = Σ s_j p̂^j, p̂ = p/100 kPa (the series shear compliance, ancf.shear)
+    "compliance_polynomial": {"m_per_N_per_100kPa": 1.0, "mm_per_N_per_100kPa": 1e-3},
 }
 
 # field name -> dimension, for the top level of an actuator TOML file
@@ -60,7 +62,7 @@ TOP_FIELDS = {
     "base_axis": "dimensionless", "reference_direction": "dimensionless", "gravity": "acceleration",
     "tension_min": "force", "tension_max": "force", "pressure_min": "pressure", "pressure_max": "pressure",
     "free_base_stretch": None, "pressure_area_slope": "dimensionless",
-    "tendon_stiffness": "stiffness",
+    "tendon_stiffness": "stiffness", "shear_compliance_coeffs": "compliance_polynomial",
     "rayleigh_alpha": "rate", "rayleigh_beta": "time", "axial_damping": "force_time",
 }
 STIFFNESS_FIELDS = {"law": None, "a": "force", "b": "force", "D_a": "length", "EA": "force",
@@ -91,6 +93,7 @@ PLAUSIBLE: dict[str, tuple[float, float, bool]] = {
     "rayleigh_alpha": (1e-6, 1e4, True),       # 0, or 1e-6 … 1e4 1/s
     "rayleigh_beta": (1e-9, 1.0, True),        # 0, or 1 ns … 1 s
     "axial_damping": (1e-6, 1e6, True),        # 0, or 1e-6 … 1e6 N s
+    "shear_compliance_coeffs": (-1.0, 1.0, True),   # each s_j within ±1 m/N (the sum is checked ≥ 0)
 }
 INT_FIELDS = ("n_elements", "quadrature_points")
 BOOL_FIELDS = ("free_base_stretch",)
@@ -255,6 +258,9 @@ class ActuatorParams(BaseModel):
     rayleigh_beta : float          stiffness-proportional damping β [s] (K₀: the tangent at the start state)
     axial_damping : float          Kelvin–Voigt axial strain-rate damping c_a [N s]: axial force c_a ε̇,
                                    ε = ½(λ² − 1); the retardation time is c_a / EA
+    shear_compliance : tuple       coefficients (s₀, s₁, s₂, …) [m/N] of the series rotation-free tip
+                                   compliance s(p) = Σ s_j p̂^j, p̂ = p/100 kPa (:mod:`ancf.shear`); () : none.
+                                   s(p) ≥ 0 over [pressure_min, pressure_max] is checked
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=False)
@@ -283,6 +289,21 @@ class ActuatorParams(BaseModel):
     rayleigh_alpha: float = 0.0
     rayleigh_beta: float = 0.0
     axial_damping: float = 0.0
+    shear_compliance: tuple[float, ...] = ()
+
+    @field_validator("shear_compliance", mode="before")
+    @classmethod
+    def _shear(cls, v):
+        if isinstance(v, (str, bytes)) or not hasattr(v, "__len__"):
+            raise ValueError(f"shear_compliance must be a sequence of coefficients [m/N], got {v!r}")
+        out = tuple(_real_number(x, "shear_compliance") for x in v)
+        if len(out) > 6:
+            raise ValueError(f"shear_compliance takes at most 6 coefficients (s₀ … s₅), got {len(out)}")
+        for x in out:
+            if not (isinstance(x, float) and math.isfinite(x) and abs(x) <= 1.0):
+                raise ValueError(f"shear_compliance coefficient {x!r} must be finite and within ±1 m/N "
+                                 "(SI units in the Python API: 4 mm/N = 0.004)")
+        return out
 
     @field_validator("tendon_stiffness")
     @classmethod
@@ -394,6 +415,13 @@ class ActuatorParams(BaseModel):
                                  f"kPa, inside the pressure limits [{self.pressure_min / 1e3:g}, "
                                  f"{self.pressure_max / 1e3:g}] kPa: {which} must stay positive over the "
                                  "operating range")
+        if any(self.shear_compliance):
+            from .shear import minimum
+            smin, p = minimum(self.shear_compliance, self.pressure_min, self.pressure_max)
+            if not smin >= 0:
+                raise ValueError(f"the shear compliance s(p) = {smin:.4g} m/N < 0 at p = {p / 1e3:g} kPa, inside "
+                                 f"the pressure limits [{self.pressure_min / 1e3:g}, {self.pressure_max / 1e3:g}] "
+                                 "kPa: s must be ≥ 0 over the operating range")
         return self
 
     def __init__(self, **data):
@@ -447,6 +475,7 @@ class ActuatorParams(BaseModel):
         data = self.model_dump()
         data.update(changes)
         data["stiffness"] = changes.get("stiffness", self.stiffness)
+        data["shear_compliance"] = changes.get("shear_compliance", self.shear_compliance)
         if "tendons" not in changes:
             data["tendons"] = self.tendons
         return ActuatorParams(**data)
@@ -512,6 +541,12 @@ class ActuatorParams(BaseModel):
                 v = np.asarray(top[k])
                 if k != "gravity" and abs(np.linalg.norm(v) - 1.0) > 1e-12 and np.linalg.norm(v) > 0:
                     top[k] = tuple(float(x) for x in v / np.linalg.norm(v))   # exact unit vectors are kept
+        if "shear_compliance_coeffs" in top:
+            v = top.pop("shear_compliance_coeffs")
+            if not isinstance(v, list):
+                raise ConfigError(f"{where}.shear_compliance_coeffs_mm_per_N_per_100kPa: expected a list of numbers "
+                                  f"(coefficients of (p/100 kPa)^0, ^1, ^2, …), got {v!r}")
+            top["shear_compliance"] = tuple(v)
         return cls(stiffness=stiffness, tendons=tuple(tl), **top)
 
     def to_toml(self) -> str:
@@ -534,6 +569,8 @@ class ActuatorParams(BaseModel):
             *([f"rayleigh_alpha_per_s = {self.rayleigh_alpha!r}"] if self.rayleigh_alpha else []),
             *([f"rayleigh_beta_s = {self.rayleigh_beta!r}"] if self.rayleigh_beta else []),
             *([f"axial_damping_N_s = {self.axial_damping!r}"] if self.axial_damping else []),
+            *([f"shear_compliance_coeffs_m_per_N_per_100kPa = {list(self.shear_compliance)}"]
+              if self.shear_compliance else []),
             "", "[stiffness]",
             f'law = "{self.stiffness.kind}"']
         s = self.stiffness

@@ -77,6 +77,7 @@ from ancf.errors import (
     InputError,
     UnstableEquilibriumError,
 )
+from ancf.shear import offset as shear_offset
 
 from .forms import ModelForm, distance_column, position_matrix
 
@@ -97,7 +98,7 @@ INFEASIBLE = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError, I
 _RETRY = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError)
 #: Signed parameters (slopes, intercepts) for which zero is a meaningful value: rule (2) of the module
 #: docstring (CI wider than the value) does not apply to them.
-SIGNED = frozenset({"a", "b", "beta", "sA", "sI", "pI1", "pI2", "pA1"})
+SIGNED = frozenset({"a", "b", "beta", "sA", "sI", "pI1", "pI2", "pA1", "s0", "s1"})
 
 
 @dataclass
@@ -283,8 +284,11 @@ class _Evaluator:
                 if form.fits_distance:
                     dQ[:, -1] = distance_column(model, eq.q, T, p, F)
                 dz = -np.linalg.solve(H, model.reduce_vec(dQ.T).T)          # (nz, n)
-                Jp = model.reduce_vec(model.tip_jacobian(eq.q))             # (3, nz)
+                Jp = model.reduce_vec(model.tool_jacobian(eq.q, p, F))      # (3, nz): p_end + shear offset
                 J[i, :3] = Jp @ dz
+                if form.shear is not None:        # ∂x/∂s = P⊥F_tot times ∂s/∂θ (validation.forms docstring)
+                    PF = shear_offset(eq.q[-3:], 1.0, model.total_tip_load(F))
+                    J[i, :3] += np.outer(PF, form.shear_columns(theta, p))
                 if k:
                     J[i, 3:] = model.reduce_vec(S) @ dz
         if failures:

@@ -32,7 +32,18 @@ form                law                                                         
 ``constant``        EA, EI constant,  A = π D_eff²/4                                     EA [N], EI [N m²], D_eff [m]
 ``pressure_ei``     as ``separate``, EI × (1 + pI1 p̂ + pI2 p̂²),  p̂ = p / 100 kPa             EA₁, s_A, EI₁, s_I, pI1 [−], pI2 [−], D_eff
 ``pressure_ei_ea``  as ``pressure_ei``, EA × (1 + pA1 p̂)                                   + pA1 [−]
+``pressure_ei_shear`` as ``pressure_ei``, a series shear compliance s = s0 + s1 p̂            + s0, s1 [m/N]
 ==================  ===================================================================  =========================
+
+The shear form (``pressure_ei_shear``; docs/identification.md §4b, :mod:`ancf.shear`) adds a rotation-free
+tip compliance s(p) = s0 + s1 p̂ in series (s0, s1 ≥ 0, so s ≥ 0 at every p ≥ 0).  It does not enter Q: the
+rod's equilibrium is unchanged and the tool point is x = p_end(q) + s P⊥ F, so with J_x = ∂x/∂q
+(:meth:`ancf.Model.tool_jacobian`)
+
+    ∂x/∂θ_j = −J_x H⁻¹ ∂Q/∂θ_j + (∂s/∂θ_j) P⊥ F,    ∂s/∂s0 = 1,  ∂s/∂s1 = p̂        (exact; linear in s0, s1).
+
+Markers lie on the centreline and do not see s: it is identified by tip-force states against the markers and
+the tendon bends at the same pressure.
 
 k₁ = EA(1) rather than the paper's intercept b is fitted (b = k₁ − a is reported) so that the axial
 stiffness at rest — the best-determined quantity — is one parameter, bounded positive.  Every form reports
@@ -58,7 +69,7 @@ __all__ = ["ModelForm", "FORMS", "get_form", "position_matrix", "REPORTED", "MEA
 
 #: Derived values every form reports, with units.
 REPORTED = {"a": "N", "b": "N", "EA": "N", "EI": "N m^2", "D_a": "m", "D_eff": "m", "beta": "-", "d": "m",
-            "EI_100kPa": "N m^2", "EA_100kPa": "N"}
+            "EI_100kPa": "N m^2", "EA_100kPa": "N", "s_0kPa": "m/N", "s_100kPa": "m/N"}
 
 #: What each parameter of a form (``ModelForm.names``) and each reported value means (tables of the report).
 MEANINGS = {
@@ -74,11 +85,14 @@ MEANINGS = {
     "pA1": "pressure coefficient of EA: EA(λ, p) = EA(λ)(1 + pA1 p̂), p̂ = p/100 kPa",
     "EI_100kPa": "bending stiffness at rest at 100 kPa, EI(1, 100 kPa)",
     "EA_100kPa": "axial stiffness at rest at 100 kPa, EA(1, 100 kPa)",
+    "s0": "series rotation-free (shear) tip compliance at 0 kPa: s(p) = s0 + s1 p̂, p̂ = p/100 kPa",
+    "s1": "pressure coefficient of the shear tip compliance (see s0)",
+    "s_0kPa": "shear tip compliance at 0 kPa, s(0)", "s_100kPa": "shear tip compliance at 100 kPa, s(100 kPa)",
 }
 
 
 #: How the tables show a parameter of each SI unit: unit → (scale, shown unit).
-DISPLAY_UNITS = {"m": (1e3, "mm"), "N m^2": (1.0, "N m²"), "-": (1.0, "–"), "N": (1.0, "N")}
+DISPLAY_UNITS = {"m": (1e3, "mm"), "N m^2": (1.0, "N m²"), "-": (1.0, "–"), "N": (1.0, "N"), "m/N": (1e3, "mm/N")}
 
 
 def display_unit(unit: str) -> tuple:
@@ -95,7 +109,9 @@ class ModelForm:
     laws_jacobian(θ) → list over θ_j of (∂ea, ∂ei, ∂c) (the distance column is handled separately);
     pressure(θ) → (EA factor coefficients, EI factor coefficients) of the pressure-dependent forms
     (:meth:`ancf.StiffnessLaw.with_pressure`), None for the others; pressure_jacobian(θ) → list over θ_j of their
-    derivatives.
+    derivatives.  shear(θ) → the shear compliance coefficients (s₀, s₁, …) [m/N] of
+    ``ActuatorParams.shear_compliance`` (None: the form has none); shear_jacobian(θ) → list over θ_j of their
+    derivatives (they do not enter Q: module docstring).
     """
     name: str
     names: tuple
@@ -109,6 +125,8 @@ class ModelForm:
     typical: tuple = ()
     pressure: Callable | None = None
     pressure_jacobian: Callable | None = None
+    shear: Callable | None = None
+    shear_jacobian: Callable | None = None
 
     @property
     def n(self) -> int:
@@ -157,6 +175,8 @@ class ModelForm:
             pA, pI = self.pressure(np.asarray(theta, float))
             law = law.with_pressure(EA=tuple(float(c) for c in pA), EI=tuple(float(c) for c in pI))
         changes = dict(stiffness=law, D_eff=D_eff, pressure_area_slope=beta)
+        if self.shear is not None:
+            changes["shear_compliance"] = tuple(float(v) for v in self.shear(np.asarray(theta, float)))
         if d is not None:
             from ancf.params import Tendon
             changes["tendons"] = tuple(Tendon(distance=d, angle=t.angle) for t in base.tendons)
@@ -180,6 +200,19 @@ class ModelForm:
             out["EI_100kPa"] = EI1 * _factor(pI, 1.0)
             if len(pA):
                 out["EA_100kPa"] = EA1 * _factor(pA, 1.0)
+        if self.shear is not None:
+            sc = self.shear(np.asarray(theta, float))
+            out["s_0kPa"], out["s_100kPa"] = float(sc[0]), float(sum(sc))
+        return out
+
+    def shear_columns(self, theta, pressure: float) -> np.ndarray:
+        """∂s/∂θ (n,) [m/N per unit θ_j] at ``pressure`` [Pa] (zeros for a form without shear)."""
+        out = np.zeros(self.n)
+        if self.shear is None:
+            return out
+        x = float(pressure) / P_REF
+        for j, dc in enumerate(self.shear_jacobian(np.asarray(theta, float))):
+            out[j] = sum(float(c) * x ** k for k, c in enumerate(dc))
         return out
 
     def derived_jacobian(self, theta) -> tuple[list, np.ndarray]:
@@ -377,6 +410,12 @@ def _pressure_jac(th, area=False):
     return cols
 
 
+def _shear_form_jac(th, area=False):
+    """``pressure_ei_shear``: the ``pressure_ei`` columns, then zero columns for s0, s1 (they do not enter Q)."""
+    z2, zc = np.zeros(2), np.zeros(1)
+    return _pressure_jac(th) + [(z2, z2, zc), (z2, z2, zc)]
+
+
 def _pressure_factors(th, with_ea=False, dist=False):
     """(EA factor coefficients, EI factor coefficients) of the pressure forms (``with_ea``: ``pressure_ei_ea``)."""
     return ((th[6],) if with_ea else ()), (th[4], th[5])
@@ -422,12 +461,30 @@ _DEF = {
                        (_BIG, _BIG, _BIG, _BIG, 10.0, 10.0, 10.0, 1.0), _pressure_laws, _pressure_jac, True,
                        "separate linear laws; EI × (1 + pI1 p̂ + pI2 p̂²), EA × (1 + pA1 p̂), p̂ = p/100 kPa; "
                        "constant pressure area"),
+    "pressure_ei_shear": (("EA1", "sA", "EI1", "sI", "pI1", "pI2", "D_eff", "s0", "s1"),
+                          ("N", "N", "N m^2", "N m^2", "-", "-", "m", "m/N", "m/N"),
+                          (1e-3, -_BIG, 1e-9, -_BIG, -10.0, -10.0, 1e-4, 0.0, 0.0),
+                          (_BIG, _BIG, _BIG, _BIG, 10.0, 10.0, 1.0, 1.0, 1.0), _pressure_laws, _shear_form_jac,
+                          False, "separate linear laws; EI × (1 + pI1 p̂ + pI2 p̂²), p̂ = p/100 kPa; constant pressure "
+                                 "area; series shear tip compliance s = s0 + s1 p̂"),
 }
-_PRESSURE_FORMS = {"pressure_ei", "pressure_ei_ea"}
+_PRESSURE_FORMS = {"pressure_ei", "pressure_ei_ea", "pressure_ei_shear"}
+#: forms with a series shear compliance: index of s0 in θ (s0, s1 follow D_eff)
+_SHEAR_FORMS = {"pressure_ei_shear": 7}
+
+
+def _shear_coeffs(th, first: int):
+    """(s0, s1) [m/N] of a shear form."""
+    return (float(th[first]), float(th[first + 1]))
+
+
+def _shear_coeffs_jac(th, first: int, n: int):
+    return [(1.0 if j == first else 0.0, 1.0 if j == first + 1 else 0.0) for j in range(n)]
 
 #: Typical size of each signed parameter (:meth:`ModelForm.typical_scale`): the magnitude parameter it is a
 #: slope of, or a number; every other parameter's typical size is its own starting value.
-_TYPICAL = {"a": "k1", "sA": "EA1", "cA": "EA1", "sI": "EI1", "beta": 1.0, "pI1": 1.0, "pI2": 1.0, "pA1": 1.0}
+_TYPICAL = {"a": "k1", "sA": "EA1", "cA": "EA1", "sI": "EI1", "beta": 1.0, "pI1": 1.0, "pI2": 1.0, "pA1": 1.0,
+            "s0": 1e-3, "s1": 1e-3}
 
 
 def get_form(name: str, fit_distance: bool = False) -> ModelForm:
@@ -443,11 +500,16 @@ def get_form(name: str, fit_distance: bool = False) -> ModelForm:
     if name in _PRESSURE_FORMS:
         pressure = lambda th, area=area: _pressure_factors(th, area)                    # noqa: E731
         pressure_jac = lambda th, area=area: _pressure_factors_jac(th, area)            # noqa: E731
+    shear = shear_jac = None
+    if name in _SHEAR_FORMS:
+        first, n_all = _SHEAR_FORMS[name], len(names)
+        shear = lambda th, k=first: _shear_coeffs(th, k)                                # noqa: E731
+        shear_jac = lambda th, k=first, n=n_all: _shear_coeffs_jac(th, k, n)            # noqa: E731
     return ModelForm(name + ("+d" if fit_distance else ""), names, units, lo, hi,
                      lambda th, laws=laws, area=area, fd=fit_distance: laws(th, area, fd),
                      lambda th, jac=jac, area=area, fd=fit_distance: jac(th, area) + ([(None, None, None)] if fd else []),
                      fit_distance, desc + (", tendon distance fitted" if fit_distance else ""), typical,
-                     pressure, pressure_jac)
+                     pressure, pressure_jac, shear, shear_jac)
 
 
 FORMS = tuple(_DEF)

@@ -113,6 +113,19 @@ def fem_base_params(geometry, material, *, n_elements: int = 6, tension_max: flo
         pressure_max=pressure_max)
 
 
+def initial_shear(rod: Optional[dict], base: ActuatorParams) -> float:
+    """First estimate of the shear tip compliance s₀ [m/N] at 0 kPa: the FEM's rotation-free lateral compliance
+    from its unloaded cap compliance (``rod["cap_compliance"]``, :func:`validation.locked_gap.shear_compliance`:
+    c_δF − (4/3) c_θF c_δM / c_θM, docs/identification.md §4b), mean of the two lateral directions, at least 0;
+    without the FEM the base actuator's s(0)."""
+    C6 = None if not rod else rod.get("cap_compliance")
+    if C6 is None:
+        return float(base.shear_compliance[0]) if base.shear_compliance else 0.0
+    from .locked_gap import shear_compliance
+    s = 0.5 * (shear_compliance(C6, (0.0, 0.0, 1.0)) + shear_compliance(C6, (0.0, 1.0, 0.0)))
+    return max(float(s), 0.0) if math.isfinite(s) else 0.0
+
+
 def initial_theta(form, rod: Optional[dict], base: ActuatorParams) -> np.ndarray:
     """Starting point of ``form``: the closed-form rod values (FEM) or the base actuator's law."""
     if rod:
@@ -125,7 +138,8 @@ def initial_theta(form, rod: Optional[dict], base: ActuatorParams) -> np.ndarray
           "separate": [EA, 0.0, EI, 0.0, D_eff], "separate_area": [EA, 0.0, EI, 0.0, D_eff, 0.0],
           "quadratic": [EA, 0.0, 0.0, EI, 0.0, D_eff],
           "constant": [EA, EI, D_eff], "pressure_ei": [EA, 0.0, EI, 0.0, 0.0, 0.0, D_eff],
-          "pressure_ei_ea": [EA, 0.0, EI, 0.0, 0.0, 0.0, 0.0, D_eff]}[name]
+          "pressure_ei_ea": [EA, 0.0, EI, 0.0, 0.0, 0.0, 0.0, D_eff],
+          "pressure_ei_shear": [EA, 0.0, EI, 0.0, 0.0, 0.0, D_eff, initial_shear(rod, base), 0.0]}[name]
     if form.fits_distance:
         th.append(float(np.mean(base.tendon_distances)))
     return np.array(th, float)

@@ -39,7 +39,7 @@ WORKERS_HELP = "Parallel FEM processes (default: all cores)."
 SCHEDULER_HELP = "dask scheduler address (tcp://host:8786) to run the FEM cases on a cluster."
 FORMS_HELP = f"Model forms to compare, comma separated, from {one_of(FORMS)} (default: all)."
 DEFAULT_CACHE = pathlib.Path("bellows_out/fem_cache")
-QUICK_FORMS = ("paper", "separate", "pressure_ei")
+QUICK_FORMS = ("paper", "separate", "pressure_ei", "pressure_ei_shear")
 N_FEM_CASES = len(default_design().cases)
 QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)}, no stiffness-vs-tension study and no FEM modes (the "
               "Dynamics section shows the rod's). The FEM solves of the "

@@ -195,6 +195,17 @@ def _compliance_example(val: ValidationResult) -> Optional[dict]:
                                            "ancf": _matrix(r[f"C_{m}_ancf"])} for m in ("tension", "locked")]}
 
 
+def _shear_note(params) -> str:
+    """What the chosen reduced model does with the FEM's rotation-free lateral compliance (ancf.shear)."""
+    sc = tuple(getattr(params, "shear_compliance", ()) or ())
+    if any(sc):
+        from ancf.shear import compliance
+        return (f"the chosen form carries it as a series shear compliance, s = {1e3 * compliance(sc, 0.0):.2f} / "
+                f"{1e3 * compliance(sc, 100e3):.2f} mm/N at 0 / 100 kPa")
+    return ("the chosen reduced model has no shear compliance and misses that share (the form "
+            "'pressure_ei_shear' adds one)")
+
+
 def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], stiffness: Optional[dict]) -> list[str]:
     d = []
     v = ident.values
@@ -240,7 +251,7 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
         if ident.rod.get("EI_tip_force") and ident.rod.get("EI"):
             sh = ident.rod["EI"] / ident.rod["EI_tip_force"] - 1
             d.append(f"Shear: a tip force bends the unloaded FEM {100 * sh:.1f} % more than its pure-moment EI predicts; "
-                     "the reduced model (no shear compliance) misses that share of lateral-force deflections.")
+                     + _shear_note(ident.params) + ".")
     if ident.not_identifiable:
         d.append("Not identifiable: " + ", ".join(ident.not_identifiable) + ". The fit held these at its first-pass "
                  "optimum and refitted the rest (fit.json: 'held'); the actuator file marks them.")
@@ -249,8 +260,8 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
                  f"{val.ratio['fem']['mean']:.2f} (max {val.ratio['fem']['max']:.2f}), reduced model "
                  f"{val.ratio['ancf']['mean']:.2f} "
                  f"(max {val.ratio['ancf']['max']:.2f}); the paper reports \"about twice\". The FEM's is lower where its tip "
-                 "moves sideways without turning (shear-like, growing with pressure), which locked tendons cannot hold and "
-                 "the reduced model has no term for (section 3b; docs/identification.md §4b).")
+                 "moves sideways without turning (shear-like, growing with pressure), which locked tendons cannot hold; "
+                 + _shear_note(ident.params) + " (section 3b; docs/identification.md §4b).")
     if val is not None and val.failures:
         d.append(f"{len(val.failures)} held-out state(s) could not be compared: "
                  + "; ".join(f"{f['label']} ({f['model']}: {f['error']})" for f in val.failures))

@@ -22,6 +22,7 @@ TRUE = {
     "constant": [767.2, 0.0839, 0.02605],
     "pressure_ei": [700.0, 900.0, 0.09, 0.15, 0.8, 0.3, 0.024],
     "pressure_ei_ea": [700.0, 900.0, 0.09, 0.15, 0.8, 0.3, 0.25, 0.024],
+    "pressure_ei_shear": [700.0, 900.0, 0.09, 0.15, 0.8, 0.3, 0.024, 0.5e-3, 3.3e-3],
 }
 MARKERS = np.array([0.04, 0.08, 0.12])
 
@@ -47,7 +48,10 @@ def test_exact_parameter_jacobian_matches_finite_differences(name):
     from validation.fit import _Evaluator
     form = get_form(name, fit_distance=(name == "paper"))
     theta = np.array(TRUE[name] + ([0.0275] if form.fits_distance else []), float)
-    obs = synthetic(form, theta, default_design().training[::3])
+    cases = default_design().training[::3]
+    if form.shear is not None:          # s1 (∝ p̂) needs a tip force under pressure: the 90 kPa one
+        cases = cases + [c for c in default_design().training if c.pressure > 0 and any(c.tip_force)]
+    obs = synthetic(form, theta, cases)
     ev = _Evaluator(form, obs, BASE)
     _, _, J = ev.evaluate(theta, jacobian=True)
     for j in range(form.n):
@@ -149,17 +153,21 @@ def test_bad_inputs_are_typed_errors():
         Observations([[1, 0, 0]], [np.nan], [[0, 0, 0]], [False], [[0.16, 0, 0]])
 
 
+def _identify_synthetic(name, truth, forms):
+    """Identify ``forms`` on the default design's training states made by form ``name`` at ``truth``, held out
+    on its held-out states: (result, comparison rows by form)."""
+    design, form = default_design(), get_form(name)
+    train, held = synthetic(form, truth, design.training), synthetic(form, truth, design.heldout)
+    res = identify.identify(train, BASE, heldout=held, forms=forms)
+    return res, {r["form"]: r for r in res.comparison}
+
+
 def test_held_out_evidence_chooses_the_pressure_form_when_ei_grows_with_pressure():
     """States of a bellows whose EI grows with pressure like the FEM's (× 1.9 at 100 kPa): the stretch-only
     form cannot follow them; ``pressure_ei`` recovers the factor, predicts the held-out states exactly and
     is chosen by the held-out error, with its pressure coefficients identified."""
-    design = default_design()
     truth = np.array([700.0, 900.0, 0.09, 0.15, 0.55, 0.35, 0.024])
-    form = get_form("pressure_ei")
-    train = synthetic(form, truth, design.training)
-    held = synthetic(form, truth, design.heldout)
-    res = identify.identify(train, BASE, heldout=held, forms=("separate", "pressure_ei"))
-    rows = {r["form"]: r for r in res.comparison}
+    res, rows = _identify_synthetic("pressure_ei", truth, ("separate", "pressure_ei"))
     assert res.form == "pressure_ei"
     assert rows["pressure_ei"]["heldout_rms_tip_m"] < 1e-8
     assert rows["separate"]["heldout_rms_tip_m"] > 1e-3                  # millimetres off
@@ -174,3 +182,21 @@ def test_held_out_evidence_chooses_the_pressure_form_when_ei_grows_with_pressure
     assert "#   pI1    = 0.55 per (p/100 kPa)^1  (95 % CI" in text and "EI_pressure_coeffs_per_100kPa" in text
     from ancf import ActuatorParams
     assert ActuatorParams.from_toml_string(text) == res.params
+
+
+def test_held_out_evidence_chooses_the_shear_form_when_the_tip_has_a_rotation_free_compliance():
+    """States of a bellows with the FEM's series rotation-free tip compliance (s = 0.5 → 3.8 mm/N from 0 to
+    100 kPa): ``pressure_ei_shear`` recovers s₀, s₁ exactly, is chosen by the held-out error over
+    ``pressure_ei``, reports s at 0 and 100 kPa and writes an actuator file with the shear key."""
+    truth = np.array([700.0, 900.0, 0.09, 0.15, 0.55, 0.35, 0.024, 0.5e-3, 3.3e-3])
+    res, rows = _identify_synthetic("pressure_ei_shear", truth, ("pressure_ei", "pressure_ei_shear"))
+    assert res.form == "pressure_ei_shear"
+    assert rows["pressure_ei_shear"]["heldout_rms_tip_m"] < 1e-8
+    assert rows["pressure_ei"]["heldout_rms_tip_m"] > 1e-5
+    f = res.fits["pressure_ei_shear"]
+    np.testing.assert_allclose(f.theta, truth, rtol=1e-6)
+    assert f.identifiable["s0"] and f.identifiable["s1"]
+    assert res.values["s_100kPa"] == pytest.approx(3.8e-3, rel=1e-6)
+    assert res.params.shear_compliance == pytest.approx((0.5e-3, 3.3e-3), rel=1e-6)
+    from ancf import ActuatorParams
+    assert ActuatorParams.from_toml_string(res.to_toml()) == res.params

@@ -166,3 +166,30 @@ def test_docs_table_is_the_program_output(tmp_path):
                 digits = a.split("/")[0].strip()
                 step = 10.0 ** -(len(digits.split(".")[1]) if "." in digits else 0)
                 assert abs(x - y) <= step * 1.01, (ld, lg)
+
+
+@pytest.mark.parametrize("GA", [math.inf, 40.0])
+def test_rod_with_the_shear_term_adds_what_the_timoshenko_cap_adds(GA):
+    """The reduced model with ``shear_compliance`` = L/GA (ancf.shear) on a straight unloaded cantilever gains
+    exactly what the Timoshenko cap compliance gains over the Euler–Bernoulli one (:func:`locked_from_cap`) in
+    both the held and the one-tendon locked compliance, and the first estimate of s₀ from a cap compliance
+    (``identify.initial_shear``) is L/GA."""
+    from validation import identify
+    from validation.forms import get_form
+    s = 0.0 if math.isinf(GA) else L / GA
+    base = presets.paper().replace(gravity=(0.0, 0.0, 0.0), tip_mass=0.0, tool_offset=0.0, length=L,
+                                   stiffness=StiffnessLaw.constant(EA, EI))
+    out = []
+    for par in (base, base.replace(shear_compliance=(s,))):
+        model = Model(par)
+        eq = model.fk((0.0, 0.0, 0.0), 0.0)
+        out.append((cp.tension(model, eq).C_p[2, 2], cp.locked(model, eq, method="exact", active=(0,)).C_p[2, 2]))
+    cap = [(locked_from_cap(C6, np.zeros(3), np.zeros((0, 3)))[2, 2], locked_from_cap(C6, np.zeros(3),
+                                                                                      [anchor(0.0)])[2, 2])
+           for C6 in (cantilever_c6(), cantilever_c6(GA))]
+    for k in range(2):
+        assert out[1][k] - out[0][k] == pytest.approx(cap[1][k] - cap[0][k], abs=1e-12 + 1e-9 * s)
+    assert out[0][0] == pytest.approx(L ** 3 / (3 * EI), rel=1e-6)
+    rod = {"EA": EA, "EI": EI, "D_eff": 0.02, "cap_compliance": cantilever_c6(GA).tolist()}
+    th = identify.initial_theta(get_form("pressure_ei_shear"), rod, base)
+    assert th[7] == pytest.approx(s, abs=1e-12) and th[8] == 0.0

@@ -137,3 +137,13 @@ def test_the_ratio_table_shows_fem_and_model_per_state(separate_result):
     assert cells["ratio, FEM [–]"] == "2.1" and cells["ratio, reduced model [–]"] == "1.9"
     assert cells["difference, reduced vs FEM [%]"] == f"{100 * (1.9 / 2.1 - 1):+.1f}"
     assert cells["taut, FEM"] == "1" and cells["taut, reduced model"] == "1, 2"
+
+
+def test_shear_diagnostic_names_the_chosen_forms_term():
+    """The report's shear sentences say whether the chosen reduced model carries a series shear compliance
+    (ancf.shear) and, if so, its s at 0 and 100 kPa."""
+    from ancf import presets
+    from validation.report import _shear_note
+    assert "has no shear compliance" in _shear_note(presets.paper())
+    text = _shear_note(presets.paper().replace(shear_compliance=(0.5e-3, 3.3e-3)))
+    assert "s = 0.50 / 3.80 mm/N at 0 / 100 kPa" in text
