@@ -45,8 +45,12 @@ def _solver_candidates(n: int, all_solvers: bool = False):
     names = available_solvers()
     if "pardiso" in names:
         cands["pypardiso mtype 11, analysis+factor"] = lambda A: factorize(A, "pardiso_no_reuse")
-        # what a Newton iteration pays: same pattern as the previous factorisation -> phase 22 only
-        cands["pypardiso mtype 11, pattern reused"] = lambda A: factorize(A, "pardiso")
+        # what a Newton iteration paid: same pattern as the previous factorisation -> phase 22 only
+        cands["pypardiso mtype 11, pattern reused"] = lambda A: factorize(A, "pardiso_lu")
+        # exact solves now: LDLᵀ of the symmetric part, the cap block's asymmetry corrected (refinement/Woodbury)
+        cands["pypardiso mtype -2 + correction (exact)"] = lambda A: factorize(A, "pardiso")
+        # what a Newton iteration pays now: the symmetric part alone
+        cands["pypardiso mtype -2, symmetric part (Newton)"] = lambda A: factorize(A, "pardiso", exact=False)
     cands["splu MMD_AT_PLUS_A, symmetric mode"] = lambda A: factorize(A, "splu")
     if n < 30000 or all_solvers:  # ~12x slower at 14k DOFs and growing; minutes on the reference mesh
         cands["splu MMD_AT_PLUS_A, partial pivoting"] = lambda A: factorize(A, "splu_partial_pivoting")

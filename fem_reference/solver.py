@@ -1,8 +1,12 @@
 """Sparse direct solvers and the Newton / load-stepping driver.
 
 Linear solver choice (measured in ``docs/fem.md`` §4 and ``benchmarks/bench_fem.py``):
-``pypardiso`` (MKL PARDISO, real non-symmetric ``mtype=11`` because the follower-pressure tangent is
-non-symmetric) when importable, else ``scipy.sparse.linalg.splu(A, permc_spec="MMD_AT_PLUS_A")``.
+``pypardiso`` (MKL PARDISO) when importable: the reduced tangent is symmetric to round-off (≤ 1e-9 of its largest
+entry: the follower pressure on the closed cavity is conservative) except in the six rows and columns of the
+cap's rigid motion, where the dead loads' rotational stiffness is not — so the symmetric part is factorised by
+LDLᵀ (``mtype=-2``, ≈ 0.55–0.6 × the LU's numeric factorisation on the default mesh) and the cap block's asymmetry
+is corrected exactly (:class:`_NearlySymmetricFactor`; Newton steps skip the correction), and a matrix that is not
+nearly symmetric gets the LU (``mtype=11``).  Else ``scipy.sparse.linalg.splu(A, permc_spec="MMD_AT_PLUS_A")``.
 Plain ``spsolve`` is never used (it ignores ``permc_spec`` and is 3–5× slower).  Measured by
 ``benchmarks/bench_fem.py`` on the tangent of the combined load case (2 cores), factorisation +
 one solve: 14k DOFs — PARDISO with the analysis reused 0.11 s, PARDISO with a fresh analysis 0.22 s,
@@ -15,6 +19,9 @@ Newton (``BellowsModel._newton`` in :mod:`fem_reference.model`): full Newton on 
 
 - a backtracking line search on the step length α: halve α while the trial iterate has ``det F <= 0``
   at any Gauss point (inadmissible), is not finite, or its residual exceeds ``growth × ‖r‖``;
+- a step whose residual is still above its start after ``STALL_ITERATIONS`` (4) iterations fails at once (the
+  load stepper cuts the increment), intermediate load steps of tension-held solves are converged to
+  ``STEP_RTOL`` (1e-2 of the load), the last one to ``rtol`` (``fem_reference.model``);
 - optional bordered (KKT) solve for length constraints via the Schur complement
   ``(gᵀ K⁻¹ g) Δλ = c − gᵀ K⁻¹ r`` with one factorisation;
 - convergence when ``‖r‖ <= max(atol, rtol · f_ref)`` and ``|c| <= ctol``;
