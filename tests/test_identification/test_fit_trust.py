@@ -114,3 +114,26 @@ def test_a_form_with_too_few_data_is_not_chosen_over_one_that_identifies_somethi
     assert res.form == "constant" and res.values["EA"] is not None
     row = next(r for r in res.comparison if r["form"] == "paper")
     assert "too few data" in row["too_few_data"]
+
+
+def test_one_hypersensitive_state_does_not_hide_the_other_directions():
+    """The rank test is on the row-equilibrated Jacobian: scaling one state's rows by 1e5 (a state near a fold
+    of the model) leaves every parameter identifiable, while a real null direction is found at any row scaling."""
+    from validation.fit import null_share
+    rng = np.random.default_rng(0)
+    J = rng.standard_normal((30, 4))
+    assert np.all(null_share(J) < 1e-6)
+    Jh = J.copy()
+    Jh[:3] *= 1e5                                    # one state's three rows
+    Jh[:3, 0] *= 1e4                                 # … dominated by one parameter
+    sv = np.linalg.svd(Jh, compute_uv=False)
+    assert sv[-1] < 1e-7 * sv[0]                     # the unequilibrated test would call a direction null
+    assert np.all(null_share(Jh) < 1e-6)
+    # a real null direction: columns 2 and 3 enter only as their sum
+    Jn = J.copy()
+    Jn[:, 3] = Jn[:, 2]
+    Jn[:3] *= 1e5
+    share = null_share(Jn)
+    assert share[2] > 0.4 and share[3] > 0.4 and share[0] < 1e-6 and share[1] < 1e-6
+    # fewer rows than parameters: the missing directions are null
+    assert np.isclose(null_share(J[:2]).sum(), 2.0)
