@@ -64,6 +64,9 @@ class ValidationResult:
     targets : the paper's targets and whether they are met;  params : the reduced model used
     fem_error : the FEM's own discretisation error beside these errors (:func:`validation.fem_error.assess`;
     empty when not estimated)
+    extrapolation : held-out states outside the training hull (experiment ``"extrapolation"``,
+    :mod:`validation.design_select`), reported apart and left out of every figure above: ``states`` (labels),
+    ``tip_error_pct``, ``shape_error_pct``, ``compliance_error_pct`` ({"mean", "max"}); empty without such states
     """
     rows: list
     length: float
@@ -77,11 +80,13 @@ class ValidationResult:
     targets: dict = field(default_factory=dict)
     failures: list = field(default_factory=list)
     fem_error: dict = field(default_factory=dict)
+    extrapolation: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return to_jsonable({k: getattr(self, k) for k in ("rows", "length", "tip_error_pct", "shape_error_pct",
                                                          "compliance_error_pct", "stiffness_error_pct", "ratio",
-                                                         "ratio_per_state", "targets", "failures")} | {"params": self.params.to_toml()}
+                                                         "ratio_per_state", "targets", "failures", "extrapolation")}
+                           | {"params": self.params.to_toml()}
                            | {"fem_discretisation_error": self.fem_error or None})
 
 
@@ -98,6 +103,8 @@ def _stats(x) -> dict:
 #: A compliance along an axis below this share of the matrix norm counts as rigid (e.g. the axial direction
 #: with every inextensible tendon locked and taut: exactly zero up to round-off).
 RIGID_SHARE = 1e-9
+#: experiment name of held-out states outside the training hull (reported apart; validation.design_select)
+EXTRAPOLATION = "extrapolation"
 
 
 def _axis_stiffness(C: np.ndarray, u: np.ndarray) -> float:
@@ -163,6 +170,18 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
         rows.append(row)
     out = ValidationResult(rows, L, params, failures=failures)
     failed = [f["label"] for f in failures]
+    # states outside the training hull (validation.design_select) are reported apart: the figures below judge
+    # the model where it was identified
+    ex_rows = [r for r in rows if r["experiment"] == EXTRAPOLATION]
+    rows = [r for r in rows if r["experiment"] != EXTRAPOLATION]
+    if ex_rows:
+        ex_c = [r for r in ex_rows if "C_tension_error_pct" in r]
+        out.extrapolation = {"states": [r["label"] for r in ex_rows],
+                             "tip_error_pct": _stats([r["tip_error_pct"] for r in ex_rows]),
+                             "shape_error_pct": _stats([r["shape_error_pct"] for r in ex_rows])}
+        if ex_c:
+            out.extrapolation["compliance_error_pct"] = {
+                m: _stats([r[f"C_{m}_error_pct"] for r in ex_c]) for m in ("tension", "locked")}
     if not rows:
         out.targets = {name: _target(t, float("nan"), failed) for name, t in
                        (("shape_pct", SHAPE_TARGET_PCT), ("compliance_pct", COMPLIANCE_TARGET_PCT))}

@@ -41,6 +41,7 @@ from ancf.errors import BellowsError, ConfigError, ConvergenceError, InputError
 from ancf.export import to_jsonable
 from ancf.outputs import atomic_write_text, prepare_output_file
 
+from .compare import EXTRAPOLATION
 from .experiments import Design, default_design
 from .fit import FitResult, Observations, fit, predict
 from .forms import FORMS, REPORTED, get_form
@@ -343,7 +344,7 @@ def _finalise_params(res: IdentificationResult, base: ActuatorParams) -> None:
 def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, scheduler=None, cache_dir=None, *,
              design: Optional[Design] = None, forms: Sequence[str] = FORMS, n_elements: int = 6,
              tension_max: float = 5.0, pressure_max: float = 120e3, fit_distance: bool = False,
-             progress: bool = True, compliance: bool = True) -> IdentificationResult:
+             progress: bool = True, compliance: bool = True, cases: str = "default") -> IdentificationResult:
     """Identify the reduced model from virtual experiments on the FEM of ``geometry`` and ``material``.
 
     mesh : FEM mesh level ("coarse" for minutes, "reference" for the full report); workers / scheduler :
@@ -351,28 +352,43 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     results (re-runs compute only what changed; an interrupted sweep resumes); design : the load cases
     (default: :func:`validation.experiments.default_design` for this actuator's range); forms : model forms
     to compare; compliance : also compute the FEM tip compliances of the held-out states (used by
-    :mod:`validation.compare`).
+    :mod:`validation.compare`); cases : without ``design``, ``"default"`` (that design) or ``"informative"``
+    (:func:`validation.design_select.informative_design` for the form with the most parameters, at its start
+    from the closed-form rod estimate).  Held-out states of the experiment ``"extrapolation"`` are compared but
+    do not choose the form.
     """
     from .fem_sweep import FemSpec, check_cases, run_cases, run_rod
     from .runner import check_workers
     check_workers(workers)
     spec = FemSpec(geometry, material, mesh)
-    if design is None:
+    if cases not in ("default", "informative"):
+        raise InputError(f"cases must be 'default' or 'informative', got {cases!r}")
+    if design is None and cases == "default":
         design = default_design(tension_max=tension_max, pressure_max=pressure_max,
                                 tendon_distance=geometry.tendon_radius, length=geometry.length,
                                 n_tendons=len(geometry.tendon_angles))
-    if not design.training:
-        raise InputError("the design has no training cases")
-    check_cases(spec, design.cases)                  # before the first FEM solve
+    if design is not None:
+        if not design.training:
+            raise InputError("the design has no training cases")
+        check_cases(spec, design.cases)                  # before the first FEM solve
     rod = run_rod(spec, cache_dir=cache_dir)
     base = fem_base_params(geometry, material, n_elements=n_elements, tension_max=tension_max,
                            pressure_max=pressure_max, rod=rod)
+    if design is None:
+        from .design_select import informative_design
+        richest = max((get_form(f, fit_distance) for f in forms), key=lambda fm: fm.n)
+        b0 = base.replace(gravity=(0.0, 0.0, 0.0))
+        design = informative_design(richest, b0, initial_theta(richest, rod, b0), tension_max=tension_max,
+                                    pressure_max=pressure_max, tendon_distance=geometry.tendon_radius,
+                                    length=geometry.length, n_tendons=len(geometry.tendon_angles),
+                                    tendon_angles=geometry.tendon_angles).design
+        check_cases(spec, design.cases)
     records = run_cases(spec, design.cases, compliance=(lambda c: c.role == "heldout") if compliance else False,
                         workers=workers, scheduler=scheduler, cache_dir=cache_dir, progress=progress)
     marker_s = [f * geometry.length for f in MARKER_FRACTIONS]
     failed = [{"label": r.case.label, "role": r.case.role, "error": r.error} for r in records if not r.ok]
     tr = [r for r in records if r.case.role == "train" and r.ok]
-    ho = [r for r in records if r.case.role == "heldout" and r.ok]
+    ho = [r for r in records if r.case.role == "heldout" and r.ok and r.case.experiment != EXTRAPOLATION]
     if len(tr) < max(4, len(design.training) // 2):
         raise ConvergenceError(f"the FEM failed on {len(design.training) - len(tr)} of {len(design.training)} "
                                f"training cases (e.g. {failed[0]['label']}: {failed[0]['error']}); too few remain "

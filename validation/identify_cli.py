@@ -55,6 +55,17 @@ FEM_ERROR_HELP = ("Measure the FEM's own discretisation error: the held-out stat
 # options shared by several commands (typer reads these as defaults)
 MESH_OPT = typer.Option("coarse", help=f"FEM mesh level {one_of(MESH_LEVELS)}.")
 FORMS_OPT = typer.Option(None, help=FORMS_HELP)
+CASES_HELP = ("Load cases of the FEM experiments: 'default' (the fixed design, docs/identification.md §2) or "
+              "'informative' (training cases chosen D-optimally for the richest form from a grid over the whole "
+              "range, held-out states inside the training hull and an extrapolation set reported apart; "
+              "validation.design_select).")
+CASES_OPT = typer.Option("default", help=CASES_HELP)
+
+
+def _cases_check(cases: str) -> str:
+    if cases not in ("default", "informative"):
+        raise InputError(f"--cases must be 'default' or 'informative', got {cases!r}")
+    return cases
 FIT_D_OPT = typer.Option(False, help="Also fit the tendon routing distance d.")
 WORKERS_OPT = typer.Option(None, help=WORKERS_HELP)
 SCHEDULER_OPT = typer.Option(None, help=SCHEDULER_HELP)
@@ -114,6 +125,10 @@ def _print_validation(val) -> None:
         console.print(f"compliance error (Frobenius): tension held mean {c['tension']['mean']:.1f} % (max "
                       f"{c['tension']['max']:.1f} %), tendons locked mean {c['locked']['mean']:.1f} % "
                       f"(max {c['locked']['max']:.1f} %)")
+    if val.extrapolation:
+        e = val.extrapolation["tip_error_pct"]
+        console.print(f"extrapolation (outside the training hull, reported apart; {len(val.extrapolation['states'])} "
+                      f"states): tip error mean {e['mean']:.2f} %, max {e['max']:.2f} % of L")
     for name, t in val.targets.items():
         verdict = {"met": "met", "not met": "NOT met"}.get(t.get("status"), "INCOMPLETE (not checked on "
                                                                         f"{', '.join(t.get('incomplete', []))})")
@@ -162,13 +177,14 @@ def _fem_design(design: Optional[str], tension_max_n, pressure_max_kpa) -> tuple
     return name, geo, mat, _limits(name, tension_max_n, pressure_max_kpa)
 
 
-def _identify_fem(fem: tuple, mesh: str, workers, scheduler, cache: Optional[pathlib.Path], forms, fit_distance: bool):
+def _identify_fem(fem: tuple, mesh: str, workers, scheduler, cache: Optional[pathlib.Path], forms, fit_distance: bool,
+                  cases: str = "default"):
     from .identify import from_fem
     name, geo, mat, limits = fem
     console.print(f"design {name}: operating range {limits['tension_max']:g} N, {limits['pressure_max'] / 1e3:g} kPa")
     return from_fem(geo, mat, mesh, workers=workers, scheduler=scheduler, cache_dir=cache, forms=forms,
                     fit_distance=fit_distance, progress=True, tension_max=limits["tension_max"],
-                    pressure_max=limits["pressure_max"])
+                    pressure_max=limits["pressure_max"], cases=cases)
 
 
 def _identify_measured(measurements: pathlib.Path, base: str, forms, fit_distance: bool, heldout_fraction: float,
@@ -211,6 +227,7 @@ def identify_cmd(
         mesh: str = MESH_OPT,
         forms: Optional[str] = FORMS_OPT,
         fit_distance: bool = FIT_D_OPT,
+        cases: str = CASES_OPT,
         workers: Optional[int] = WORKERS_OPT,
         scheduler: Optional[str] = SCHEDULER_OPT,
         cache: pathlib.Path = CACHE_OPT,
@@ -221,6 +238,7 @@ def identify_cmd(
     Writes actuator.toml (with 95 % intervals) and fit.json into --out."""
     _source_check(design, measurements)
     names = _forms(forms)
+    _cases_check(cases)
     _base_check(measurements, base)
     fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     d = prepare_output_dir(out, ("actuator.toml", "fit.json"), force=force)
@@ -228,7 +246,7 @@ def identify_cmd(
     if measurements is not None:
         res = _identify_measured(measurements, base, names, fit_distance, heldout_fraction, gravity)
     else:
-        res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance)
+        res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance, cases)
     res.meta["command"] = _command_line()
     if res.meta.get("torn_rows"):
         console.print(f"note: {measurements}: static-state row(s) {res.meta['torn_rows']} torn (the writer stopped "
@@ -328,6 +346,7 @@ def report_cmd(
         mesh: str = MESH_OPT,
         forms: Optional[str] = FORMS_OPT,
         fit_distance: bool = FIT_D_OPT,
+        cases: str = CASES_OPT,
         workers: Optional[int] = WORKERS_OPT,
         scheduler: Optional[str] = SCHEDULER_OPT,
         cache: pathlib.Path = CACHE_OPT,
@@ -341,6 +360,7 @@ def report_cmd(
     from .report import write_report
     _source_check(design, measurements)
     names = _forms(forms, quick)
+    _cases_check(cases)
     _base_check(measurements, base)
     fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     d = prepare_output_dir(out, REPORT_FILES, force=force)
@@ -349,7 +369,7 @@ def report_cmd(
     if measurements is not None:
         res = _identify_measured(measurements, base, names, fit_distance, 0.25, True)
     else:
-        res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance)
+        res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance, cases)
         val = compare_records(res.params, [r for r in res.records if r.case.role == "heldout"])
         _, geo, mat, _ = fem
         if fem_error:

@@ -116,3 +116,23 @@ def test_ratio_per_state_shows_both_models_side_by_side():
         assert q["taut_fem"] == q["taut_ancf"] and q["taut_ancf"]
     d = json.loads(json.dumps(val.to_dict()))
     assert d["ratio_per_state"][0]["fem"] == pytest.approx(want[0][0], rel=1e-9)
+
+
+def test_extrapolation_states_are_reported_apart():
+    """States of the experiment "extrapolation" (outside the training hull) are compared but kept out of the
+    figures that judge the model: with the in-hull state exact and the extrapolation state shifted by 2 % of L,
+    the main tip error is 0 and the extrapolation summary carries the 2 %."""
+    from dataclasses import replace
+    L = BASE.length
+    exact = _records(BASE)
+    shifted = _records(BASE, shift=(0.0, 0.0, 0.02 * L))
+    recs = [exact[0], replace(shifted[1], case=replace(shifted[1].case, experiment="extrapolation"))]
+    val = compare_records(BASE, recs)
+    assert val.tip_error_pct["max"] < 1e-9
+    assert val.extrapolation["states"] == [recs[1].case.label]
+    assert val.extrapolation["tip_error_pct"]["mean"] == pytest.approx(2.0, rel=1e-9)
+    assert "compliance_error_pct" in val.extrapolation
+    assert len(val.rows) == 2 and val.to_dict()["extrapolation"]["states"] == [recs[1].case.label]
+    # without such states: no extrapolation summary, and the same states count in the main figures
+    plain = compare_records(BASE, [exact[0], shifted[1]])
+    assert plain.extrapolation == {} and plain.tip_error_pct["max"] == pytest.approx(2.0, rel=1e-9)

@@ -159,6 +159,7 @@ def test_cli_identify_and_report_from_measurements(measured_files):
     (("validate", "--params", "four.toml"), "has 4 tendons and the FEM design 3"),
     (("identify", "--design", "wide.toml"), "exceeds what the FEM reference accepts (tension ≤ 20 N"),
     (("identify", "--design", "paper", "--pressure-max-kpa", "300"), "pressure 225 kPa is outside"),
+    (("report", "--design", "paper", "--quick", "--cases", "optimal"), "--cases must be"),
 ])
 def test_cli_bad_inputs_exit_2_with_one_line(measured_files, args, message):
     d, *_ = measured_files
