@@ -205,7 +205,7 @@ def informative_design(form, base, theta0, *, tension_max: float, pressure_max: 
                        n_extrapolation: int = 2, default: Optional[Design] = None,
                        tendon_angles: Optional[Sequence[float]] = None) -> Selection:
     """A design of ``n_train`` D-optimal training cases for ``form`` at θ₀ (default: its parameters +
-    :data:`SPARE_CASES`), ``n_heldout`` held-out states inside the training hull and up to ``n_extrapolation``
+    :data:`SPARE_CASES`), up to ``n_heldout`` held-out states inside the training hull and up to ``n_extrapolation``
     outside it (module docstring).  ``default``: a design whose training information is reported beside
     (``Selection.logdet_default``).  Candidates without a verified equilibrium at θ₀ are left out."""
     from ancf.errors import BellowsError
