@@ -137,3 +137,29 @@ def test_one_hypersensitive_state_does_not_hide_the_other_directions():
     assert share[2] > 0.4 and share[3] > 0.4 and share[0] < 1e-6 and share[1] < 1e-6
     # fewer rows than parameters: the missing directions are null
     assert np.isclose(null_share(J[:2]).sum(), 2.0)
+
+
+def test_a_theta_seen_before_restarts_from_its_own_equilibria(monkeypatch):
+    """The fit's result is re-evaluated after other trials: its states must start from that θ's own equilibria
+    (near a fold, another θ's equilibrium as the start converged to the saddle branch and the fit died)."""
+    import ancf
+    from validation.fit import _Evaluator
+    form = get_form("separate")
+    th1 = np.array(TRUE["separate"], float)
+    th2 = th1 * np.array([1.3, 1.0, 0.8, 1.0, 1.02])
+    obs = synthetic(form, th1, CASES)
+    ev = _Evaluator(form, obs, BASE)
+    ev.evaluate(th1, jacobian=False)
+    q1 = [q.copy() for q in ev.q]
+    ev.evaluate(th2, jacobian=False)
+    assert any(not np.allclose(a, b) for a, b in zip(q1, ev.q))
+    starts = []
+    real_fk = ancf.Model.fk
+
+    def spy(self, *a, q0=None, **k):
+        starts.append(None if q0 is None else np.array(q0))
+        return real_fk(self, *a, q0=q0, **k)
+
+    monkeypatch.setattr(ancf.Model, "fk", spy)
+    ev.evaluate(th1, jacobian=True)
+    assert len(starts) == len(q1) and all(np.array_equal(s, q) for s, q in zip(starts, q1))
