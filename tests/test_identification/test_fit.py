@@ -200,3 +200,38 @@ def test_held_out_evidence_chooses_the_shear_form_when_the_tip_has_a_rotation_fr
     assert res.params.shear_compliance == pytest.approx((0.5e-3, 3.3e-3), rel=1e-6)
     from ancf import ActuatorParams
     assert ActuatorParams.from_toml_string(res.to_toml()) == res.params
+
+
+def test_nested_forms_start_from_each_others_optima():
+    """starting_points maps a nested form's optimum into the richer form (its extra parameters at their start);
+    restricted_starts maps a better richer optimum down to the nested form's parameters."""
+    from types import SimpleNamespace
+    sep, pe, sh = get_form("separate"), get_form("pressure_ei"), get_form("pressure_ei_shear")
+    th_sep = np.array(TRUE["separate"]) * 1.1
+    fitted = {"separate": SimpleNamespace(form=sep, theta=th_sep, rss=2.0)}
+    th0 = np.array(TRUE["pressure_ei"]) * 0.5
+    starts = identify.starting_points(pe, th0, fitted)
+    assert len(starts) == 2 and np.array_equal(starts[0], th0)
+    up = dict(zip(pe.names, starts[1]))
+    assert all(up[n] == v for n, v in zip(sep.names, th_sep))
+    assert up["pI1"] == th0[pe.names.index("pI1")] and up["pI2"] == th0[pe.names.index("pI2")]
+    th_sh = np.array(TRUE["pressure_ei_shear"]) * 0.9
+    fitted["pressure_ei_shear"] = SimpleNamespace(form=sh, theta=th_sh, rss=1.0)
+    fitted["pressure_ei"] = SimpleNamespace(form=pe, theta=th0, rss=1.5)
+    down = identify.restricted_starts(pe, fitted)
+    assert len(down) == 1 and np.array_equal(down[0], [th_sh[list(sh.names).index(n)] for n in pe.names])
+    fitted["pressure_ei"].rss = 0.5                      # the richer fit is not better: no restricted start
+    assert identify.restricted_starts(pe, fitted) == []
+    # the richest nested form is the one a richer form starts from
+    starts = identify.starting_points(sh, np.array(TRUE["pressure_ei_shear"]), fitted)
+    assert len(starts) == 2 and np.array_equal(starts[1][:7], th0)
+
+
+def test_a_richer_form_fits_the_training_states_at_least_as_well_as_the_forms_it_contains():
+    """Nested refits make training RMS monotone along separate ⊂ pressure_ei ⊂ pressure_ei_shear (a richer form
+    can represent everything a nested one can), here on states with EI growing with pressure."""
+    truth = np.array([700.0, 900.0, 0.09, 0.15, 0.55, 0.35, 0.024])
+    res, rows = _identify_synthetic("pressure_ei", truth, ("separate", "pressure_ei", "pressure_ei_shear"))
+    rss = {k: f.rss for k, f in res.fits.items()}
+    assert rss["pressure_ei"] <= rss["separate"] * (1 + 1e-6)
+    assert rss["pressure_ei_shear"] <= rss["pressure_ei"] * (1 + 1e-6) + 1e-20
