@@ -104,6 +104,10 @@ def _describe_controller(ctrl: Controller) -> dict:
     return out
 
 
+#: shortest wait between measurements [s] (10 kHz; shorter ones vanish in the rig clock's round-off)
+MIN_IDLE_PERIOD = 1e-4
+
+
 def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.Path, None, object] = None,
                force: bool = False, max_iterations: Optional[int] = 20, duration: Optional[float] = None,
                idle_period: float = 0.1, initial_load=(0.0, 0.0, 0.0), sim_compute_time="measured",
@@ -116,7 +120,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         :class:`hardware.runlog.RunLog`, or None
     max_iterations : corrections before an iteration run stops (None: no limit — needs ``duration``)
     duration : rig-clock seconds to hold the target (``math.inf``: until Ctrl-C); None: stop at convergence
-    idle_period : wait between measurements while within tolerance [s]
+    idle_period : wait between measurements while within tolerance [s]; 0 (iteration runs) or ≥
+        :data:`MIN_IDLE_PERIOD`
     sim_compute_time : on a simulated rig, how long a controller step takes on the rig clock: "measured"
         (its wall-clock compute time), a fixed time [s], or 0
     average_frames : tracker frames averaged per measurement (distinct frames; noise / √n)
@@ -141,6 +146,9 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
     idle_period = number("idle_period [s]", idle_period)
     if idle_period == 0 and duration is not None:
         raise InputError("idle_period must be > 0 s when holding for a duration")
+    if 0 < idle_period < MIN_IDLE_PERIOD:
+        # a smaller wait is lost in the rig clock's round-off (t + 1e-300 == t): the run would never end
+        raise InputError(f"idle_period must be 0 or at least {MIN_IDLE_PERIOD:g} s, got {idle_period:g} s")
     if sim_compute_time != "measured":
         sim_compute_time = number("sim_compute_time [s] (or 'measured')", sim_compute_time)
     if isinstance(average_frames, bool) or not isinstance(average_frames, (int, np.integer)) or average_frames < 1:

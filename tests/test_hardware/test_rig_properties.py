@@ -135,3 +135,20 @@ def test_run_on_rig_arguments(started, it, dur, idle):
     except BellowsError:
         return
     assert res.status in ("converged", "held", "not converged")
+
+
+def test_a_wait_lost_in_the_clocks_round_off_is_refused_not_a_hang(started):
+    """idle_period = 1e-300 s with a duration never advanced the rig clock (t + 1e-300 == t): the run held
+    forever (found by the property test above).  It is an InputError now, at once."""
+    from ancf.errors import InputError
+    from controller import LACC, run_on_rig
+    from controller.run import MIN_IDLE_PERIOD
+    from hardware import SimulatedRig
+    model, tip = started
+    for idle in (1e-300, 0.5 * MIN_IDLE_PERIOD):
+        with pytest.raises(InputError, match="idle_period"):
+            run_on_rig(LACC(model, 60e3, compliance="exact"), SimulatedRig(model, load=(0, 0, -0.2)), tip,
+                       max_iterations=None, duration=0.5, idle_period=idle)
+    res = run_on_rig(LACC(model, 60e3, compliance="exact"), SimulatedRig(model, load=(0, 0, -0.2)), tip,
+                     max_iterations=None, duration=0.05, idle_period=MIN_IDLE_PERIOD)
+    assert res.status in ("converged", "held", "not converged")
