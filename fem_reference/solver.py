@@ -314,9 +314,9 @@ def _nearly_symmetric(K: sp.csr_matrix, exact: bool = True):
     """The factor of :class:`_NearlySymmetricFactor` if ``K`` qualifies (structurally symmetric pattern, the
     antisymmetric part in at most :data:`MAX_ASYMMETRIC_ROWS` rows), else None."""
     K = K.tocsr()
-    if not K.has_sorted_indices:
+    if not K.has_canonical_format:           # sorted indices, no duplicate entries (the index maps need both)
         K = K.copy()
-        K.sort_indices()
+        K.sum_duplicates()
     maps = _SYM_MAPS[0]
     if maps is None or not maps.matches(K):
         maps = _SymmetricMaps(K)

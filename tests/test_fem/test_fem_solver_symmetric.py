@@ -79,3 +79,20 @@ def test_two_factors_alive_at_once_each_solve_their_own_matrix():
     b = np.ones(n ** 3)
     assert np.abs(K1 @ f1.solve(b) - b).max() < 1e-10       # f1 re-factorises: f2 holds the shared instance
     assert np.abs(K2 @ f2.solve(b) - b).max() < 1e-10
+
+
+def test_duplicate_entries_are_summed_before_the_symmetric_maps():
+    """A CSR matrix with every entry stored twice (two halves, indices sorted): its symmetric part and the
+    correction are those of the summed matrix."""
+    n = 6
+    K = _nearly_symmetric(n, [1, 2, 3], 0.0, seed=6).tocsr()
+    K.sort_indices()
+    counts = np.diff(K.indptr)
+    indptr = np.concatenate([[0], np.cumsum(2 * counts)])
+    indices = np.repeat(K.indices, 2)                       # each column index twice, still non-decreasing
+    data = np.repeat(K.data, 2) / 2
+    Kd = sp.csr_matrix((data, indices, indptr), shape=K.shape)
+    assert Kd.nnz == 2 * K.nnz and not Kd.has_canonical_format
+    b = np.arange(n ** 3, dtype=float)
+    x = factorize(Kd, "pardiso").solve(b)
+    assert np.abs(K @ x - b).max() < 1e-9 * np.abs(b).max()
