@@ -326,10 +326,11 @@ def _nearly_symmetric(K: sp.csr_matrix, exact: bool = True):
     d, dt = K.data, K.data[maps.perm]
     anti = 0.5 * (d - dt)
     big = np.abs(anti) > ASYMMETRY_ROUNDOFF * max(float(np.abs(d).max(initial=0.0)), 1e-300)
-    rows = np.unique(np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))[big]) if big.any() else np.zeros(0, int)
+    rows = np.unique(np.searchsorted(K.indptr, np.flatnonzero(big), side="right") - 1)
     if rows.size > MAX_ASYMMETRIC_ROWS:
         return None
-    a = np.asarray(K[rows][:, rows].toarray() - K[rows][:, rows].toarray().T) * 0.5 if rows.size else np.zeros((0, 0))
+    B = K[rows][:, rows].toarray()
+    a = 0.5 * (B - B.T)
     return _NearlySymmetricFactor(K, maps, rows, a, 0.5 * (d + dt), exact)
 
 

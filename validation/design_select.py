@@ -35,8 +35,7 @@ states farthest from the training cases and from each other are taken (greedy ma
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
 import numpy as np
@@ -44,7 +43,7 @@ import numpy as np
 from ancf.errors import InputError
 
 from .compare import EXTRAPOLATION
-from .experiments import Design, LoadCase, _materialise, _Spec, force_reference
+from .experiments import Design, LoadCase, _materialise, _Spec, check_range, force_reference
 
 __all__ = ["candidate_specs", "candidate_cases", "sensitivities", "d_optimal", "inside_hull", "spread", "load_features",
            "informative_design", "Selection"]
@@ -72,12 +71,7 @@ def candidate_specs() -> list[_Spec]:
 def candidate_cases(*, tension_max: float, pressure_max: float, tendon_distance: float, length: float,
                     n_tendons: int = 3, role: str = "train") -> list[LoadCase]:
     """The candidate grid materialised for an actuator's range (SI; rounded like the default design)."""
-    for nm, v in (("tension_max", tension_max), ("pressure_max", pressure_max),
-                  ("tendon_distance", tendon_distance), ("length", length)):
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise InputError(f"candidate_cases: {nm} must be a positive number, got {v!r}")
-    if n_tendons < 3:
-        raise InputError("candidate_cases: needs at least 3 tendons")
+    check_range("candidate_cases", tension_max, pressure_max, tendon_distance, length, n_tendons)
     F_ref = force_reference(tension_max, tendon_distance, length)
     return _materialise(candidate_specs(), role, n_tendons, tension_max, pressure_max, F_ref, False)
 
@@ -248,7 +242,6 @@ def informative_design(form, base, theta0, *, tension_max: float, pressure_max: 
     Xi = np.vstack([Xr[inside], Xm[m_in]])
     ho = [ins[i] for i in spread(Xi, Xt, n_heldout)] if ins else []
     ex = [outs[i] for i in spread(Xr[~inside], Xt, n_extrapolation)] if outs else []
-    from dataclasses import replace
     cases = tuple([replace(c, role="train") for c in train] + [replace(c, role="heldout", experiment="heldout")
                                                                 for c in ho]
                   + [replace(c, role="heldout", experiment=EXTRAPOLATION) for c in ex])

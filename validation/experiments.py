@@ -161,17 +161,23 @@ def _materialise(specs: Iterable[_Spec], role: str, n_tendons: int, T_max: float
     return out
 
 
+def check_range(who: str, tension_max, pressure_max, tendon_distance, length, n_tendons) -> None:
+    """InputError (naming ``who``) unless T_max [N], p_max [Pa], d [m] and L [m] are positive numbers and there
+    are at least 3 tendons."""
+    for nm, v in (("tension_max", tension_max), ("pressure_max", pressure_max),
+                  ("tendon_distance", tendon_distance), ("length", length)):
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InputError(f"{who}: {nm} must be a positive number, got {v!r}")
+    if n_tendons < 3:
+        raise InputError(f"{who}: needs at least 3 tendons")
+
+
 def default_design(*, tension_max: float = 5.0, pressure_max: float = 120e3, tendon_distance: float = 0.0275,
                    length: float = 0.16, n_tendons: int = 3, gravity: bool = False,
                    training: Optional[Sequence[_Spec]] = None, heldout: Optional[Sequence[_Spec]] = None) -> Design:
     """The default design of virtual experiments for an actuator with the given operating range
     (T_max [N], p_max [Pa]), tendon routing distance d [m] and length L [m] (see the module docstring)."""
-    for nm, v in (("tension_max", tension_max), ("pressure_max", pressure_max),
-                  ("tendon_distance", tendon_distance), ("length", length)):
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise InputError(f"default_design: {nm} must be a positive number, got {v!r}")
-    if n_tendons < 3:
-        raise InputError("default_design: needs at least 3 tendons")
+    check_range("default_design", tension_max, pressure_max, tendon_distance, length, n_tendons)
     F_ref = force_reference(tension_max, tendon_distance, length)
     cases = (_materialise(TRAINING if training is None else training, "train", n_tendons, tension_max,
                           pressure_max, F_ref, gravity)

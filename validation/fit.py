@@ -541,7 +541,8 @@ def null_share(Js: np.ndarray, singular_values: bool = False):
     n = Js.shape[1]
     rn = np.linalg.norm(Js, axis=1)
     Jr = Js / np.where(rn > 0, rn, 1.0)[:, None]
-    _, sv, Vt = np.linalg.svd(Jr, full_matrices=True)
+    # the full V only when rows are fewer than columns (then U is small); never an N × N U for many rows
+    _, sv, Vt = np.linalg.svd(Jr, full_matrices=Jr.shape[0] < n)
     k = sv.size
     tiny = np.zeros(n, bool)
     tiny[:k] = sv < RANK_TOL * (sv[0] if k and sv[0] > 0 else 1.0)
