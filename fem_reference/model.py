@@ -49,6 +49,7 @@ from .geometry import BellowsGeometry, e_radial
 from .loads.caps import (
     RigidCapReduction,
     expm_so3,
+    log_so3,
     point_geometric,
     point_jacobian,
 )
@@ -167,6 +168,30 @@ class State:
     def copy(self) -> State:
         return State(self.U.copy(), self.uc.copy(), self.R.copy(), self.T.copy(), self.slack.copy())
 
+
+def extrapolate_state(path, lam: float, caps) -> State:
+    """Lagrange extrapolation of the converged states ``path`` = [(λ_i, State_i), …] (the last two or three
+    of the load path) to ``lam``: displacements and cap translation componentwise, the cap rotation through
+    its rotation vector relative to the last state, tensions componentwise."""
+    lams = np.array([p[0] for p in path])
+    w = np.ones(len(path))
+    for i in range(len(path)):
+        for j in range(len(path)):
+            if j != i:
+                w[i] *= (lam - lams[j]) / (lams[i] - lams[j])
+    last = path[-1][1]
+    new = last.copy()
+    new.U = sum(wi * p[1].U for wi, p in zip(w, path))
+    new.uc = sum(wi * p[1].uc for wi, p in zip(w, path))
+    new.T = sum(wi * p[1].T for wi, p in zip(w, path))
+    rv = sum(wi * log_so3(p[1].R @ last.R.T) for wi, p in zip(w, path))
+    new.R = expm_so3(rv) @ last.R
+    caps.place(new.U, new.uc, new.R)
+    return new
+
+
+import os
+PREDICT = int(os.environ.get('BELLOWS_PREDICT', '3'))
 
 #: Accepted ``linear_solver`` names (a library's solver only where it is installed: :func:`available_solvers`).
 LINEAR_SOLVERS = ("auto", "pardiso", "pardiso_no_reuse", "splu", "splu_partial_pivoting", "umfpack")
@@ -288,68 +313,85 @@ class BellowsModel:
         rows, cols = np.nonzero(np.ones((3, 6)))
         return sp.csr_matrix((Jb[rows, cols], (rows, cols + s)), shape=(3, self.n_dofs))
 
-    def _tendon_terms(self, st: State, k: int, want_hessian: bool):
-        """Length, gradient ``∂L/∂q`` (n_q,), Hessian ``∂²L/∂q²`` (sparse) of tendon ``k``."""
-        tp = self.tendons[k]
-        c = self.caps
-        x = self.bmesh.X + st.U
-        centre = self.X_c + st.uc
-        pts = tp.points(x, centre, st.R)
-        npts = pts.shape[0]
-        L = polyline_length(pts)
-        gL = polyline_gradient(pts)
-        rows, cols, vals = [], [], []
-        guide_data = []
-        for gi, (nodes, wc, a) in enumerate(zip(tp.guide_nodes, tp.guide_wc, tp.guide_a)):
-            k_pt = gi + 1
+    def _tendon_dofs(self, k: int) -> list[np.ndarray]:
+        """Reduced DOF indices ``D_p`` of the points ``p = 1 … n`` of tendon ``k``'s polyline (the exit point 0
+        is fixed): the 3 × N ring DOFs of each guide (node-major), the 6 cap DOFs for the anchor."""
+        tp, c = self.tendons[k], self.caps
+        out = []
+        for nodes in tp.guide_nodes:
             q0 = c.q_of_node[nodes]
             if np.any(q0 < 0):  # pragma: no cover
                 raise ConfigError("tendon guide on a constrained node")
+            out.append((q0[:, None] + np.arange(3)[None, :]).ravel())
+        out.append(c.n_free + np.arange(6))
+        return out
+
+    def _tendon_blocks(self, k: int) -> list[tuple[int, int]]:
+        """The (row point, column point) pairs of tendon ``k``'s Hessian blocks, in the order of the values of
+        :meth:`_tendon_terms`: each diagonal block, then each pair of neighbours and its transpose."""
+        n = len(self.tendons[k].guide_nodes) + 1
+        return [(p, p) for p in range(n)] + [pq for p in range(n - 1) for pq in ((p, p + 1), (p + 1, p))]
+
+    def _tendon_keys(self, k: int) -> np.ndarray:
+        """Flat keys ``row · n_q + col`` of every entry of tendon ``k``'s Hessian blocks (static: the blocks are
+        dense and their DOFs do not change with the state)."""
+        cache = self.__dict__.setdefault("_tkeys", {})
+        if k not in cache:
+            D, n = self._tendon_dofs(k), self.n_dofs
+            cache[k] = np.concatenate([(D[p][:, None].astype(np.int64) * n + D[q][None, :]).ravel()
+                                       for p, q in self._tendon_blocks(k)])
+        return cache[k]
+
+    def _tendon_terms(self, st: State, k: int, want_hessian: bool):
+        """Length ``L`` [m], gradient ``∂L/∂q`` (n_q,) and, if asked, the values of the Hessian ``∂²L/∂q²`` on
+        the dense blocks of :meth:`_tendon_keys` (same order), of tendon ``k``.
+
+        With ``G_p = ∂x_p/∂q_{D_p}`` (3 × |D_p|) of each polyline point and the segment blocks ``H_s``
+        (:func:`~fem_reference.loads.tendons.polyline_hessian_blocks`): the block of points (p, p) is
+        ``G_pᵀ (H_{p-1} + H_p) G_p`` plus the guide's curvature term ``a aᵀ ⊗ B`` (or, for the anchor, the
+        rigid-link geometric term), the block (p, p+1) is ``−G_pᵀ H_p G_{p+1}``."""
+        tp = self.tendons[k]
+        x = self.bmesh.X + st.U
+        centre = self.X_c + st.uc
+        pts = tp.points(x, centre, st.R)
+        L = polyline_length(pts)
+        gL = polyline_gradient(pts)
+        D = self._tendon_dofs(k)
+        Gs, extra = [], []
+        for gi, (nodes, wc, a) in enumerate(zip(tp.guide_nodes, tp.guide_wc, tp.guide_a)):
             _, blocks, geo_ = guide_point(x[:, nodes], wc, a, tp.radius)
-            ii3, kk3 = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
-            rows.append(np.broadcast_to(3 * k_pt + ii3.ravel(), (nodes.size, 9)).ravel())
-            cols.append((q0[:, None] + kk3.ravel()[None, :]).ravel())
-            vals.append(blocks.reshape(nodes.size, 9).ravel())
-            guide_data.append((q0, a, geo_))
+            Gs.append(blocks.transpose(1, 0, 2).reshape(3, -1))          # G[i, 3j + k] = ∂x_g,i/∂x_j,k
+            extra.append((a, geo_))
         ra = st.R @ tp.anchor
-        Jb = point_jacobian(ra)
-        rr, cc = np.nonzero(np.ones((3, 6)))
-        rows.append(3 * (npts - 1) + rr)
-        cols.append(c.n_free + cc)
-        vals.append(Jb[rr, cc])
-        r_, c_, v_ = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-        G = sp.csr_matrix((v_, (r_, c_)), shape=(3 * npts, self.n_dofs))
-        GT = sp.csr_matrix((v_, (c_, r_)), shape=(self.n_dofs, 3 * npts))
-        g = GT @ gL.ravel()
+        Gs.append(point_jacobian(ra))                                     # anchor: (3, 6)
+        g = np.zeros(self.n_dofs)
+        for p, G in enumerate(Gs):
+            g[D[p]] += G.T @ gL[p + 1]
         if not want_hessian:
             return L, g, None
-        Hb = polyline_hessian_blocks(pts)
-        nseg = Hb.shape[0]
-        hr, hc, hv = [], [], []
-        ii, jj = np.meshgrid(np.arange(3), np.arange(3), indexing="ij")
-        for s_ in range(nseg):
-            for a, b, sg in ((s_, s_, 1), (s_ + 1, s_ + 1, 1), (s_, s_ + 1, -1), (s_ + 1, s_, -1)):
-                hr.append(3 * a + ii.ravel())
-                hc.append(3 * b + jj.ravel())
-                hv.append(sg * Hb[s_].ravel())
-        Hx = sp.csr_matrix((np.concatenate(hv), (np.concatenate(hr), np.concatenate(hc))),
-                           shape=(3 * npts, 3 * npts))
-        H = GT @ (Hx @ G)
-        gr, gc, gv = [], [], []
-        for gi, (q0, a, (n_, P_, rho_)) in enumerate(guide_data):
-            B = guide_hessian(gL[gi + 1], n_, P_, rho_, tp.radius)
-            N_ = q0.size
-            aa = np.outer(a, a)  # (N, N)
-            shp = (N_, N_, 3, 3)
-            gr.append(np.broadcast_to(q0[:, None, None, None] + np.arange(3)[None, None, :, None], shp).ravel())
-            gc.append(np.broadcast_to(q0[None, :, None, None] + np.arange(3)[None, None, None, :], shp).ravel())
-            gv.append((aa[:, :, None, None] * B[None, None]).ravel())
-        if gr:
-            H = H + sp.csr_matrix((np.concatenate(gv), (np.concatenate(gr), np.concatenate(gc))), shape=H.shape)
-        Gg = point_geometric(ra, gL[-1])
-        s0 = c.n_free + 3
-        H = H + sp.csr_matrix((Gg.ravel(), (s0 + ii.ravel(), s0 + jj.ravel())), shape=H.shape)
-        return L, g, H
+        Hb = polyline_hessian_blocks(pts)                                 # segment s joins points s, s + 1
+        n = len(Gs)
+        vals = []
+        for p in range(n):                                                # point p + 1 of the polyline
+            Hs = Hb[p] + (Hb[p + 1] if p + 1 < Hb.shape[0] else 0.0)
+            blk = Gs[p].T @ Hs @ Gs[p]
+            if p < n - 1:
+                a, (n_, P_, rho_) = extra[p]
+                blk = blk + np.kron(np.outer(a, a), guide_hessian(gL[p + 1], n_, P_, rho_, tp.radius))
+            else:
+                blk[3:, 3:] += point_geometric(ra, gL[-1])
+            vals.append(blk.ravel())
+        for p in range(n - 1):
+            off = -(Gs[p].T @ Hb[p + 1] @ Gs[p + 1])
+            vals.append(off.ravel())
+            vals.append(off.T.ravel())
+        return L, g, np.concatenate(vals)
+
+    def _tendon_hessian(self, st: State, k: int) -> sp.csr_matrix:
+        """``∂²L/∂q²`` of tendon ``k`` as a sparse (n_q, n_q) matrix (for tests and inspection)."""
+        _, _, vals = self._tendon_terms(st, k, True)
+        keys, n = self._tendon_keys(k), self.n_dofs
+        return sp.csr_matrix((vals, (keys // n, keys % n)), shape=(n, n))
 
     def tendon_lengths(self, st: State) -> np.ndarray:
         """Current cable path lengths [m], shape ``(m,)``."""
@@ -405,6 +447,8 @@ class BellowsModel:
         m = self.m
         Ls = np.zeros(m)
         g = np.zeros((self.n_dofs, m))
+        if tangent:
+            Kq = self._canonical(Kq)
         for k in range(m):
             Lk, gk, Hk = self._tendon_terms(st, k, tangent and st.T[k] != 0.0)
             Ls[k], g[:, k] = Lk, gk
@@ -412,9 +456,7 @@ class BellowsModel:
                 r += st.T[k] * gk
                 fext_q -= st.T[k] * gk
                 if tangent:
-                    Kq = Kq + st.T[k] * Hk
-        if tangent:
-            Kq = self._canonical(Kq)
+                    Kq.data[self._tendon_positions(k)] += st.T[k] * Hk  # distinct positions: no np.add.at
         out.update(r=r, K=Kq, L=Ls, g=g, f_ref=float(np.linalg.norm(fext_q)))
         if stats is not None:
             stats.t_assembly += time.perf_counter() - t0
@@ -439,9 +481,9 @@ class BellowsModel:
             return sp.csr_matrix((data, pat[1], pat[0]), shape=K.shape)
         n = K.shape[0]
         keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(K.indptr)) * n + K.indices
-        if pat is None:
-            self._pattern = (K.indptr.copy(), K.indices.copy(), keys)
-            return K
+        if pat is None:  # start from the tendons' Hessian blocks too: added in place by evaluate
+            tk = np.concatenate([self._tendon_keys(k) for k in range(self.m)] + [keys[:0]])
+            pat = (None, None, np.unique(tk))
         pkeys = pat[2]
         pos = np.searchsorted(pkeys, keys)
         if not np.all(pkeys[np.minimum(pos, pkeys.size - 1)] == keys):
@@ -457,9 +499,18 @@ class BellowsModel:
         data[pos] = K.data
         return sp.csr_matrix((data, pat[1], pat[0]), shape=K.shape)
 
+    def _tendon_positions(self, k: int) -> np.ndarray:
+        """Positions of tendon ``k``'s Hessian block entries in the data of the model-wide pattern."""
+        pat = self._pattern
+        cache = self.__dict__.setdefault("_tpos", {})
+        if cache.get(k, (None,))[0] is not pat:
+            cache[k] = (pat, np.searchsorted(pat[2], self._tendon_keys(k)))
+        return cache[k][1]
+
     # ------------------------------------------------------------------ Newton at fixed load
     def _newton(self, st: State, lc: LoadCase, stats: NewtonStats, *, rtol: float, atol: float,
-                ltol: float, max_iter: int, growth: float, callback=None, lc_prev: LoadCase | None = None):
+                ltol: float, max_iter: int, growth: float, callback=None, lc_prev: LoadCase | None = None,
+                quick_fail: bool = False):
         locked = ~np.isnan(lc.locked_lengths)
         history: list[float] = []
         step_norms: list[float] = []
@@ -495,6 +546,9 @@ class BellowsModel:
                 break
             if len(history) > 3 and rn > 1e6 * min(history):
                 raise StepFailed("diverging", history, it)
+            if quick_fail and ((it >= 1 and rn > history[0]) or (it >= 2 and rn > 0.1 * history[0])):
+                # a start from the path predictor that is converging drops ×10 per iteration from its start
+                raise StepFailed("predicted start not converging", history, it)
             if it >= STALL_ITERATIONS and rn > history[0]:
                 # a converging step is below its starting residual after two or three iterations (measured);
                 # one that is not is crawling (halved steps, residual falling by a few % per iteration): cut
@@ -649,6 +703,7 @@ class BellowsModel:
             dT = float(np.abs(target.tensions - start.tensions).sum())
             n_steps = 1 + int(dp / 20e3) + int(dT / 3.0)
         lam, dlam, cuts = 0.0, 1.0 / max(1, int(n_steps)), 0
+        path = [(0.0, st)]
         step = tried = 0
         while lam < 1.0 - 1e-14:
             tried += 1
@@ -672,21 +727,33 @@ class BellowsModel:
             # of a locked tendon fail, measured)
             rt = rtol if (lam_t >= 1.0 - 1e-14 or locked.any()) else max(rtol, STEP_RTOL)
             try:
-                for _pass in range(6):  # active-set passes for locked tendons
-                    st_new, ev, hist, its = self._newton(st, lc, stats, rtol=rt, atol=atol, ltol=ltol,
-                                                         max_iter=max_iter, growth=growth,
-                                                         lc_prev=lc_prev if _pass == 0 else None)
-                    changed = False
-                    for k in np.flatnonzero(locked):
-                        if not st_new.slack[k] and st_new.T[k] < 0:
-                            st_new.slack[k], st_new.T[k], changed = True, 0.0, True
-                        elif st_new.slack[k] and ev["L"][k] > lc.locked_lengths[k] + ltol:
-                            st_new.slack[k], changed = False, True
-                    if not changed:
-                        break
-                    st = st_new
-                else:  # pragma: no cover
-                    raise StepFailed("tendon active set did not settle", hist, its)
+                st_new = None
+                if PREDICT and len(path) >= 2 and not locked.any():
+                    st_p = extrapolate_state(path[-PREDICT:], lam_t, self.caps)
+                    try:
+                        st_new, ev, hist, its = self._newton(st_p, lc, stats, rtol=rt, atol=atol, ltol=ltol,
+                                                             max_iter=max_iter, growth=growth, lc_prev=None,
+                                                             quick_fail=True)
+                    except StepFailed as e:
+                        stats.failed_steps.append(dict(lam=lam_t, reason="predictor: " + e.reason,
+                                                       residuals=list(e.history)))
+                        st_new = None
+                if st_new is None:
+                    for _pass in range(6):  # active-set passes for locked tendons
+                        st_new, ev, hist, its = self._newton(st, lc, stats, rtol=rt, atol=atol, ltol=ltol,
+                                                             max_iter=max_iter, growth=growth,
+                                                             lc_prev=lc_prev if _pass == 0 else None)
+                        changed = False
+                        for k in np.flatnonzero(locked):
+                            if not st_new.slack[k] and st_new.T[k] < 0:
+                                st_new.slack[k], st_new.T[k], changed = True, 0.0, True
+                            elif st_new.slack[k] and ev["L"][k] > lc.locked_lengths[k] + ltol:
+                                st_new.slack[k], changed = False, True
+                        if not changed:
+                            break
+                        st = st_new
+                    else:  # pragma: no cover
+                        raise StepFailed("tendon active set did not settle", hist, its)
             except StepFailed as e:
                 stats.failed_steps.append(dict(lam=lam_t, reason=e.reason, residuals=list(e.history)))
                 cuts += 1
@@ -700,6 +767,7 @@ class BellowsModel:
                 st = st_start
                 continue
             st = st_new
+            path.append((lam_t, st))
             step += 1
             stats.steps.append(dict(lam=lam_t, iterations=its, residuals=hist,
                                     step_norms=list(self._last_step_norms)))
