@@ -49,7 +49,6 @@ from .geometry import BellowsGeometry, e_radial
 from .loads.caps import (
     RigidCapReduction,
     expm_so3,
-    log_so3,
     point_geometric,
     point_jacobian,
 )
@@ -151,6 +150,11 @@ class LoadCase:
 #: (measured on the default design: converging steps are below their start after two iterations; failing ones
 #: crawled for all of max_iter = 25 iterations, half the factorisations of a solve)
 STALL_ITERATIONS = 4
+#: a load step whose residual after two Newton iterations is above this multiple of its start is cut at once
+#: (measured on the default design's sweep: in a converging step the full first iterate overshoots ×100–400 —
+#: rotation-induced stretch of the thin wall — and the second is back at 0.3–1.5× the start; the steps that went
+#: on to fail were at ×350–1900 after two iterations and took two more factorisations to be cut)
+EARLY_CUT_RATIO = 30.0
 #: relative residual to which intermediate load steps are converged (the last step: the solve's rtol)
 STEP_RTOL = 1e-2
 
@@ -168,30 +172,6 @@ class State:
     def copy(self) -> State:
         return State(self.U.copy(), self.uc.copy(), self.R.copy(), self.T.copy(), self.slack.copy())
 
-
-def extrapolate_state(path, lam: float, caps) -> State:
-    """Lagrange extrapolation of the converged states ``path`` = [(λ_i, State_i), …] (the last two or three
-    of the load path) to ``lam``: displacements and cap translation componentwise, the cap rotation through
-    its rotation vector relative to the last state, tensions componentwise."""
-    lams = np.array([p[0] for p in path])
-    w = np.ones(len(path))
-    for i in range(len(path)):
-        for j in range(len(path)):
-            if j != i:
-                w[i] *= (lam - lams[j]) / (lams[i] - lams[j])
-    last = path[-1][1]
-    new = last.copy()
-    new.U = sum(wi * p[1].U for wi, p in zip(w, path))
-    new.uc = sum(wi * p[1].uc for wi, p in zip(w, path))
-    new.T = sum(wi * p[1].T for wi, p in zip(w, path))
-    rv = sum(wi * log_so3(p[1].R @ last.R.T) for wi, p in zip(w, path))
-    new.R = expm_so3(rv) @ last.R
-    caps.place(new.U, new.uc, new.R)
-    return new
-
-
-import os
-PREDICT = int(os.environ.get('BELLOWS_PREDICT', '3'))
 
 #: Accepted ``linear_solver`` names (a library's solver only where it is installed: :func:`available_solvers`).
 LINEAR_SOLVERS = ("auto", "pardiso", "pardiso_no_reuse", "splu", "splu_partial_pivoting", "umfpack")
@@ -509,8 +489,7 @@ class BellowsModel:
 
     # ------------------------------------------------------------------ Newton at fixed load
     def _newton(self, st: State, lc: LoadCase, stats: NewtonStats, *, rtol: float, atol: float,
-                ltol: float, max_iter: int, growth: float, callback=None, lc_prev: LoadCase | None = None,
-                quick_fail: bool = False):
+                ltol: float, max_iter: int, growth: float, callback=None, lc_prev: LoadCase | None = None):
         locked = ~np.isnan(lc.locked_lengths)
         history: list[float] = []
         step_norms: list[float] = []
@@ -546,9 +525,9 @@ class BellowsModel:
                 break
             if len(history) > 3 and rn > 1e6 * min(history):
                 raise StepFailed("diverging", history, it)
-            if quick_fail and ((it >= 1 and rn > history[0]) or (it >= 2 and rn > 0.1 * history[0])):
-                # a start from the path predictor that is converging drops ×10 per iteration from its start
-                raise StepFailed("predicted start not converging", history, it)
+            if it == 2 and rn > EARLY_CUT_RATIO * history[0]:
+                raise StepFailed(f"not converging (residual ×{rn / history[0]:.0f} its start after 2 iterations)",
+                                 history, it)
             if it >= STALL_ITERATIONS and rn > history[0]:
                 # a converging step is below its starting residual after two or three iterations (measured);
                 # one that is not is crawling (halved steps, residual falling by a few % per iteration): cut
@@ -703,7 +682,6 @@ class BellowsModel:
             dT = float(np.abs(target.tensions - start.tensions).sum())
             n_steps = 1 + int(dp / 20e3) + int(dT / 3.0)
         lam, dlam, cuts = 0.0, 1.0 / max(1, int(n_steps)), 0
-        path = [(0.0, st)]
         step = tried = 0
         while lam < 1.0 - 1e-14:
             tried += 1
@@ -727,33 +705,21 @@ class BellowsModel:
             # of a locked tendon fail, measured)
             rt = rtol if (lam_t >= 1.0 - 1e-14 or locked.any()) else max(rtol, STEP_RTOL)
             try:
-                st_new = None
-                if PREDICT and len(path) >= 2 and not locked.any():
-                    st_p = extrapolate_state(path[-PREDICT:], lam_t, self.caps)
-                    try:
-                        st_new, ev, hist, its = self._newton(st_p, lc, stats, rtol=rt, atol=atol, ltol=ltol,
-                                                             max_iter=max_iter, growth=growth, lc_prev=None,
-                                                             quick_fail=True)
-                    except StepFailed as e:
-                        stats.failed_steps.append(dict(lam=lam_t, reason="predictor: " + e.reason,
-                                                       residuals=list(e.history)))
-                        st_new = None
-                if st_new is None:
-                    for _pass in range(6):  # active-set passes for locked tendons
-                        st_new, ev, hist, its = self._newton(st, lc, stats, rtol=rt, atol=atol, ltol=ltol,
-                                                             max_iter=max_iter, growth=growth,
-                                                             lc_prev=lc_prev if _pass == 0 else None)
-                        changed = False
-                        for k in np.flatnonzero(locked):
-                            if not st_new.slack[k] and st_new.T[k] < 0:
-                                st_new.slack[k], st_new.T[k], changed = True, 0.0, True
-                            elif st_new.slack[k] and ev["L"][k] > lc.locked_lengths[k] + ltol:
-                                st_new.slack[k], changed = False, True
-                        if not changed:
-                            break
-                        st = st_new
-                    else:  # pragma: no cover
-                        raise StepFailed("tendon active set did not settle", hist, its)
+                for _pass in range(6):  # active-set passes for locked tendons
+                    st_new, ev, hist, its = self._newton(st, lc, stats, rtol=rt, atol=atol, ltol=ltol,
+                                                         max_iter=max_iter, growth=growth,
+                                                         lc_prev=lc_prev if _pass == 0 else None)
+                    changed = False
+                    for k in np.flatnonzero(locked):
+                        if not st_new.slack[k] and st_new.T[k] < 0:
+                            st_new.slack[k], st_new.T[k], changed = True, 0.0, True
+                        elif st_new.slack[k] and ev["L"][k] > lc.locked_lengths[k] + ltol:
+                            st_new.slack[k], changed = False, True
+                    if not changed:
+                        break
+                    st = st_new
+                else:  # pragma: no cover
+                    raise StepFailed("tendon active set did not settle", hist, its)
             except StepFailed as e:
                 stats.failed_steps.append(dict(lam=lam_t, reason=e.reason, residuals=list(e.history)))
                 cuts += 1
@@ -767,7 +733,6 @@ class BellowsModel:
                 st = st_start
                 continue
             st = st_new
-            path.append((lam_t, st))
             step += 1
             stats.steps.append(dict(lam=lam_t, iterations=its, residuals=hist,
                                     step_norms=list(self._last_step_norms)))
