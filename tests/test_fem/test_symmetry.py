@@ -181,15 +181,15 @@ def test_locked_symmetric_lengths(small):
 
 
 def test_warm_start_lower_symmetry(small):
-    a = small.solve(tensions=[2, 0, 0])                     # mirror-symmetric state
-    b = small.solve(tensions=[0, 2, 4], pressure=10e3)      # no symmetry
-    assert b.stats.symmetry_order == 1
-    sym = small.solve(tensions=[3, 3, 3], initial=a)
-    full = small.solve(tensions=[3, 3, 3], initial=a, symmetry=False)
+    a = small.solve(tensions=[1, 0, 0], pressure=10e3)      # mirror-symmetric state
+    b = small.solve(tensions=[0, 0.5, 1], pressure=10e3)    # no symmetry
+    assert a.stats.symmetry_order == 2 and b.stats.symmetry_order == 1
+    sym = small.solve(tensions=[1, 1, 1], pressure=10e3, initial=a)
+    full = small.solve(tensions=[1, 1, 1], pressure=10e3, initial=a, symmetry=False)
     assert sym.stats.symmetry_order == 2                    # the start state's mirror, not C3v
     _agree(sym, full)
-    sym = small.solve(tensions=[3, 3, 3], initial=b)
-    full = small.solve(tensions=[3, 3, 3], initial=b, symmetry=False)
+    sym = small.solve(tensions=[1, 1, 1], pressure=10e3, initial=b)
+    full = small.solve(tensions=[1, 1, 1], pressure=10e3, initial=b, symmetry=False)
     assert sym.stats.symmetry_order == 1
     _agree(sym, full)
 
