@@ -87,7 +87,10 @@ def test_mesh_group_n_theta_not_multiple_of_3():
     (dict(tensions=[0, 2, 4], pressure=37.5e3), 1),
     (dict(tip_force=(0.0, 0.0, -0.5)), 2),          # lateral, in the mirror plane through tendon 1
     (dict(tip_force=(0.0, 0.3, -0.5)), 1),          # lateral, in no mirror plane
-    (dict(tip_force=(0.7, 0.0, 0.0), pressure=1e4), 6),  # axial
+    (dict(tip_force=(0.7, 0.0, 0.0), pressure=1e4), 12),  # axial, no tension: the whole mesh group (D6)
+    (dict(tip_force=(0.7, 0.0, 0.0), tensions=[0, 0, 1]), 2),  # the mirror through tendon 3 (240°)
+    (dict(tip_force=(0.0, 0.5, 0.0)), 2),           # lateral, in the plane at 90°: no tendon there, none loaded
+    (dict(tip_force=(0.0, 0.5, 0.0), tensions=[1, 0, 0]), 1),
     (dict(gravity=True), 2),                        # g = (0, 0, -9.81): lateral, in the plane through tendon 1
     (dict(tensions=[1, 1, 1], gravity=0.0), 6),
     (dict(locked_lengths=[0.1, 0.1, None]), 2),
@@ -157,9 +160,12 @@ def _agree(a, b, tip=1e-9):
     (dict(tensions=[3, 3, 3], pressure=50e3), 6),
     (dict(tensions=[2, 0, 0]), 2),
     (dict(tensions=[0, 2, 2], pressure=20e3), 2),
+    (dict(pressure=30e3), 12),
 ])
 def test_symmetric_solve_equals_full(small, c3v_solution, loads, order):
     full = c3v_solution if order == 6 else small.solve(**loads, symmetry=False)
+    if order == 12:
+        assert np.abs(full.tip_position[1:]).max() < 1e-12
     sym = small.solve(**loads)
     assert sym.stats.symmetry_order == order and full.stats.symmetry_order == 1
     assert sym.stats.n_symmetric_steps > 0 and full.stats.n_symmetric_steps == 0
