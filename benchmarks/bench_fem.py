@@ -210,6 +210,7 @@ SYMMETRY_CASES = {
     "T=3/3/3 N, p=50 kPa": dict(tensions=(3.0, 3.0, 3.0), pressure=50e3),
     "T=2/0/0 N, p=0": dict(tensions=(2.0, 0.0, 0.0)),
     "T=0/2/4 N, p=37.5 kPa": dict(tensions=(0.0, 2.0, 4.0), pressure=37.5e3),
+    "p=30 kPa": dict(pressure=30e3),
 }
 
 

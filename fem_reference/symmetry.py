@@ -59,11 +59,12 @@ part outside ``V`` (``r − T diag(n)⁻¹ Tᵀ r``) is below half the tolerance
 otherwise that iteration uses the full system — the iterates are the same either way.
 
 **Speed-up (measured, ``python benchmarks/bench_fem.py --symmetry --repeat 3``, default coarse mesh, 24 126
-reduced DOFs, 2 cores shared with other jobs; medians, ``docs/fem.md`` §4).**  T = 3/3/3 N, p = 50 kPa (C3v,
-4 356 subspace unknowns): solve 12.03 → 8.72 s (1.38×), linear-solver time 5.45 → 1.43 s (3.8×); T = 2/0/0 N
-(one mirror, 12 398 unknowns): 50.5 → 35.9 s (1.40×), linear 28.0 → 11.0 s (2.5×); T = 0/2/4 N, p = 37.5 kPa (no
-symmetry): 36.9 vs 36.7 s.  Same iteration counts; tips equal to ≤ 6e-14 m.  The assembly (``evaluate``) is not
-reduced and is now the larger share of a symmetric solve.
+reduced DOFs, 2 cores shared with other jobs, load average 4–5; medians, ``docs/fem.md`` §4).**  T = 3/3/3 N,
+p = 50 kPa (C3v, 4 356 subspace unknowns): solve 13.63 → 10.32 s (1.32×), linear-solver time 6.38 → 1.36 s (4.7×);
+T = 2/0/0 N (one mirror, 12 398 unknowns): 66.4 → 46.7 s (1.42×), linear 36.8 → 14.5 s (2.5×); T = 0/2/4 N,
+p = 37.5 kPa (no symmetry): 53.7 vs 54.1 s; p = 30 kPa alone (D12, order 24): 7.59 → 3.74 s (2.0×), linear
+4.79 → 0.59 s.  Same iteration counts; tips equal to ≤ 6e-14 m.  The assembly (``evaluate``) is not reduced and is
+now the larger share of a symmetric solve.
 
 A tendon without an image under ``g`` is allowed only when it does nothing (tension-held at zero tension in
 both loads of the step and in the start state): pure pressure gets the whole mesh group (order 24 on the default
