@@ -6,6 +6,7 @@ Usage::
     python benchmarks/bench_fem.py                       # coarse mesh, all load cases, solver table
     python benchmarks/bench_fem.py --levels coarse reference --repeat 3 --json bench_fem.json
     python benchmarks/bench_fem.py --compare-kernels --repeat 5   # numpy vs numba assembly, interleaved
+    python benchmarks/bench_fem.py --symmetry --repeat 3   # symmetric-subspace vs full Newton, interleaved
 
 Prints medians over ``--repeat`` runs and ratios to the fastest solver.  ``--compare-kernels`` times the
 numpy reference assembly (``HexAssembler(kernel="numpy")``) against the compiled kernel (``"numba"``,
@@ -13,6 +14,10 @@ the default) in one process, alternating old/new on every repetition: the tangen
 reduced residual + tangent (``BellowsModel.evaluate``), and one full coarse solve of the ``fem solve``
 case (30 kPa, T = (2, 0, 0) N, gravity), with medians, ratios and the tip-position difference.
 Run it once more with ``OPENBLAS_NUM_THREADS=1`` to see the numpy path without BLAS thread contention.
+``--symmetry`` times ``solve(symmetry=True)`` (Newton steps in the invariant subspace,
+:mod:`fem_reference.symmetry`) against ``solve(symmetry=False)`` on :data:`SYMMETRY_CASES`, alternating the two on
+every repetition: median wall time, factorisation time, Newton iterations, the group order used, the ratio, and
+the tip-position difference.
 """
 
 from __future__ import annotations
@@ -201,6 +206,45 @@ def bench_kernels(level: str, repeat: int) -> dict:
     return out
 
 
+SYMMETRY_CASES = {
+    "T=3/3/3 N, p=50 kPa": dict(tensions=(3.0, 3.0, 3.0), pressure=50e3),
+    "T=2/0/0 N, p=0": dict(tensions=(2.0, 0.0, 0.0)),
+    "T=0/2/4 N, p=37.5 kPa": dict(tensions=(0.0, 2.0, 4.0), pressure=37.5e3),
+    "p=30 kPa": dict(pressure=30e3),
+}
+
+
+def bench_symmetry(level: str, repeat: int) -> dict:
+    """Symmetric-subspace vs full Newton, interleaved in one process (see the module docstring)."""
+    geo, mat = presets.paper_bellows(), presets.paper_material()
+    model = BellowsModel(geo, mat, level)
+    model.solve(tensions=(1.0, 1.0, 1.0), symmetry=False)  # compile / load numba's cache, PARDISO set up
+    print(f"\n== symmetric subspace vs full system, mesh {level}: {model.n_dofs} reduced DOFs; "
+          f"{repeat} interleaved repetitions (medians)")
+    print(f"{'case':<24} {'|H|':>4} {'sym/s':>7} {'full/s':>7} {'ratio':>6} {'lin sym':>8} {'lin full':>8} "
+          f"{'it sym':>6} {'it full':>7} {'|Δtip|/m':>9}")
+    out = dict(level=level, n_dofs=model.n_dofs, rows={})
+    for name, kw in SYMMETRY_CASES.items():
+        runs = {True: [], False: []}
+        tips = {}
+        for _ in range(repeat):
+            for flag in (True, False):
+                res = model.solve(**kw, symmetry=flag)
+                runs[flag].append(res.stats)
+                tips[flag] = res.tip_position
+        med = {f: statistics.median(s_.t_total for s_ in v) for f, v in runs.items()}
+        lin = {f: statistics.median(s_.t_linear for s_ in v) for f, v in runs.items()}
+        its = {f: runs[f][-1].n_iterations for f in runs}
+        order = runs[True][-1].symmetry_order
+        dtip = float(np.abs(tips[True] - tips[False]).max())
+        out["rows"][name] = dict(order=order, sym_s=med[True], full_s=med[False], ratio=med[False] / med[True],
+                                 linear_sym_s=lin[True], linear_full_s=lin[False], iterations_sym=its[True],
+                                 iterations_full=its[False], tip_diff_m=dtip)
+        print(f"{name:<24} {order:4d} {med[True]:7.2f} {med[False]:7.2f} {med[False] / med[True]:6.2f} "
+              f"{lin[True]:8.2f} {lin[False]:8.2f} {its[True]:6d} {its[False]:7d} {dtip:9.1e}")
+    return out
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--levels", nargs="+", default=["coarse"], choices=["coarse", "medium", "reference"])
@@ -210,8 +254,15 @@ def main(argv=None):
     ap.add_argument("--all-solvers", action="store_true", help="also SuperLU partial pivoting on big meshes")
     ap.add_argument("--compare-kernels", action="store_true",
                     help="only the numpy-vs-numba assembly comparison (interleaved), on each level")
+    ap.add_argument("--symmetry", action="store_true",
+                    help="only symmetric-subspace vs full Newton solves (interleaved), on each level")
     a = ap.parse_args(argv)
     report = dict(python=sys.version.split()[0], machine=platform.machine(), levels=[])
+    if a.symmetry:
+        report["symmetry"] = [bench_symmetry(level, a.repeat) for level in a.levels]
+        if a.json:
+            a.json.write_text(json.dumps(report, indent=2))
+        return report
     if a.compare_kernels:
         report["kernels"] = [bench_kernels(level, a.repeat) for level in a.levels]
         if a.json:

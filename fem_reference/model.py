@@ -65,6 +65,7 @@ from .loads.tendons import (
 from .material import Material
 from .mesh import BellowsMesh, build_mesh
 from .solver import NewtonStats, StepFailed, available_solvers, factorize, symmetric_inertia
+from .symmetry import check_symmetry_flag, subspace_for
 
 if TYPE_CHECKING:  # pragma: no cover
     from .results import BellowsResult
@@ -489,7 +490,8 @@ class BellowsModel:
 
     # ------------------------------------------------------------------ Newton at fixed load
     def _newton(self, st: State, lc: LoadCase, stats: NewtonStats, *, rtol: float, atol: float,
-                ltol: float, max_iter: int, growth: float, callback=None, lc_prev: LoadCase | None = None):
+                ltol: float, max_iter: int, growth: float, callback=None, lc_prev: LoadCase | None = None,
+                sym=None):
         locked = ~np.isnan(lc.locked_lengths)
         history: list[float] = []
         step_norms: list[float] = []
@@ -534,9 +536,13 @@ class BellowsModel:
                 # the load step now instead of spending max_iter factorisations on it
                 raise StepFailed(f"not converging (residual above its start after {it} iterations)", history, it)
             t0 = time.perf_counter()
-            fac = factorize(ev["K"], self.linear_solver, exact=False)  # a Newton step: see factorize
             stats.n_factorizations += 1
-            if active.any():
+            if sym is not None and sym.applies(r, tol):  # the step in the invariant subspace (fem_reference.symmetry)
+                dq, dT = sym.newton_step(ev["K"], r, ev["g"], active, cres, self.linear_solver)
+                stats.n_symmetric_steps += 1
+                fac = None
+            elif active.any():
+                fac = factorize(ev["K"], self.linear_solver, exact=False)  # a Newton step: see factorize
                 gA = ev["g"][:, active]
                 sol = fac.solve(np.column_stack([r, gA]))
                 xr, Xg = sol[:, 0], sol[:, 1:]
@@ -544,6 +550,7 @@ class BellowsModel:
                 dT = np.linalg.solve(S, cres - gA.T @ xr)
                 dq = -xr - Xg @ dT
             else:
+                fac = factorize(ev["K"], self.linear_solver, exact=False)
                 dq = -fac.solve(r)
                 dT = np.zeros(0)
             stats.t_linear += time.perf_counter() - t0
@@ -598,7 +605,7 @@ class BellowsModel:
               max_iter: int = 25, max_cuts: int = 8, growth: float = 1e4,
               progress: Callable[[dict], None] | None = None, *, check_limits: bool = True,
               max_steps: int = 60, time_limit_s: float | None = None,
-              check_stability: bool = True) -> BellowsResult:
+              check_stability: bool = True, symmetry: bool = True) -> BellowsResult:
         """Static equilibrium under the given loads (SI units).
 
         Parameters
@@ -634,6 +641,11 @@ class BellowsModel:
             Check that the equilibrium is a minimum (inertia of the reduced tangent, see
             :meth:`stability`; one extra factorisation) and raise UnstableEquilibriumError if it is not;
             ``False`` skips the check (``res.stable`` is then None).
+        symmetry : bool
+            Solve the Newton steps of each load step in the subspace invariant under the symmetries of the
+            mesh that leave its loads and start state invariant (:mod:`fem_reference.symmetry`; same discrete
+            equilibrium, smaller factorisations; the order used is ``res.stats.symmetry_order``) — the
+            default; ``False`` always solves the full system.
 
         Returns
         -------
@@ -657,6 +669,7 @@ class BellowsModel:
                 raise InputError(f"{name} must be > 0, got {v!r}")
         if time_limit_s is not None and not float(check_finite("time_limit_s", time_limit_s, ())) > 0:
             raise InputError(f"time_limit_s must be > 0 s, got {time_limit_s!r}")
+        symmetry = check_symmetry_flag(symmetry)
         target = self._loadcase(tensions, pressure, tip_force, gravity, locked_lengths)
         if check_limits:
             self.limits.check(target, self.tendon_lengths(self.zero_state()))
@@ -706,9 +719,11 @@ class BellowsModel:
             rt = rtol if (lam_t >= 1.0 - 1e-14 or locked.any()) else max(rtol, STEP_RTOL)
             try:
                 for _pass in range(6):  # active-set passes for locked tendons
+                    sym = subspace_for(self, (lc_prev, lc), (st,)) if symmetry else None
+                    stats.symmetry_order = 1 if sym is None else sym.order
                     st_new, ev, hist, its = self._newton(st, lc, stats, rtol=rt, atol=atol, ltol=ltol,
                                                          max_iter=max_iter, growth=growth,
-                                                         lc_prev=lc_prev if _pass == 0 else None)
+                                                         lc_prev=lc_prev if _pass == 0 else None, sym=sym)
                     changed = False
                     for k in np.flatnonzero(locked):
                         if not st_new.slack[k] and st_new.T[k] < 0:

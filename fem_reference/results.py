@@ -98,6 +98,7 @@ class BellowsResult:
             gravity=float(lc.gravity),
             iterations=self.iterations,
             load_steps=len(self.stats.steps),
+            symmetry_order=int(getattr(self.stats, "symmetry_order", 1)),
             timings_s=self.stats.as_dict(),
             n_dofs=int(self.model.n_dofs),
             stable=self.stable,

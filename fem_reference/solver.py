@@ -413,8 +413,14 @@ class NewtonStats:
     steps: list = field(default_factory=list)
     #: load steps that failed and were cut back: {"lam", "reason", "residuals"}
     failed_steps: list = field(default_factory=list)
+    #: order of the symmetry group whose invariant subspace the Newton steps of the last load step used
+    #: (1: the full system; :mod:`fem_reference.symmetry`)
+    symmetry_order: int = 1
+    #: Newton steps solved in a symmetric subspace (the others: the full system)
+    n_symmetric_steps: int = 0
 
     def as_dict(self) -> dict:
         return dict(t_assembly=self.t_assembly, t_linear=self.t_linear, t_total=self.t_total,
                     n_factorizations=self.n_factorizations, n_iterations=self.n_iterations,
-                    n_steps=len(self.steps), n_failed_steps=len(self.failed_steps))
+                    n_steps=len(self.steps), n_failed_steps=len(self.failed_steps),
+                    symmetry_order=self.symmetry_order, n_symmetric_steps=self.n_symmetric_steps)
