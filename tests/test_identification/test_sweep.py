@@ -23,6 +23,29 @@ def test_chains_cover_every_case_exactly_once(rows, length):
     assert all(1 <= len(ch) <= length for ch in chains)
 
 
+@settings(max_examples=40, deadline=None)
+@given(loads, st.integers(1, 6))
+def test_axisymmetric_cases_are_chained_apart_and_last(rows, length):
+    """A chain never passes between an axisymmetric case (equal tensions, no tip force) and another one (the
+    FEM's symmetric subspace needs a symmetric start), and the axisymmetric chains come after the others."""
+    cases = [LoadCase((a, a, a) if p > 60e3 else (a, b, c), p) for a, b, c, p in rows]
+    chains = fem_sweep.plan_chains(cases, length)
+    kinds = [{fem_sweep.axisymmetric(cases[i]) for i in ch} for ch in chains]
+    assert all(len(k) == 1 for k in kinds)
+    flags = [k.pop() for k in kinds]
+    assert flags == sorted(flags)
+
+
+def test_axisymmetric_load_cases():
+    assert fem_sweep.axisymmetric(LoadCase((2.0, 2.0, 2.0), 5e4))
+    assert fem_sweep.axisymmetric(LoadCase((0.0, 0.0, 0.0), 0.0))
+    assert not fem_sweep.axisymmetric(LoadCase((2.0, 2.0, 2.1), 5e4))
+    assert not fem_sweep.axisymmetric(LoadCase((2.0, 2.0, 2.0), 5e4, (0.0, 0.1, 0.0)))
+    assert not fem_sweep.axisymmetric(LoadCase((2.0, 2.0, 2.0), 5e4, gravity=True))
+    d = default_design(tension_max=5.0, pressure_max=100e3)
+    assert sum(fem_sweep.axisymmetric(c) for c in d.cases) == 12
+
+
 def test_interrupted_sweep_says_what_is_kept(monkeypatch, tmp_path):
     cases = default_design().cases[:6]
 
