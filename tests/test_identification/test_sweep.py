@@ -1,6 +1,7 @@
 """FEM sweep plumbing without the FEM: warm-start chains cover every case once, and an interrupted sweep says
 how much is finished and where it is kept."""
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -34,6 +35,26 @@ def test_axisymmetric_cases_are_chained_apart_and_last(rows, length):
     assert all(len(k) == 1 for k in kinds)
     flags = [k.pop() for k in kinds]
     assert flags == sorted(flags)
+
+
+@settings(max_examples=40, deadline=None)
+@given(loads, st.integers(2, 6))
+def test_a_chain_never_steps_farther_than_a_cold_start(rows, length):
+    """Each warm start of a chain is at most as far (in the scaled load space) as a start from the unloaded
+    state would be."""
+    cases = [LoadCase((a, b, c), p) for a, b, c, p in rows]
+    raw = np.array([fem_sweep._load_vector(c, 1.0) for c in cases])
+    X = raw / np.maximum(np.abs(raw).max(axis=0), 1e-12)
+    for ch in fem_sweep.plan_chains(cases, length):
+        for a, b in zip(ch, ch[1:]):
+            assert np.linalg.norm(X[b] - X[a]) <= np.linalg.norm(X[b])
+
+
+def test_the_default_design_starts_the_lateral_force_cold():
+    d = default_design(tension_max=5.0, pressure_max=100e3)
+    for ch in fem_sweep.plan_chains(d.cases, 4):
+        for a, b in zip(ch, ch[1:]):
+            assert not (d.cases[b].label.startswith("T=0/0/0 N, p=0 kPa, F=") and d.cases[a].tensions[0] > 0)
 
 
 def test_axisymmetric_load_cases():
