@@ -464,9 +464,10 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     tr = [r for r in records if r.case.role == "train" and r.ok]
     ho = [r for r in records if r.case.role == "heldout" and r.ok and r.case.experiment != EXTRAPOLATION]
     if len(tr) < max(4, len(design.training) // 2):
-        raise ConvergenceError(f"the FEM failed on {len(design.training) - len(tr)} of {len(design.training)} "
-                               f"training cases (e.g. {failed[0]['label']}: {failed[0]['error']}); too few remain "
-                               "to identify the model — lower the design's loads or refine the mesh")
+        # a ConfigError (the design cannot be identified on this FEM): ConvergenceError needs a residual history
+        raise ConfigError(f"the FEM failed on {len(design.training) - len(tr)} of {len(design.training)} "
+                          f"training cases (e.g. {failed[0]['label']}: {failed[0]['error']}); too few remain "
+                          "to identify the model — lower the design's loads or refine the mesh")
     train = observations_from_records(tr, marker_s)
     heldout = observations_from_records(ho, marker_s) if ho else None
     fit_base = base.replace(gravity=(0.0, 0.0, 0.0)) if not np.any(train.gravity) else base

@@ -108,3 +108,22 @@ def test_noisy_fem_measurements_identify_the_same_rod(tube_identification, tmp_p
         lo, hi = meas.ci95[key]
         assert lo <= res.values[key] <= hi, (key, res.values[key], (lo, hi))
         assert (hi - lo) < 0.2 * res.values[key]
+
+
+def test_too_few_solved_training_cases_is_a_typed_error(tube_identification, monkeypatch):
+    """When the FEM fails on most training cases, the identification stops with one typed error naming a
+    failed case (it used to build a ConvergenceError without its required fields: a TypeError)."""
+    from ancf.errors import ConfigError
+    from validation import fem_sweep
+    _, cache, geo, mat = tube_identification
+
+    def failing(spec, cases, **kw):
+        s = np.linspace(0.0, geo.length, 5)
+        return [fem_sweep.FemRecord(c, np.full(3, np.nan), np.full((3, 3), np.nan), np.full((5, 3), np.nan), s,
+                                    np.full(3, np.nan), np.full(3, np.nan), error="ConvergenceError: stalled")
+                for c in cases]
+
+    monkeypatch.setattr(fem_sweep, "run_cases", failing)
+    with pytest.raises(ConfigError, match=r"failed on 6 of 6 training cases .*stalled"):
+        identify.from_fem(geo, mat, "coarse", workers=1, cache_dir=cache, design=_design(), forms=("constant",),
+                          progress=False, compliance=False)
