@@ -64,7 +64,7 @@ from .loads.tendons import (
 )
 from .material import Material
 from .mesh import BellowsMesh, build_mesh
-from .solver import NewtonStats, StepFailed, available_solvers, factorize, symmetric_inertia
+from .solver import NewtonStats, StepFailed, available_solvers, bordered_step, factorize, symmetric_inertia
 from .symmetry import check_symmetry_flag, subspace_for
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -544,21 +544,10 @@ class BellowsModel:
             if sym is not None and sym.applies(r, tol):  # the step in the invariant subspace (fem_reference.symmetry)
                 dq, dT = sym.newton_step(ev["K"], r, ev["g"], active, cres, self.linear_solver)
                 stats.n_symmetric_steps += 1
-                fac = None
-            elif active.any():
-                fac = factorize(ev["K"], self.linear_solver, exact=False)  # a Newton step: see factorize
-                gA = ev["g"][:, active]
-                sol = fac.solve(np.column_stack([r, gA]))
-                xr, Xg = sol[:, 0], sol[:, 1:]
-                S = gA.T @ Xg
-                dT = np.linalg.solve(S, cres - gA.T @ xr)
-                dq = -xr - Xg @ dT
-            else:
-                fac = factorize(ev["K"], self.linear_solver, exact=False)
-                dq = -fac.solve(r)
-                dT = np.zeros(0)
+            else:  # a Newton step: see factorize
+                dq, dT = bordered_step(factorize(ev["K"], self.linear_solver, exact=False), r, ev["g"][:, active],
+                                       cres)
             stats.t_linear += time.perf_counter() - t0
-            del fac
             step_norms.append(float(np.linalg.norm(dq)))
             alpha = 1.0
             for ls in range(12):

@@ -43,7 +43,7 @@ import scipy.sparse.linalg as spla
 
 from ancf.errors import ConfigError
 
-__all__ = ["NewtonStats", "StepFailed", "available_solvers", "factorize", "symmetric_inertia"]
+__all__ = ["NewtonStats", "StepFailed", "available_solvers", "bordered_step", "factorize", "symmetric_inertia"]
 
 
 @contextmanager
@@ -361,6 +361,18 @@ def symmetric_inertia(K: sp.spmatrix):
     if f is None or f.n_negative is None or f.n_perturbed:
         return None
     return f.n_negative, f.fac.solve
+
+
+def bordered_step(fac, r: np.ndarray, G: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Newton step of ``K dq + G dλ = −r``, ``Gᵀ dq = c`` with the factor ``fac`` of ``K`` (one solve with
+    ``1 + k`` right-hand sides and the Schur complement ``(Gᵀ K⁻¹ G) dλ = c − Gᵀ K⁻¹ r``); ``G`` (n, k), ``k`` may
+    be 0.  Returns ``(dq, dλ)``."""
+    if G.shape[1] == 0:
+        return -fac.solve(r), np.zeros(0)
+    sol = fac.solve(np.column_stack([r, G]))
+    xr, Xg = sol[:, 0], sol[:, 1:]
+    dlam = np.linalg.solve(G.T @ Xg, c - G.T @ xr)
+    return -xr - Xg @ dlam, dlam
 
 
 def factorize(A: sp.spmatrix, method: str = "auto", exact: bool = True):

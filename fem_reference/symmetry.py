@@ -81,7 +81,7 @@ import scipy.sparse as sp
 from ancf.errors import InputError
 
 from .geometry import e_radial
-from .solver import factorize
+from .solver import bordered_step, factorize
 
 __all__ = ["GroupElement", "SymmetricSubspace", "load_subgroup", "mesh_group", "subspace_for"]
 
@@ -376,23 +376,14 @@ class SymmetricSubspace:
         """Newton step ``(dq, dT)`` in the subspace: ``dq = T y``; for locked active tendons one multiplier
         increment per tendon orbit (module docstring).  ``dT`` is over the active tendons (as in the full
         step)."""
-        Ks = self.reduce_matrix(K)
-        fac = factorize(Ks, linear_solver, exact=False)
-        rs = self.Tt @ r
-        if active.any():
-            ka = np.flatnonzero(active)
-            reps, idx, size = self.tendon_orbits(ka)
-            C = self.Tt @ g[:, reps]
-            cr = np.zeros(reps.size)
-            cr[idx] = cres  # equal within an orbit (symmetric state)
-            sol = fac.solve(np.column_stack([rs, C]))
-            xr, Xg = sol[:, 0], sol[:, 1:]
-            z = np.linalg.solve(C.T @ Xg, cr - C.T @ xr)
-            y = -xr - Xg @ z
-            dT = (z / size)[idx]
-        else:
-            y = -fac.solve(rs)
-            dT = np.zeros(0)
+        fac = factorize(self.reduce_matrix(K), linear_solver, exact=False)
+        if not active.any():
+            return self.T @ -fac.solve(self.Tt @ r), np.zeros(0)
+        reps, idx, size = self.tendon_orbits(np.flatnonzero(active))
+        cr = np.zeros(reps.size)
+        cr[idx] = cres  # equal within an orbit (symmetric state)
+        y, z = bordered_step(fac, self.Tt @ r, self.Tt @ g[:, reps], cr)
+        dT = (z / size)[idx]
         return self.T @ y, dT
 
 
