@@ -71,6 +71,7 @@ import scipy.sparse as sp
 from ancf.errors import ConfigError
 
 from .material import Material, _inv_det
+from .sparse_keys import csr_index, unique_keys
 
 __all__ = ["ELEMENTS", "KERNELS", "CsrPattern", "HexAssembler", "PressureAssembler", "gravity_load",
            "pressure_basis"]
@@ -105,14 +106,10 @@ class CsrPattern:
         rows = np.broadcast_to(ldofs.T[:, :, None], (ne, nloc, nloc)).ravel()
         cols = np.broadcast_to(cl.T[:, None, :], (ne, nloc, nloc)).ravel()
         keys = rows.astype(np.int64) * n + cols
-        self.keys, inv = np.unique(keys, return_inverse=True)
+        self.keys, inv = unique_keys(keys, return_inverse=True)
         self.scatter = inv.astype(np.int64 if self.keys.size > 2**31 - 1 else np.int32)
         self.n = n
-        r = self.keys // n
-        self.indices = (self.keys % n).astype(np.int32)
-        self.indptr = np.zeros(n + 1, np.int64)
-        np.add.at(self.indptr, r + 1, 1)
-        self.indptr = np.cumsum(self.indptr)
+        self.indptr, self.indices = csr_index(self.keys, n, np.int64)
 
     @property
     def nnz(self) -> int:

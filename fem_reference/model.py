@@ -45,6 +45,7 @@ from ancf.errors import (
 )
 
 from .assembly import ELEMENTS, KERNELS, HexAssembler, check_element, PressureAssembler, gravity_load
+from .corotation import ring_rotation_correction
 from .geometry import BellowsGeometry, e_radial
 from .loads.caps import (
     RigidCapReduction,
@@ -64,6 +65,7 @@ from .loads.tendons import (
 )
 from .material import Material
 from .mesh import BellowsMesh, build_mesh
+from .sparse_keys import csr_index, unique_keys
 from .solver import NewtonStats, StepFailed, available_solvers, bordered_step, factorize, symmetric_inertia
 from .symmetry import check_symmetry_flag, subspace_for
 
@@ -160,6 +162,8 @@ EARLY_CUT_RATIO = 30.0
 #: steps fail: measured on four cold bends of the default design, 163 factorisations against 194 with the former
 #: rule — pressure and total tension only — 186 with 1 N, 169 with 0.25 N)
 ASYMMETRY_STEP = 0.5
+#: Newton updates turn each ring of nodes by a finite rotation (:mod:`fem_reference.corotation`; measured there)
+RING_UPDATE = True
 #: relative residual to which intermediate load steps are converged (the last step: the solve's rtol)
 STEP_RTOL = 1e-2
 
@@ -278,14 +282,28 @@ class BellowsModel:
         m = self.m
         return State(np.zeros((3, self.bmesh.n_nodes)), np.zeros(3), np.eye(3), np.zeros(m), np.zeros(m, bool))
 
-    def _apply(self, st: State, dq: np.ndarray, alpha: float = 1.0) -> State:
+    def _apply(self, st: State, dq: np.ndarray, alpha: float = 1.0, rings: bool = True) -> State:
+        """``st`` moved by ``alpha dq`` (reduced coordinates); with ``rings`` (and :data:`RING_UPDATE`) each ring
+        of free nodes turns by the finite rotation of its rigid part (:mod:`fem_reference.corotation`)."""
         new = st.copy()
         c = self.caps
-        new.U[:, c.free_nodes] += alpha * dq[: c.n_free].reshape(-1, 3).T
+        du = alpha * dq[: c.n_free].reshape(-1, 3).T
+        if RING_UPDATE and rings:   # each ring turns by a finite rotation (fem_reference.corotation)
+            x = (self.bmesh.X + st.U)[:, c.free_nodes]
+            du = du + ring_rotation_correction(x, du, self._rings())
+        new.U[:, c.free_nodes] += du
         new.uc = st.uc + alpha * dq[c.n_free: c.n_free + 3]
         new.R = expm_so3(alpha * dq[c.n_free + 3: c.n_free + 6]) @ st.R
         c.place(new.U, new.uc, new.R)
         return new
+
+    def _rings(self) -> np.ndarray:
+        """Ring index of each free node (its lattice row along the axis; :mod:`fem_reference.corotation`)."""
+        rows = self.__dict__.get("_ring_rows")
+        if rows is None:
+            _, rows = np.unique(self.bmesh.lattice[0, self.caps.free_nodes], return_inverse=True)
+            rows = self._ring_rows = np.asarray(rows).ravel()
+        return rows
 
     # ------------------------------------------------------------------ kinematics of points
     def tip_position(self, st: State) -> np.ndarray:
@@ -468,15 +486,13 @@ class BellowsModel:
         keys = np.repeat(np.arange(n, dtype=np.int64), np.diff(K.indptr)) * n + K.indices
         if pat is None:  # start from the tendons' Hessian blocks too: added in place by evaluate
             tk = np.concatenate([self._tendon_keys(k) for k in range(self.m)] + [keys[:0]])
-            pat = (None, None, np.unique(tk))
+            pat = (None, None, unique_keys(tk))
         pkeys = pat[2]
         pos = np.searchsorted(pkeys, keys)
         if not np.all(pkeys[np.minimum(pos, pkeys.size - 1)] == keys):
-            u = np.sort(np.concatenate([pkeys, keys]))  # (np.union1d's hash path is ~10x slower here)
-            pkeys = u[np.concatenate(([True], u[1:] != u[:-1]))]
-            indptr = np.zeros(n + 1, np.int64)
-            np.add.at(indptr, pkeys // n + 1, 1)
-            pat = (np.cumsum(indptr).astype(K.indptr.dtype), (pkeys % n).astype(K.indices.dtype), pkeys)
+            pkeys = unique_keys(np.concatenate([pkeys, keys]))
+            indptr, indices = csr_index(pkeys, n, K.indptr.dtype)
+            pat = (indptr, indices.astype(K.indices.dtype), pkeys)
             self._pattern = pat
             pos = np.searchsorted(pkeys, keys)
         self._pattern_cache = (K.indptr.copy(), K.indices.copy(), pos, pat)

@@ -82,6 +82,7 @@ from ancf.errors import InputError
 
 from .geometry import e_radial
 from .solver import bordered_step, factorize
+from .sparse_keys import csr_index, unique_keys
 
 __all__ = ["GroupElement", "SymmetricSubspace", "load_subgroup", "mesh_group", "subspace_for"]
 
@@ -415,13 +416,9 @@ class _ReducedMap:
         c = T.indices[t_idx].astype(np.int64)
         self.src = e2
         self.coef = W.data[w_idx] * T.data[t_idx]
-        ukeys, dest = np.unique(a * n_s + c, return_inverse=True)
-        self.dest = np.asarray(dest).ravel()
+        ukeys, self.dest = unique_keys(a * n_s + c, return_inverse=True)
         self.nnz = ukeys.size
-        self.indices = (ukeys % n_s).astype(np.int32)
-        indptr = np.zeros(n_s + 1, np.int64)
-        np.add.at(indptr, ukeys // n_s + 1, 1)
-        self.indptr = np.cumsum(indptr).astype(np.int32)
+        self.indptr, self.indices = csr_index(ukeys, n_s)
         self.n_s = n_s
 
     def matches(self, K) -> bool:

@@ -24,7 +24,7 @@ Axisymmetric cases are chained apart from the others, so that the FEM solves the
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Optional, Sequence
 
 import numpy as np
@@ -93,6 +93,7 @@ class FemRecord:
     seconds: float = 0.0
     error: str = ""
     extra: dict = field(default_factory=dict)
+    state: Optional[object] = field(default=None, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
@@ -104,7 +105,8 @@ class FemRecord:
         return np.column_stack([np.interp(s, self.centreline_s, self.centreline[:, c]) for c in range(3)])
 
     def to_dict(self) -> dict:
-        d = asdict(self)
+        d = asdict(replace(self, state=None))
+        d.pop("state")
         d["case"] = self.case.to_dict()
         return d
 
@@ -166,24 +168,31 @@ def solve_case(task: dict) -> FemRecord:
 
 def solve_chain(task: dict) -> list:
     """Worker: solve the load cases ``task["cases"]`` in order, each warm-started from the previous
-    equilibrium (``task``: spec, cases, compliance — one flag per case) → list of :class:`FemRecord`.
+    equilibrium (``task``: spec, cases, compliance — one flag per case; optional ``starts`` — one
+    :class:`fem_reference.transfer.StateSnapshot` or None per case, the same case solved on another mesh of
+    the design, tried first: :func:`start_solve`) → list of :class:`FemRecord`.
 
     A solve that fails (a :class:`~ancf.errors.BellowsError`) is retried from the unloaded state; if that
     fails too, its record carries ``error`` (arrays NaN), so that one hard case does not lose the sweep;
     the caller decides what a failed case means."""
+    from fem_reference.transfer import snapshot
     spec: FemSpec = task["spec"]
     model = fem_model(spec)
     m = model.m
     out, prev = [], None
-    for case, want_c in zip(task["cases"], task["compliance"]):
+    starts = task.get("starts") or [None] * len(task["cases"])
+    for case, want_c, start in zip(task["cases"], task["compliance"], starts):
         t0 = time.perf_counter()
         if len(case.tensions) != m:
             raise InputError(f"load case has {len(case.tensions)} tensions; the FEM model has {m} tendons")
+        loads = dict(tensions=case.tensions, pressure=case.pressure, tip_force=case.tip_force, gravity=case.gravity)
         res, err = None, ""
-        for initial in ((prev, None) if prev is not None else (None,)):
+        if start is not None:
+            res, err = start_solve(model, start, loads)
+            started = res is not None
+        for initial in (() if res is not None else (prev, None) if prev is not None else (None,)):
             try:
-                res = model.solve(tensions=case.tensions, pressure=case.pressure, tip_force=case.tip_force,
-                                  gravity=case.gravity, initial=initial)
+                res = model.solve(**loads, initial=initial)
                 break
             except BellowsError as exc:
                 err = f"{type(exc).__name__}: {exc}"
@@ -195,7 +204,9 @@ def solve_chain(task: dict) -> list:
         prev = res
         rec = FemRecord(case, res.tip_position.copy(), res.cap_rotation.copy(), res.centreline.copy(),
                         _centreline_s(model), res.tensions.copy(), np.asarray(res.tendon_lengths, float).copy(),
-                        iterations=res.iterations)
+                        iterations=res.iterations, state=snapshot(res))
+        if start is not None:   # how the solve went, for people: the equilibrium is the same either way
+            rec.extra["started_from_other_mesh"] = started
         if want_c:
             rec.compliance_tension = model.tip_compliance(res, mode="tension")
             locked, active = locked_compliance(model, res, task.get("locked_direction", (0.0, 0.0, -1.0)))
@@ -203,6 +214,22 @@ def solve_chain(task: dict) -> list:
         rec.seconds = time.perf_counter() - t0
         out.append(rec)
     return out
+
+
+def start_solve(model, start, loads: dict) -> tuple:
+    """Solve ``loads`` on ``model`` from ``start``, the same loads' equilibrium on another mesh of the design
+    (:func:`fem_reference.transfer.start_from`: interpolated, the added nodes relaxed), in one load step at
+    full load → (result, "") or (None, the failure) — the caller then solves from the unloaded state.  A
+    snapshot with other loads is refused (InputError): it would be a start for a different problem."""
+    from fem_reference.transfer import start_from
+    if not (np.allclose(start.T, loads["tensions"], rtol=0, atol=1e-12) and start.pressure == loads["pressure"]
+            and np.allclose(start.tip_force, loads["tip_force"], rtol=0, atol=1e-12)
+            and float(start.gravity) == float(loads["gravity"])):
+        raise InputError("start_solve: the start was solved under other loads")
+    try:
+        return model.solve(**loads, initial=start_from(start, model), max_cuts=0), ""
+    except BellowsError as exc:
+        return None, f"{type(exc).__name__}: {exc}"
 
 
 def _load_vector(case: LoadCase, scale: np.ndarray) -> np.ndarray:
@@ -327,22 +354,30 @@ def check_cases(spec: FemSpec, cases: Sequence[LoadCase]) -> None:
 
 def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, workers: Optional[int] = None,
               scheduler=None, cache_dir=None, progress: bool = True, on_result=None,
-              chain_length: int = 4) -> list[FemRecord]:
+              chain_length: int = 4, starts: Optional[Sequence] = None) -> list[FemRecord]:
     """Solve every load case on the FEM of ``spec``; returns one :class:`FemRecord` per case, in order.
 
     compliance : also compute the tip compliances (tension held, all tendons locked) of each state (a bool,
         or a function of the load case);  workers, scheduler : see :func:`validation.runner.run_tasks`;
     cache_dir : folder of the on-disk cache (None: no cache);  on_result(i, records) : called as each chain
-    finishes;  chain_length : cases per warm-start chain (1: every case solved from the unloaded state).
+    finishes;  chain_length : cases per warm-start chain (1: every case solved from the unloaded state);
+    starts : one :class:`fem_reference.transfer.StateSnapshot` or None per case — the case's equilibrium on
+        another mesh of the design (a :class:`FemRecord`'s ``state``), from which it is solved first
+        (:func:`start_solve`).  The cache key does not include it: the equilibrium does not depend on the start.
     Raises :class:`validation.runner.RunInterrupted` on Ctrl-C (finished chains are in the cache)."""
     cases = list(cases)
     if not cases:
         raise InputError("run_cases: no load cases")
     check_cases(spec, cases)
     want = compliance if callable(compliance) else (lambda c, v=bool(compliance): v)
+    if starts is not None and len(starts) != len(cases):
+        raise InputError(f"run_cases: {len(starts)} starts for {len(cases)} cases")
     chains = plan_chains(cases, chain_length)
     tasks = [{"kind": "chain", "spec": spec, "cases": [cases[i] for i in ch],
               "compliance": [bool(want(cases[i])) for i in ch]} for ch in chains]
+    if starts is not None:
+        for t, ch in zip(tasks, chains):
+            t["starts"] = [starts[i] for i in ch]
     cache = None
     if cache_dir is not None:
         cache = ResultCache(cache_dir, version=fem_fingerprint())

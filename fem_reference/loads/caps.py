@@ -38,6 +38,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..sparse_keys import csr_index, unique_keys
+
 __all__ = ["RigidCapReduction", "expm_so3", "log_so3", "point_geometric", "point_jacobian", "skew"]
 
 
@@ -265,13 +267,8 @@ class _ReductionMap:
             (self.rows_fc[:, None] * nq + nf + six[None, :]).ravel(),
             ((nf + six[:, None]) * nq + self.cols_cf[None, :]).ravel(),
             ((nf + six[:, None]) * nq + nf + six[None, :]).ravel()])
-        ukeys = np.unique(keys)
-        self.indices = (ukeys % nq).astype(np.int32)
-        self.indptr = np.zeros(nq + 1, np.int64)
-        np.add.at(self.indptr, ukeys // nq + 1, 1)
-        self.indptr = np.cumsum(self.indptr)
-        if self.indptr[-1] < 2**31:
-            self.indptr = self.indptr.astype(np.int32)
+        ukeys = unique_keys(keys)
+        self.indptr, self.indices = csr_index(ukeys, nq)
         pos = np.searchsorted(ukeys, keys)
         a, b, c = self.src_ff.size, self.rows_fc.size * 6, self.cols_cf.size * 6
         self.pos_ff = pos[:a]

@@ -84,6 +84,7 @@ def test_estimate_matches_a_direct_computation_on_both_meshes(tiny_estimate):
     want_c = 100 * np.linalg.norm(Cc - Cf) * 4 / 3 / np.linalg.norm(Cf)
     assert row["C_tension_error_pct"] == pytest.approx(want_c, rel=1e-4)
     assert "assumed rate p = 2" in est.method and "along the profile" in est.method
+    assert row["started_from_coarser"] == [True]       # from the coarse equilibrium, and still the fine one
     assert est.to_dict()["levels"][1]["mesh"] == {"n_per_conv": 4, "n_thick": 1, "n_theta": 12, "n_collar": 2}
 
 
@@ -93,6 +94,19 @@ def test_refined_solves_are_cached(tiny_estimate, monkeypatch):
     monkeypatch.setattr(fs, "solve_task", lambda task: pytest.fail("solved again instead of read from the cache"))
     again = estimate_fem_error(spec, [CASE], workers=1, progress=False, cache_dir=cache, compliance=True)
     assert again.rows[0]["tip_error_m"] == est.rows[0]["tip_error_m"]
+
+
+def test_records_carry_their_state_but_not_into_json(tiny_estimate, tmp_path):
+    from validation.fem_sweep import run_cases, start_solve
+    _, spec, cache = tiny_estimate
+    rec = run_cases(spec, [CASE], workers=1, progress=False, cache_dir=cache)[0]
+    assert rec.state is not None and rec.state.U.shape[0] == 3
+    assert "state" not in rec.to_dict()
+    with pytest.raises(InputError, match="starts for"):
+        run_cases(spec, [CASE], workers=1, progress=False, starts=[None, None])
+    other = {"tensions": (1.0, 0.0, 0.0), "pressure": 0.0, "tip_force": (0.0, 0.0, 0.0), "gravity": False}
+    with pytest.raises(InputError, match="other loads"):
+        start_solve(BellowsModel(GEO, MAT, TINY), rec.state, other)
 
 
 class _Val:
