@@ -27,7 +27,20 @@ import numpy as np
 
 
 class BellowsError(Exception):
-    """Base class of every error the product raises on purpose."""
+    """Base class of every error the product raises on purpose.
+
+    Picklable with its attributes (a worker process's error reaches the caller as itself), though several
+    subclasses take required keyword arguments that ``Exception``'s default pickling would not pass back."""
+
+    def __reduce__(self):
+        return _rebuild_error, (type(self), self.args, dict(self.__dict__))
+
+
+def _rebuild_error(cls, args, state):
+    err = cls.__new__(cls, *args)
+    Exception.__init__(err, *args)
+    err.__dict__.update(state)
+    return err
 
 
 class ConfigError(BellowsError, ValueError):

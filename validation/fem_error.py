@@ -42,7 +42,7 @@ from ancf.export import to_jsonable
 from .experiments import LoadCase
 from .fem_sweep import FemRecord, FemSpec, run_cases
 
-__all__ = ["for_validation", "QUICK_CASES", "FULL_CASES", "ASSUMED_RATE", "TOO_LARGE_SHARE", "FemErrorEstimate",
+__all__ = ["for_validation", "estimate_for_heldout", "QUICK_CASES", "FULL_CASES", "ASSUMED_RATE", "TOO_LARGE_SHARE", "FemErrorEstimate",
            "mesh_level", "refined_level", "richardson",
            "deformation_m", "select_cases", "estimate_fem_error", "assess"]
 
@@ -366,16 +366,31 @@ def assess(validation, estimate: Optional[FemErrorEstimate], records: Sequence[F
             "rows": to_jsonable(rows), "statements": statements, "estimate": estimate.to_dict()}
 
 
-def for_validation(validation, spec: FemSpec, records: Sequence[FemRecord], n_cases: int, **kw) -> dict:
+def estimate_for_heldout(spec: FemSpec, records: Sequence[FemRecord], n_cases: int, **kw) -> Optional[FemErrorEstimate]:
+    """:func:`estimate_fem_error` of the ``n_cases`` solved held-out records (role ``"heldout"``) with the largest
+    deformation, None when there is none — what :func:`for_validation` measures, computable before the model
+    is fitted (``validation.identify.from_fem(after_sweep=...)`` runs it beside the fits)."""
+    ho = [r for r in records if r.ok and r.case.role == "heldout"]
+    if not ho:
+        return None
+    chosen = select_cases(ho, n_cases)
+    return estimate_fem_error(spec, [r.case for r in chosen], records=chosen, **kw)
+
+
+def for_validation(validation, spec: FemSpec, records: Sequence[FemRecord], n_cases: int, *,
+                   estimate: Optional[FemErrorEstimate] = None, **kw) -> dict:
     """Measure the FEM error of the ``n_cases`` held-out states of ``validation`` with the largest deformation
     (``records``: their default-mesh results, e.g. ``IdentificationResult.records``) and set
-    ``validation.fem_error`` to :func:`assess` of it; ``kw`` go to :func:`estimate_fem_error`.  Returns it."""
+    ``validation.fem_error`` to :func:`assess` of it; ``kw`` go to :func:`estimate_fem_error`.  ``estimate``: one
+    already made by :func:`estimate_for_heldout`, used when its states are among those compared (else measured
+    again here).  Returns it."""
     labels = {r["label"] for r in validation.rows}
     ho = [r for r in records if r.ok and r.case.label in labels]
     if not ho:
         validation.fem_error = assess(validation, None, reason="no held-out state was compared")
         return validation.fem_error
     chosen = select_cases(ho, n_cases)
-    est = estimate_fem_error(spec, [r.case for r in chosen], records=chosen, **kw)
-    validation.fem_error = assess(validation, est, ho)
+    if estimate is None or [r["label"] for r in estimate.rows] != [r.case.label for r in chosen]:
+        estimate = estimate_fem_error(spec, [r.case for r in chosen], records=chosen, **kw)
+    validation.fem_error = assess(validation, estimate, ho)
     return validation.fem_error

@@ -132,6 +132,13 @@ class ModelForm:
     def n(self) -> int:
         return len(self.names)
 
+    def __reduce__(self):
+        """Pickled by name (its laws are closures): a form of :func:`get_form` reaches a worker process as itself."""
+        base = self.name[:-2] if self.fits_distance and self.name.endswith("+d") else self.name
+        if base in _DEF:
+            return get_form, (base, self.fits_distance)
+        return super().__reduce__()
+
     def typical_scale(self, theta0) -> np.ndarray:
         """A fixed typical magnitude of each parameter (SI), set by the form's definition and the starting
         point ``theta0`` — never by a fitted value.  ``typical[j]`` is ``None`` (a positive magnitude: its

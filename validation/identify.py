@@ -32,7 +32,7 @@ import json
 import math
 import pathlib
 from dataclasses import dataclass, field
-from typing import Optional, Sequence
+from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
@@ -173,6 +173,8 @@ class IdentificationResult:
     meta: dict = field(default_factory=dict)
     #: the report's Dynamics section (:func:`validation.modes_compare.compare_modes`), None if not computed
     modes: Optional[dict] = None
+    #: what :func:`from_fem`'s ``after_sweep`` returned (run beside the fits), None without one
+    after_sweep: Any = field(default=None, repr=False)
 
     @property
     def fit(self) -> FitResult:
@@ -418,7 +420,8 @@ def _finalise_params(res: IdentificationResult, base: ActuatorParams) -> None:
 def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, scheduler=None, cache_dir=None, *,
              design: Optional[Design] = None, forms: Sequence[str] = FORMS, n_elements: int = 6,
              tension_max: float = 5.0, pressure_max: float = 120e3, fit_distance: bool = False,
-             progress: bool = True, compliance: bool = True, cases: str = "default") -> IdentificationResult:
+             progress: bool = True, compliance: bool = True, cases: str = "default",
+             after_sweep: Optional[Callable[[list], Any]] = None) -> IdentificationResult:
     """Identify the reduced model from virtual experiments on the FEM of ``geometry`` and ``material``.
 
     mesh : FEM mesh level ("coarse" for minutes, "reference" for the full report); workers / scheduler :
@@ -429,7 +432,10 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     :mod:`validation.compare`); cases : without ``design``, ``"default"`` (that design) or ``"informative"``
     (:func:`validation.design_select.informative_design` for the form with the most parameters, at its start
     from the closed-form rod estimate).  Held-out states of the experiment ``"extrapolation"`` are compared but
-    do not choose the form.
+    do not choose the form.  after_sweep : ``after_sweep(records)`` is run here while the forms are fitted in
+    a worker process (:func:`validation.runner.run_beside`; e.g. the FEM's refined solves of
+    :func:`validation.fem_error.estimate_for_heldout`, which use the other cores); its result is
+    ``res.after_sweep``.
     """
     from .fem_sweep import FemSpec, check_cases, run_cases, run_rod
     from .runner import check_workers
@@ -471,8 +477,14 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     train = observations_from_records(tr, marker_s)
     heldout = observations_from_records(ho, marker_s) if ho else None
     fit_base = base.replace(gravity=(0.0, 0.0, 0.0)) if not np.any(train.gravity) else base
-    res = identify(train, fit_base, heldout=heldout, forms=forms, rod=rod, fit_distance=fit_distance,
-                   absolute_sigma=False, source="fem")
+    fit_kw = dict(train=train, base=fit_base, heldout=heldout, forms=forms, rod=rod, fit_distance=fit_distance,
+                  absolute_sigma=False, source="fem")
+    if after_sweep is None:
+        res = identify(**fit_kw)
+    else:
+        from .runner import run_beside
+        res, side = run_beside(identify, fit_kw, lambda: after_sweep(records))
+        res.after_sweep = side
     _finalise_params(res, base)
     res.design, res.records = design, records
     res.meta = {"mesh": str(mesh), "design": describe_geometry(geometry), "geometry": to_jsonable(vars(geometry)),

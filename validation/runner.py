@@ -39,7 +39,8 @@ from typing import Any, Callable, Iterable, Optional, Sequence
 
 from ancf.errors import BellowsError, InputError
 
-__all__ = ["RunInterrupted", "WorkerDied", "RunOutcome", "ResultCache", "run_tasks", "source_fingerprint", "task_key", "check_workers"]
+__all__ = ["RunInterrupted", "WorkerDied", "RunOutcome", "ResultCache", "run_tasks", "run_beside", "source_fingerprint",
+           "task_key", "check_workers"]
 
 _BLAS_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
               "NUMBA_NUM_THREADS")
@@ -398,6 +399,51 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence[Any], *, workers: Option
                              completed=dict(results), total=n) from exc
     return RunOutcome([results[i] for i in range(n)], backend, nworkers, cached, time.perf_counter() - t0,
                       computed_indices=todo)
+
+
+def _beside_child(conn, fn, kwargs) -> None:
+    try:
+        out = ("ok", fn(**kwargs))
+    except BaseException as exc:          # noqa: BLE001 - handed to the parent, which raises it
+        out = ("error", exc)
+    try:
+        conn.send(out)
+    except Exception as exc:              # noqa: BLE001 - an unpicklable result: say so rather than hang
+        conn.send(("error", RuntimeError(f"run_beside: the result of {getattr(fn, '__name__', fn)} could not be "
+                                         f"sent back: {exc}")))
+    conn.close()
+
+
+def run_beside(fn: Callable[..., Any], kwargs: dict, work: Callable[[], Any]) -> tuple[Any, Any]:
+    """``fn(**kwargs)`` in one worker process while ``work()`` runs in this one → ``(fn's result, work's
+    result)``.  For a serial computation that can overlap a parallel one (the model fits while the FEM's
+    refined solves run): ``work`` may itself start worker processes with :func:`run_tasks` — the child is a
+    plain process, so this process keeps no extra thread and ``run_tasks`` still forks.  An exception in
+    ``fn`` is raised here (after ``work`` finished); a Ctrl-C or an error in ``work`` stops the child at
+    once; a child that dies raises :class:`WorkerDied`."""
+    import multiprocessing as mp
+    ctx = mp.get_context(_start_method())
+    here, there = ctx.Pipe(duplex=False)
+    with _single_thread_env():
+        child = ctx.Process(target=_beside_child, args=(there, fn, kwargs), daemon=True)
+        child.start()
+    there.close()
+    try:
+        side = work()
+        try:
+            status, value = here.recv()
+        except EOFError:
+            raise WorkerDied(f"the worker process running {getattr(fn, '__name__', fn)} died (a crash, or the "
+                             "system killed it, e.g. out of memory)", completed={}, total=1) from None
+        child.join()
+    finally:
+        here.close()
+        if child.is_alive():
+            child.terminate()
+            child.join(5.0)
+    if status == "error":
+        raise value
+    return value, side
 
 
 def _run_pool(fn, tasks, todo, nworkers, method, done) -> None:

@@ -79,3 +79,22 @@ def test_pressure_limit_message_from_the_command(tmp_path):
                          capture_output=True, text=True, cwd=tmp_path)
     assert res.returncode == 2
     assert res.stderr.strip().endswith("kPa (use --no-limits to analyse it anyway)"), res.stderr
+
+
+def test_every_product_error_survives_pickling_with_its_attributes():
+    """Errors raised in a worker process reach the caller as themselves (several take required keyword
+    arguments, which Exception's default pickling does not pass back)."""
+    import pickle
+
+    import numpy as np
+
+    from ancf import errors as E
+    made = [E.ConvergenceError("no", solver="fk", iterations=3, residual_norm=2.0, tolerance=1e-9, history=[3.0, 2.0]),
+            E.UnstableEquilibriumError("saddle", solver="fk", min_eigenvalue=-1.5),
+            E.InfeasibleTargetError("out of reach", target=[0.1, 0.0, 0.0], nearest=[0.09, 0.0, 0.0]),
+            E.CollapsedStateError("collapsed", solver="fk", stretch=0.4), E.ConfigError("bad"), E.LimitError("too big")]
+    for err in made:
+        back = pickle.loads(pickle.dumps(err))
+        assert type(back) is type(err) and str(back) == str(err)
+        for k, v in vars(err).items():
+            assert np.array_equal(np.asarray(getattr(back, k), dtype=object), np.asarray(v, dtype=object))

@@ -27,3 +27,23 @@ def die_on(task):
         time.sleep(0.5)                       # let the other tasks finish first
         os.kill(os.getpid(), signal.SIGKILL)
     return task["x"]
+
+
+def pid_and(x):
+    """For run_beside: the child's pid and a value."""
+    return {"pid": os.getpid(), "x": x}
+
+
+def raise_convergence(x):
+    from ancf.errors import ConvergenceError
+    raise ConvergenceError("no", solver="fk", iterations=x, residual_norm=1.0, tolerance=1e-9)
+
+
+def sleep_long(x):
+    time.sleep(x)
+    return x
+
+
+def kill_self(x):
+    import signal
+    os.kill(os.getpid(), signal.SIGKILL)

@@ -222,3 +222,33 @@ def test_fem_cache_version_covers_every_module_that_computes_a_cached_result(mon
     for fn in (fs.solve_task, fs.solve_chain, fs.rod_estimate, fs.locked_compliance, fs.LoadCase, fs.modes_chain,
                fs.classify_fem_modes):
         assert fn.__module__ in seen["files"], fn.__qualname__
+
+
+def test_run_beside_runs_the_function_in_another_process_while_the_work_forks_its_own():
+    import threading
+
+    from validation.runner import run_beside
+    before = set(threading.enumerate())
+
+    def work():      # no thread of run_beside's in this process (run_tasks forks when there is none)
+        return set(threading.enumerate()), run_tasks(T.square, [{"x": k} for k in range(4)], workers=2,
+                                                     progress=False)
+
+    value, (threads, side) = run_beside(T.pid_and, {"x": 3}, work)
+    assert value["x"] == 3 and value["pid"] != os.getpid()
+    assert not threads - before
+    assert [r["y"] for r in side.results] == [0, 1, 4, 9] and side.backend.startswith("processes")
+
+
+def test_run_beside_raises_the_childs_error_as_itself_and_stops_the_child_on_a_failing_work():
+    from ancf.errors import ConvergenceError
+    from validation.runner import WorkerDied, run_beside
+    with pytest.raises(ConvergenceError) as info:
+        run_beside(T.raise_convergence, {"x": 7}, lambda: None)
+    assert info.value.iterations == 7
+    t0 = time.monotonic()
+    with pytest.raises(InputError, match="work failed"):
+        run_beside(T.sleep_long, {"x": 60}, lambda: (_ for _ in ()).throw(InputError("work failed")))
+    assert time.monotonic() - t0 < 10                    # the 60 s child was stopped, not waited for
+    with pytest.raises(WorkerDied):
+        run_beside(T.kill_self, {"x": 0}, lambda: None)
