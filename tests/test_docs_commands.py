@@ -174,11 +174,22 @@ def artifacts(tmp_path_factory):
 def test_the_docs_show_commands():
     """The extraction finds the README's main command and the commands of every section that has some."""
     readme = doc_commands(ROOT / "README.md")
-    assert readme[0] == "bellows demo"
+    assert readme[0] == "bellows report --quick"
     assert any(c.startswith("bellows control --rig sim") for c in readme)
     assert any(c.startswith("bellows report --quick") for c in readme)
     assert "bellows fk --tensions-n 2,0,0 --pressure-kpa 30 --tip-force-n 0,0,-0.49" in readme  # [...] dropped
     assert len(CASES) >= 20
+
+
+def test_ci_runs_the_readme_commands():
+    """.ci/run runs the README's two commands: the main job with its own install, and the tests."""
+    blocks = re.findall(r"^```bash\n(.*?)^```", (ROOT / "README.md").read_text(), re.S | re.M)
+    main, tests = blocks[0].strip(), blocks[1].strip()
+    assert main == 'pip install -e ".[pardiso]" && bellows report --quick'
+    assert tests == "pip install -e .[test] && pytest"
+    ci = (ROOT / ".ci" / "run").read_text()
+    assert 'pip install --quiet -e "$repo[pardiso]" && bellows report --quick' in ci
+    assert "\npip install -e .[test] && pytest\n" in ci
 
 
 @pytest.mark.parametrize("doc, index, cmd", CASES)
