@@ -7,6 +7,8 @@ Usage::
     python benchmarks/bench_fem.py --levels coarse reference --repeat 3 --json bench_fem.json
     python benchmarks/bench_fem.py --compare-kernels --repeat 5   # numpy vs numba assembly, interleaved
     python benchmarks/bench_fem.py --symmetry --repeat 3   # symmetric-subspace vs full Newton, interleaved
+    python benchmarks/bench_fem.py --rings --repeat 3      # ring rotations in the Newton update on/off, cold bends
+    python benchmarks/bench_fem.py --transfer --repeat 3   # refined solves from the coarse equilibrium / from rest
 
 Prints medians over ``--repeat`` runs and ratios to the fastest solver.  ``--compare-kernels`` times the
 numpy reference assembly (``HexAssembler(kernel="numpy")``) against the compiled kernel (``"numba"``,
@@ -17,7 +19,10 @@ Run it once more with ``OPENBLAS_NUM_THREADS=1`` to see the numpy path without B
 ``--symmetry`` times ``solve(symmetry=True)`` (Newton steps in the invariant subspace,
 :mod:`fem_reference.symmetry`) against ``solve(symmetry=False)`` on :data:`SYMMETRY_CASES`, alternating the two on
 every repetition: median wall time, factorisation time, Newton iterations, the group order used, the ratio, and
-the tip-position difference.
+the tip-position difference.  ``--rings`` does the same for the ring rotations of the Newton update
+(:mod:`fem_reference.corotation`, ``RING_UPDATE`` on/off) on :data:`BEND_CASES`, cold bends from rest, with the
+factorisations; ``--transfer`` for the discretisation error's refined solves (the level refined 2× along the
+profile) started from the same case solved on the level (:mod:`fem_reference.transfer`) or from rest.
 """
 
 from __future__ import annotations
@@ -245,6 +250,80 @@ def bench_symmetry(level: str, repeat: int) -> dict:
     return out
 
 
+#: cold bends of the default design (docs/fem.md §8): single-tendon, two-tendon and combined
+BEND_CASES = {
+    "T=2/0/0": dict(tensions=(2.0, 0.0, 0.0)),
+    "T=4/0/0,50kPa": dict(tensions=(4.0, 0.0, 0.0), pressure=50e3),
+    "T=0/2/4,37.5kPa": dict(tensions=(0.0, 2.0, 4.0), pressure=37.5e3),
+    "T=1/2.5/0,12.5kPa": dict(tensions=(1.0, 2.5, 0.0), pressure=12.5e3),
+}
+
+
+def _interleaved(name_b: str, rows: dict, run, repeat: int) -> dict:
+    """``run(case_kw, flag) -> (seconds, factorisations, tip)`` for flag True (the new way) and False, alternated
+    ``repeat`` times per case; prints and returns medians, the ratio and the tip difference."""
+    print(f"{'case':<20} {'new/s':>7} {name_b + '/s':>9} {'ratio':>6} {'facs new':>8} {'facs ' + name_b:>10} "
+          f"{'|Δtip|/m':>9}")
+    out = {}
+    for name, kw in rows.items():
+        got = {True: [], False: []}
+        for _ in range(repeat):
+            for flag in (True, False):
+                got[flag].append(run(kw, flag))
+        med = {f: statistics.median(g[0] for g in got[f]) for f in got}
+        facs = {f: got[f][-1][1] for f in got}
+        dtip = float(np.abs(got[True][-1][2] - got[False][-1][2]).max())
+        out[name] = dict(new_s=med[True], old_s=med[False], ratio=med[False] / med[True], factorisations_new=facs[True],
+                         factorisations_old=facs[False], tip_diff_m=dtip)
+        print(f"{name:<20} {med[True]:7.2f} {med[False]:9.2f} {med[False] / med[True]:6.2f} {facs[True]:8d} "
+              f"{facs[False]:10d} {dtip:9.1e}")
+    return out
+
+
+def bench_rings(level: str, repeat: int) -> dict:
+    """Ring rotations in the Newton update on / off (see the module docstring)."""
+    import fem_reference.model as fm
+    model = BellowsModel(presets.paper_bellows(), presets.paper_material(), level)
+    model.solve(tensions=(1.0, 1.0, 1.0))  # compile / load numba's cache, PARDISO set up
+    print(f"\n== ring rotations on / off, mesh {level}: {model.n_dofs} reduced DOFs; {repeat} interleaved repetitions")
+
+    def run(kw, flag):
+        old, fm.RING_UPDATE = fm.RING_UPDATE, flag
+        try:
+            res = model.solve(**kw)
+        finally:
+            fm.RING_UPDATE = old
+        return res.stats.t_total, res.stats.n_factorizations, res.tip_position
+
+    return dict(level=level, rows=_interleaved("off", BEND_CASES, run, repeat))
+
+
+def bench_transfer(level: str, repeat: int) -> dict:
+    """Refined solves from the coarse equilibrium or from rest (see the module docstring)."""
+    from dataclasses import replace
+
+    from fem_reference.mesh import MESH_LEVELS
+    from fem_reference.transfer import snapshot, start_from
+    geo, mat = presets.paper_bellows(), presets.paper_material()
+    lvl = MESH_LEVELS[level]
+    fine_level = replace(lvl, n_per_conv=2 * lvl.n_per_conv, n_collar=2 * lvl.n_collar)
+    coarse, fine = BellowsModel(geo, mat, level), BellowsModel(geo, mat, fine_level)
+    fine.solve(tensions=(1.0, 1.0, 1.0))
+    cases = {k: BEND_CASES[k] for k in ("T=0/2/4,37.5kPa",)} | {"T=5/5/0,100kPa": dict(tensions=(5.0, 5.0, 0.0),
+                                                                                        pressure=100e3)}
+    snaps = {k: snapshot(coarse.solve(**kw)) for k, kw in cases.items()}
+    print(f"\n== refined solves ({fine.n_dofs} reduced DOFs) from the {level} equilibrium / from rest; {repeat} "
+          "interleaved repetitions (the start's interpolation and relaxation included)")
+
+    def run(kw, flag):
+        t0 = time.perf_counter()
+        snap = next(snaps[k] for k, v in cases.items() if v is kw)
+        res = fine.solve(**kw, initial=start_from(snap, fine), max_cuts=0) if flag else fine.solve(**kw)
+        return time.perf_counter() - t0, res.stats.n_factorizations, res.tip_position
+
+    return dict(level=level, fine_level=vars(fine_level), rows=_interleaved("rest", cases, run, repeat))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--levels", nargs="+", default=["coarse"], choices=["coarse", "medium", "reference"])
@@ -256,8 +335,17 @@ def main(argv=None):
                     help="only the numpy-vs-numba assembly comparison (interleaved), on each level")
     ap.add_argument("--symmetry", action="store_true",
                     help="only symmetric-subspace vs full Newton solves (interleaved), on each level")
+    ap.add_argument("--rings", action="store_true", help="only ring rotations on/off on cold bends (interleaved)")
+    ap.add_argument("--transfer", action="store_true",
+                    help="only refined solves from the coarse equilibrium vs from rest (interleaved)")
     a = ap.parse_args(argv)
     report = dict(python=sys.version.split()[0], machine=platform.machine(), levels=[])
+    for flag, fn in (("rings", bench_rings), ("transfer", bench_transfer)):
+        if getattr(a, flag):
+            report[flag] = [fn(level, a.repeat) for level in a.levels]
+            if a.json:
+                a.json.write_text(json.dumps(report, indent=2))
+            return report
     if a.symmetry:
         report["symmetry"] = [bench_symmetry(level, a.repeat) for level in a.levels]
         if a.json:

@@ -43,6 +43,10 @@ What is modelled (details and derivations in the module docstrings):
   (sliding cables, tension or locked length, slack allowed), gravity, tip force.
 - :mod:`.model` — Newton with exact tangent, backtracking line search, adaptive load stepping,
   ``ConvergenceError`` with residual history; tip compliance from the condensed tangent.
+- :mod:`.symmetry` — Newton steps in the subspace invariant under the mesh's symmetries that keep the loads.
+- :mod:`.corotation` — each ring of nodes turned by a finite rotation in a Newton update.
+- :mod:`.transfer` — a solved state carried to a finer mesh of the same bellows (its solve's start).
+- :mod:`.sparse_keys` — the fixed sparsity patterns, from sorted entry keys.
 - :mod:`.render` — headless PNG rendering with pyvista (EGL; see that module for system packages).
 - :mod:`.cli` — ``typer`` app ``app`` with the ``solve`` command.
 """

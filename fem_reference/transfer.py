@@ -34,7 +34,8 @@ import numpy as np
 
 from ancf.errors import InputError
 
-__all__ = ["StateSnapshot", "snapshot", "start_from", "lattice_coordinates", "interpolation_matrix"]
+__all__ = ["StateSnapshot", "snapshot", "start_from", "interpolate", "new_nodes", "relax_new_nodes",
+           "lattice_coordinates", "interpolation_matrix"]
 
 
 @dataclass(frozen=True)
@@ -172,7 +173,7 @@ def new_nodes(snap: StateSnapshot, bmesh) -> np.ndarray:
 RELAX_ITERATIONS = 4
 
 
-def relax_new_nodes(model, st, lc, mask: np.ndarray, iterations: int = RELAX_ITERATIONS) -> tuple:
+def relax_new_nodes(model, st, lc, mask: np.ndarray, iterations: int = RELAX_ITERATIONS) -> list[float]:
     """Newton on the free nodes in ``mask`` alone, every other node held (in place on ``st``).
 
     The interpolated field is exact at the kept nodes to the coarse discretisation, but between them it is
