@@ -420,7 +420,8 @@ def run_beside(fn: Callable[..., Any], kwargs: dict, work: Callable[[], Any]) ->
     refined solves run): ``work`` may itself start worker processes with :func:`run_tasks` — the child is a
     plain process, so this process keeps no extra thread and ``run_tasks`` still forks.  An exception in
     ``fn`` is raised here (after ``work`` finished); a Ctrl-C or an error in ``work`` stops the child at
-    once; a child that dies raises :class:`WorkerDied`."""
+    once; a child that dies raises :class:`WorkerDied`.  The child is a daemon process: ``fn`` must not start
+    processes of its own."""
     import multiprocessing as mp
     ctx = mp.get_context(_start_method())
     here, there = ctx.Pipe(duplex=False)
