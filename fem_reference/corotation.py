@@ -22,7 +22,7 @@ unchanged — only the path of the iterates is (tests: a rigid ring rotation is 
 scales with the square of the step).  The same idea as the rotation update of the distal cap
 (``expm_so3`` in ``BellowsModel._apply``) and as the director update of shell elements.
 
-Measured (``docs/fem.md`` §8): four cold bends of the default design took 109 factorisations against 163
+Measured (``docs/fem.md`` §8): four cold bends of the default design took 106 factorisations against 163
 (T = 2/0/0 N: 23 against 53), and the 25 cases of the quick report's sweep 244 s of worker time against 320 s.
 A rigid fit per through-the-wall line instead of per ring was worse than none (the wall's own bending is
 not a rigid rotation of those short lines).

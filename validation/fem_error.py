@@ -20,7 +20,7 @@ the relative Frobenius error of each compliance matrix [%].  The solves run thro
 progress; Ctrl-C keeps the finished cases), one case per task so that every case is cached on its own.
 Each refined solve starts from the same case's equilibrium on the level below (the records' ``state``,
 interpolated and its added nodes relaxed: :mod:`fem_reference.transfer`) in one Newton solve at full load
-instead of climbing the load path again (measured on the quick report's two cases: ≈ 15 s against 60–70 s);
+instead of climbing the load path again (measured on the quick report's two cases: 21 s against 69 s);
 when that fails it climbs the path from rest as before.  The equilibrium, hence the estimate, is the same.
 
 :func:`select_cases` chooses the cases with the largest deformation (largest centreline distance from the
