@@ -67,7 +67,7 @@ class StateSnapshot:
 def lattice_coordinates(bmesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ζ, τ, θ) coordinates of the fine lattice of a :class:`~fem_reference.mesh.BellowsMesh` [m, m, rad]:
     shapes (2 n_s + 1,), (2 n_t + 1,), (2 n_θ,)."""
-    n_s, n_t, n_th = bmesh.shape
+    _, n_t, n_th = bmesh.shape
     t = bmesh.geometry.wall_thickness
     return (np.asarray(bmesh.zeta, float), np.linspace(-t / 2, t / 2, 2 * n_t + 1),
             2 * np.pi * np.arange(2 * n_th) / (2 * n_th))
