@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ancf.errors import InputError
+
 from .loads.caps import expm_so3
 
 __all__ = ["ring_rotation_correction", "MIN_ANGLE"]
@@ -47,7 +49,12 @@ def ring_rotation_correction(x: np.ndarray, du: np.ndarray, rings: np.ndarray,
     """The second-order correction of the increments ``du`` (3, n) of nodes at positions ``x`` (3, n) [m],
     grouped by ``rings`` (n,) — ring index 0 … n_r − 1 of each node, every ring with ≥ 3 nodes not on one line
     — that turns each ring by its best-fit finite rotation (module docstring) → (3, n) [m], to add to ``du``;
-    zero on rings turning by less than ``min_angle`` [rad]."""
+    zero on rings turning by less than ``min_angle`` [rad].  InputError on mismatched shapes or ring indices."""
+    x, du, rings = np.asarray(x, float), np.asarray(du, float), np.asarray(rings)
+    if x.ndim != 2 or x.shape[0] != 3 or du.shape != x.shape or rings.shape != x.shape[1:] or rings.size == 0 \
+            or rings.dtype.kind not in "iu" or rings.min() < 0:
+        raise InputError(f"ring_rotation_correction: x and du must be (3, n) and rings (n,) non-negative integers, "
+                         f"got {x.shape}, {du.shape}, {rings.shape} {rings.dtype}")
     n_r = int(rings.max()) + 1
     cnt = np.bincount(rings, minlength=n_r)
 

@@ -12,13 +12,17 @@ from __future__ import annotations
 
 import numpy as np
 
+from ancf.errors import InputError
+
 __all__ = ["unique_keys", "csr_index"]
 
 
 def unique_keys(keys: np.ndarray, return_inverse: bool = False):
     """Sorted distinct values of the int64 array ``keys`` (1-D); with ``return_inverse``, also the index of
-    each key's value in them (``out[inverse] == keys``)."""
+    each key's value in them (``out[inverse] == keys``).  InputError for keys that are not integers."""
     keys = np.asarray(keys).ravel()
+    if keys.size and keys.dtype.kind not in "iu":
+        raise InputError(f"unique_keys: integer keys needed, got {keys.dtype}")
     if not return_inverse:
         s = np.sort(keys)
         return s[np.concatenate(([True], s[1:] != s[:-1]))] if s.size else s

@@ -422,6 +422,8 @@ def run_beside(fn: Callable[..., Any], kwargs: dict, work: Callable[[], Any]) ->
     ``fn`` is raised here (after ``work`` finished); a Ctrl-C or an error in ``work`` stops the child at
     once; a child that dies raises :class:`WorkerDied`.  The child is a daemon process: ``fn`` must not start
     processes of its own."""
+    if not callable(fn) or not callable(work) or not isinstance(kwargs, dict):
+        raise InputError("run_beside: fn and work must be callable and kwargs a dict")
     import multiprocessing as mp
     ctx = mp.get_context(_start_method())
     here, there = ctx.Pipe(duplex=False)

@@ -60,3 +60,12 @@ def test_solves_with_and_without_the_correction_reach_the_same_equilibrium(monke
     without = model.solve(**loads)
     assert np.linalg.norm(with_rings.tip_position - without.tip_position) < 1e-9
     assert with_rings.stats.n_factorizations < without.stats.n_factorizations
+
+
+def test_mismatched_inputs_are_refused():
+    from ancf.errors import InputError
+    x, rings, _ = _rings()
+    for bad in ((x[:2], x[:2], rings), (x, x[:, :-1], rings), (x, x, rings[:-1]), (x, x, rings.astype(float)),
+                (x, x, rings - 1)):
+        with pytest.raises(InputError):
+            ring_rotation_correction(*bad)

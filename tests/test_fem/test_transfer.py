@@ -134,6 +134,9 @@ def test_unique_keys_match_numpy(values):
     assert np.array_equal(u, np.unique(keys))
     u2, inv = unique_keys(keys, return_inverse=True)
     assert np.array_equal(u2, u) and np.array_equal(u2[inv], keys)
+    if values:
+        with pytest.raises(InputError):
+            unique_keys(keys.astype(float))
 
 
 @settings(max_examples=30, deadline=None)

@@ -252,3 +252,5 @@ def test_run_beside_raises_the_childs_error_as_itself_and_stops_the_child_on_a_f
     assert time.monotonic() - t0 < 10                    # the 60 s child was stopped, not waited for
     with pytest.raises(WorkerDied):
         run_beside(T.kill_self, {"x": 0}, lambda: None)
+    with pytest.raises(InputError):
+        run_beside(T.pid_and, [3], lambda: None)
