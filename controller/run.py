@@ -28,7 +28,9 @@ the summary's ``reach`` saturation time) until the load lets it track again.
 Faults: any :class:`~ancf.errors.BellowsError` during the run (hardware fault, limit, infeasible IK) makes
 the rig safe (:meth:`hardware.Rig.safe_stop`: drives hold — quick stop after a drive fault — pressure held
 or vented), writes the reason to the log, closes it and re-raises the error with ``.log_path`` and the
-partial ``.result`` attached.  Ctrl-C does the same and raises :class:`hardware.errors.RunAborted`.
+partial ``.result`` attached.  Ctrl-C does the same and raises :class:`hardware.errors.RunAborted`, also
+when its first KeyboardInterrupt is lost in a finaliser (the loop checks a latch every cycle:
+:mod:`controller.interrupt`).
 
 This module imports :mod:`hardware` only inside :func:`run_on_rig` (for the run log and RunAborted).
 """
@@ -47,6 +49,7 @@ from ancf.errors import BellowsError, InputError
 from .errors import check_finite, number
 
 from .base import Controller
+from .interrupt import CtrlCLatch
 from .summary import RunSummary, summarise
 
 
@@ -193,6 +196,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
     t_start = None
     was_converged = False
     n_events = len(getattr(rig, "events", ()))
+    latch = CtrlCLatch().__enter__()      # a Ctrl-C lost in a finaliser still stops the loop (controller.interrupt)
     try:
         if opened_here:
             rig.open()
@@ -203,6 +207,7 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         k = 0
         prev_start, prev_io, io = None, float("nan"), float("nan")
         while True:
+            latch.check()
             # loop timing (wall clock): this cycle's start, and the rig-call time of the previous cycle
             start = time.perf_counter()
             cycle_time = float("nan") if prev_start is None else start - prev_start
@@ -305,6 +310,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         rig.safe_stop(f"run stopped by an unexpected error: {result.reason}")
         _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
         raise
+    finally:
+        latch.__exit__()
     _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
     return result
 

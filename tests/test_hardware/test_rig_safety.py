@@ -2,6 +2,7 @@
 reason, on the simulated rig; Ctrl-C leaves the rig safe and the log closed."""
 
 import math
+import signal
 
 import numpy as np
 import pytest
@@ -121,6 +122,30 @@ def test_ctrl_c_leaves_the_rig_safe_and_the_log_closed(paper_model, target, tmp_
     np.testing.assert_array_equal(rig.target, rig.lengths)
     d = read_run_log(tmp_path / "r.h5")
     assert d.ended.startswith("interrupted") and d.rows == 3
+
+
+class _RaisesCtrlCWhenCollected:
+    """Ctrl-C arriving while a finaliser runs: Python prints "Exception ignored" and drops the
+    KeyboardInterrupt (signal.raise_signal runs the handler before it returns, here inside __del__)."""
+
+    def __del__(self):
+        signal.raise_signal(signal.SIGINT)
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")     # the dropped one
+def test_ctrl_c_lost_in_a_finaliser_still_stops_the_run(paper_model, target, tmp_path):
+    rig = SimulatedRig(paper_model, load=(0, 0, -0.3), options=__import__("hardware").PlantOptions(length_rate=5e-3))
+    calls = []
+
+    def status(s):
+        calls.append(s)
+        if len(calls) == 3:
+            _RaisesCtrlCWhenCollected()                    # made and collected at once: its interrupt is dropped
+    with pytest.raises(RunAborted, match="Ctrl-C"):
+        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "r.h5", duration=60.0, status=status)
+    assert len(calls) == 3                                 # stopped at the next cycle, not after 60 s of holding
+    assert read_run_log(tmp_path / "r.h5").ended.startswith("interrupted")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler     # Python's handler is back
 
 
 def test_context_manager_makes_safe_on_exception(paper_model, target):

@@ -86,7 +86,8 @@ def _wait_rows(path, n, proc, timeout=60.0):
 
 def _start(tmp_path, log):
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
-    code = "from validation.cli import main; main()"
+    # SIGUSR1 makes the child print every thread's stack (how a test that times out shows where it hung)
+    code = "import faulthandler, signal; faulthandler.register(signal.SIGUSR1); from validation.cli import main; main()"
     return subprocess.Popen([sys.executable, "-c", code, "control", "--target-mm", TARGET_MM, "--pressure-kpa", "60",
                              "--load-profile", "stochastic", "--seed", "1", "--log", str(log)],
                             cwd=os.getcwd(), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -120,7 +121,14 @@ def test_ctrl_c_stops_cleanly_and_says_where_the_log_is(tmp_path):
     try:
         _wait_rows(log, 3, proc)
         proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=20)
+        try:
+            _, err = proc.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGUSR1)
+            time.sleep(1.0)
+            proc.kill()
+            _, err = proc.communicate()
+            pytest.fail("no exit within 20 s of Ctrl-C; the child's stderr and stacks:\n" + err)
     finally:
         if proc.poll() is None:
             proc.kill()
