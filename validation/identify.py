@@ -94,6 +94,19 @@ def describe_geometry(geometry) -> str:
     return f"{geometry.n_convolutions}-convolution bellows"
 
 
+def compile_fit_kernels() -> None:
+    """Compile (first run) or load (later runs) every numba kernel of the ANCF model that the fits and the
+    report use: FK with a tip load and its stability check, the pressure sensitivity ∂Q/∂p, the admissibility
+    rules — each argument-type signature the fits call.  :func:`from_fem` runs it in a background process
+    while the FEM sweep leaves a core idle, so that the first run of a fresh install does not wait for the
+    compiler (≈ 25 s of one core: docs/identification.md §5)."""
+    from ancf import Model
+    model = Model(presets.paper())
+    eq = model.fk((1.0, 0.0, 0.0), 20e3, (0.0, 0.0, -0.1))
+    model.dQ_dp(eq.q, 20e3)
+    model.inadmissibility(eq.q)
+
+
 def fem_base_params(geometry, material, *, n_elements: int = 6, tension_max: float = 5.0,
                     pressure_max: float = 120e3, rod: Optional[dict] = None, name: str = "identified") -> ActuatorParams:
     """Reduced-model parameters for the FEM design: its length, tendon routing and tip offset, the wall's line
@@ -438,7 +451,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     ``res.after_sweep``.
     """
     from .fem_sweep import FemSpec, check_cases, run_cases, run_rod
-    from .runner import check_workers
+    from .runner import check_workers, in_background
     check_workers(workers)
     spec = FemSpec(geometry, material, mesh)
     if cases not in ("default", "informative"):
@@ -451,20 +464,21 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
         if not design.training:
             raise InputError("the design has no training cases")
         check_cases(spec, design.cases)                  # before the first FEM solve
-    rod = run_rod(spec, cache_dir=cache_dir)
-    base = fem_base_params(geometry, material, n_elements=n_elements, tension_max=tension_max,
-                           pressure_max=pressure_max, rod=rod)
-    if design is None:
-        from .design_select import informative_design
-        richest = max((get_form(f, fit_distance) for f in forms), key=lambda fm: fm.n)
-        b0 = base.replace(gravity=(0.0, 0.0, 0.0))
-        design = informative_design(richest, b0, initial_theta(richest, rod, b0), tension_max=tension_max,
-                                    pressure_max=pressure_max, tendon_distance=geometry.tendon_radius,
-                                    length=geometry.length, n_tendons=len(geometry.tendon_angles),
-                                    tendon_angles=geometry.tendon_angles).design
-        check_cases(spec, design.cases)
-    records = run_cases(spec, design.cases, compliance=(lambda c: c.role == "heldout") if compliance else False,
-                        workers=workers, scheduler=scheduler, cache_dir=cache_dir, progress=progress)
+    with in_background(compile_fit_kernels):   # the fits' kernels compile on a core the sweep leaves idle
+        rod = run_rod(spec, cache_dir=cache_dir)
+        base = fem_base_params(geometry, material, n_elements=n_elements, tension_max=tension_max,
+                               pressure_max=pressure_max, rod=rod)
+        if design is None:
+            from .design_select import informative_design
+            richest = max((get_form(f, fit_distance) for f in forms), key=lambda fm: fm.n)
+            b0 = base.replace(gravity=(0.0, 0.0, 0.0))
+            design = informative_design(richest, b0, initial_theta(richest, rod, b0), tension_max=tension_max,
+                                        pressure_max=pressure_max, tendon_distance=geometry.tendon_radius,
+                                        length=geometry.length, n_tendons=len(geometry.tendon_angles),
+                                        tendon_angles=geometry.tendon_angles).design
+            check_cases(spec, design.cases)
+        records = run_cases(spec, design.cases, compliance=(lambda c: c.role == "heldout") if compliance else False,
+                            workers=workers, scheduler=scheduler, cache_dir=cache_dir, progress=progress)
     marker_s = [f * geometry.length for f in MARKER_FRACTIONS]
     failed = [{"label": r.case.label, "role": r.case.role, "error": r.error} for r in records if not r.ok]
     tr = [r for r in records if r.case.role == "train" and r.ok]

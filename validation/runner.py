@@ -39,8 +39,8 @@ from typing import Any, Callable, Iterable, Optional, Sequence
 
 from ancf.errors import BellowsError, InputError
 
-__all__ = ["RunInterrupted", "WorkerDied", "RunOutcome", "ResultCache", "run_tasks", "run_beside", "source_fingerprint",
-           "task_key", "check_workers"]
+__all__ = ["RunInterrupted", "WorkerDied", "RunOutcome", "ResultCache", "run_tasks", "run_beside", "in_background",
+           "source_fingerprint", "task_key", "check_workers"]
 
 _BLAS_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMEXPR_NUM_THREADS",
               "NUMBA_NUM_THREADS")
@@ -447,6 +447,40 @@ def run_beside(fn: Callable[..., Any], kwargs: dict, work: Callable[[], Any]) ->
     if status == "error":
         raise value
     return value, side
+
+
+def _background_child(fn, nice: int) -> None:
+    try:
+        if nice and hasattr(os, "nice"):
+            os.nice(nice)
+        fn()
+    except BaseException:                 # noqa: BLE001 - what it did not finish, the caller does itself
+        pass
+
+
+@contextlib.contextmanager
+def in_background(fn: Callable[[], Any], *, nice: int = 19):
+    """``with in_background(fn): …`` runs ``fn()`` in a daemon child process at low CPU priority (``nice``
+    added to this process's niceness; 19: it takes only a core nothing else wants) while the block runs, and
+    stops it when the block ends, finished or not.  Only for work whose product is left behind and that the
+    caller would otherwise do itself: numba's on-disk cache of compiled kernels, filled while the FEM sweep
+    leaves a core idle (:func:`validation.identify.compile_fit_kernels`).  Its result and errors are dropped.
+    Yields the child process."""
+    if not callable(fn):
+        raise InputError("in_background: fn must be callable")
+    if isinstance(nice, bool) or not isinstance(nice, int) or not 0 <= nice <= 19:
+        raise InputError(f"in_background: nice must be an integer in [0, 19], got {nice!r}")
+    import multiprocessing as mp
+    ctx = mp.get_context(_start_method())
+    with _single_thread_env():
+        child = ctx.Process(target=_background_child, args=(fn, nice), daemon=True)
+        child.start()
+    try:
+        yield child
+    finally:
+        if child.is_alive():
+            child.terminate()
+        child.join(5.0)
 
 
 def _run_pool(fn, tasks, todo, nworkers, method, done) -> None:

@@ -47,3 +47,10 @@ def sleep_long(x):
 def kill_self(x):
     import signal
     os.kill(os.getpid(), signal.SIGKILL)
+
+
+def write_niceness_then_sleep(path, seconds=60.0):
+    """For in_background: writes the child's pid and niceness, then stays busy until stopped."""
+    import pathlib
+    pathlib.Path(path).write_text(f"{os.getpid()} {os.nice(0)}")
+    time.sleep(seconds)

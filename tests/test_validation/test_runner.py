@@ -254,3 +254,26 @@ def test_run_beside_raises_the_childs_error_as_itself_and_stops_the_child_on_a_f
         run_beside(T.kill_self, {"x": 0}, lambda: None)
     with pytest.raises(InputError):
         run_beside(T.pid_and, [3], lambda: None)
+
+
+def test_in_background_runs_at_low_priority_and_stops_with_the_block(tmp_path):
+    """The child runs the function at niceness + 19 while the block runs and is gone once the block ends
+    (finished or not: here it would sleep for a minute)."""
+    import functools
+    from validation.runner import in_background
+    out = tmp_path / "nice.txt"
+    with in_background(functools.partial(T.write_niceness_then_sleep, out)) as child:
+        t0 = time.monotonic()
+        while not out.exists() and time.monotonic() - t0 < 30:
+            time.sleep(0.05)
+        pid, nice = map(int, out.read_text().split())
+        assert child.is_alive() and pid == child.pid != os.getpid()
+        assert nice == min(19, os.nice(0) + 19)
+    assert not child.is_alive()
+    with pytest.raises(InputError, match="callable"):
+        with in_background("not a function"):
+            pass
+    for bad in (-1, 20, 2.5, True):
+        with pytest.raises(InputError, match="nice"):
+            with in_background(time.time, nice=bad):
+                pass
