@@ -221,8 +221,8 @@ ASYMMETRY_ROUNDOFF = 1e-14
 
 class _SymmetricMaps:
     """Index maps of one structurally symmetric CSR pattern (sorted indices): ``perm`` with
-    ``Aᵀ.data == A.data[perm]`` and ``upper``, the entries on and above the diagonal, with the CSR arrays of
-    the upper triangle.  Built once per pattern (the Newton iterations of a solve share one pattern)."""
+    ``Aᵀ.data == A.data[perm]`` and the CSR arrays of the upper triangle (the entries on and above the
+    diagonal).  Built once per pattern (the Newton iterations of a solve share one pattern)."""
 
     def __init__(self, A: sp.csr_matrix):
         n = A.shape[0]
@@ -234,17 +234,45 @@ class _SymmetricMaps:
         ok = (pos < key.size) & (key[np.minimum(pos, key.size - 1)] == tkey)
         self.symmetric_pattern = bool(ok.all())
         self.perm = pos if self.symmetric_pattern else None
-        self.upper = cols >= rows
-        self.indptr_u = np.concatenate(([0], np.cumsum(np.bincount(rows[self.upper], minlength=n)))).astype(
+        upper = cols >= rows
+        self.indptr_u = np.concatenate(([0], np.cumsum(np.bincount(rows[upper], minlength=n)))).astype(
             A.indptr.dtype)
-        self.indices_u = A.indices[self.upper].copy()
+        self.indices_u = A.indices[upper].copy()
         self.pattern = (A.indptr.copy(), A.indices.copy())
+        self._splitter = None
+
+    def splitter(self):
+        """The compiled pass giving S's upper triangle and the asymmetric rows (:mod:`._sparse_kernels`), built
+        and checked once per pattern."""
+        if self._splitter is None:
+            from ._sparse_kernels import SymmetricSplit
+            self._splitter = SymmetricSplit(self.pattern[0], self.pattern[1], self.perm, self.indices_u.size)
+        return self._splitter
 
     def matches(self, A) -> bool:
-        return np.array_equal(self.pattern[0], A.indptr) and np.array_equal(self.pattern[1], A.indices)
+        ip, ix = self.pattern
+        if ip.size != A.indptr.size or ix.size != A.indices.size:
+            return False
+        return np.array_equal(ip, A.indptr) and np.array_equal(ix, A.indices)
 
 
-_SYM_MAPS: list = [None]
+#: index maps of the last few patterns, the most recent first: a solve alternates between the full tangent
+#: and its symmetric-subspace reductions (with one slot, measured: the maps of a 4-case chain were rebuilt 8
+#: times, 0.3 s each, 7 % of the chain)
+_SYM_MAPS: list = []
+SYM_MAPS_KEPT = 3
+
+
+def _symmetric_maps(K: sp.csr_matrix) -> "_SymmetricMaps":
+    for i, maps in enumerate(_SYM_MAPS):
+        if maps.matches(K):
+            if i:
+                _SYM_MAPS.insert(0, _SYM_MAPS.pop(i))
+            return maps
+    maps = _SymmetricMaps(K)
+    _SYM_MAPS.insert(0, maps)
+    del _SYM_MAPS[SYM_MAPS_KEPT:]
+    return maps
 
 
 class _NearlySymmetricFactor:
@@ -263,9 +291,9 @@ class _NearlySymmetricFactor:
     tangent whose symmetric part it is.
     """
 
-    def __init__(self, K: sp.csr_matrix, maps: _SymmetricMaps, E: np.ndarray, a: np.ndarray, S_data: np.ndarray,
+    def __init__(self, K: sp.csr_matrix, maps: _SymmetricMaps, E: np.ndarray, a: np.ndarray, S_upper: np.ndarray,
                  exact: bool = True):
-        U = sp.csr_matrix((S_data[maps.upper], maps.indices_u, maps.indptr_u), shape=K.shape)
+        U = sp.csr_matrix((S_upper, maps.indices_u, maps.indptr_u), shape=K.shape)
         self.fac = _PardisoFactor(U, mtype=-2)
         PARDISO_COUNTS["symmetric"] += 1
         iparm = self.fac.ps.iparm if hasattr(self.fac.ps, "iparm") else None
@@ -317,21 +345,15 @@ def _nearly_symmetric(K: sp.csr_matrix, exact: bool = True):
     if not K.has_canonical_format:           # sorted indices, no duplicate entries (the index maps need both)
         K = K.copy()
         K.sum_duplicates()
-    maps = _SYM_MAPS[0]
-    if maps is None or not maps.matches(K):
-        maps = _SymmetricMaps(K)
-        _SYM_MAPS[0] = maps
+    maps = _symmetric_maps(K)
     if not maps.symmetric_pattern:
         return None
-    d, dt = K.data, K.data[maps.perm]
-    anti = 0.5 * (d - dt)
-    big = np.abs(anti) > ASYMMETRY_ROUNDOFF * max(float(np.abs(d).max(initial=0.0)), 1e-300)
-    rows = np.unique(np.searchsorted(K.indptr, np.flatnonzero(big), side="right") - 1)
+    S_upper, rows = maps.splitter().split(K.data, ASYMMETRY_ROUNDOFF)
     if rows.size > MAX_ASYMMETRIC_ROWS:
         return None
     B = K[rows][:, rows].toarray()
     a = 0.5 * (B - B.T)
-    return _NearlySymmetricFactor(K, maps, rows, a, 0.5 * (d + dt), exact)
+    return _NearlySymmetricFactor(K, maps, rows, a, S_upper, exact)
 
 
 class _UmfpackFactor:  # pragma: no cover - optional

@@ -100,11 +100,12 @@ INFEASIBLE = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError, I
 #: Failures of one state's FK that a cold start from the straight reference may avoid.
 _RETRY = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError)
 #: Newton iterations an FK of a fit may take (the warm start's and the last load step's; ancf's default is 60).
-#: Measured on the default design's quick fits: every FK that converged took ≤ 24 (99.9 % ≤ 22); the ones that
-#: did not were trial θ past a fold of the model, whose last load step drifted for all 60 iterations, in a
-#: cascade of shrinking load steps — 68 % of the fits' Newton iterations.  At 25 the same fits give the same
-#: numbers in 45 % less time.
-FIT_FK_MAX_ITER = 25
+#: Measured on the default design's quick fits: the FKs that did not converge were trial θ past a fold of the
+#: model, whose last load step drifted for all 60 iterations, in a cascade of shrinking load steps — 68 % of
+#: the fits' Newton iterations; 99 % of the warm starts that converged took ≤ 5 iterations, the rest falls back
+#: to load stepping (the same equilibria: the fitted θ agree to 6 digits with 60, 25 and 15).  Fits of the quick
+#: report: 27 s at 60, 20 s at 25, 17 s at 15.
+FIT_FK_MAX_ITER = 15
 #: Signed parameters (slopes, intercepts) for which zero is a meaningful value: rule (2) of the module
 #: docstring (CI wider than the value) does not apply to them.
 SIGNED = frozenset({"a", "b", "beta", "sA", "sI", "pI1", "pI2", "pA1", "s0", "s1"})

@@ -38,6 +38,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ancf.errors import InputError
+
 from ..sparse_keys import csr_index, unique_keys
 
 __all__ = ["RigidCapReduction", "expm_so3", "log_so3", "point_geometric", "point_jacobian", "skew"]
@@ -202,7 +204,9 @@ class RigidCapReduction:
         data[m.pos_cc[3:, 3:].ravel()] += self._rigid_link(r, R).ravel()
         if extra_cc is not None:
             data[m.pos_cc.ravel()] += np.asarray(extra_cc, float).ravel()
-        return rq, sp.csr_matrix((data, m.indices, m.indptr), shape=(self.n_q, self.n_q))
+        Kq = sp.csr_matrix((data, m.indices, m.indptr), shape=(self.n_q, self.n_q))
+        Kq._reduction_map, Kq._written_on = m, m.target     # for BellowsModel._canonical: no compare, no copy
+        return rq, Kq
 
     def _rigid_link(self, r: np.ndarray, R: np.ndarray) -> np.ndarray:
         """θθ geometric stiffness Σ_i r_i ρ_iᵀ − (ρ_i · r_i) I of the cap nodes' residual forces (3, 3)."""
@@ -269,6 +273,8 @@ class _ReductionMap:
             ((nf + six[:, None]) * nq + nf + six[None, :]).ravel()])
         ukeys = unique_keys(keys)
         self.indptr, self.indices = csr_index(ukeys, nq)
+        self.keys = ukeys                                  # row * n_q + column of each entry of K_q, sorted
+        self.target = None                                 # the pattern token of :meth:`retarget`
         pos = np.searchsorted(ukeys, keys)
         a, b, c = self.src_ff.size, self.rows_fc.size * 6, self.cols_cf.size * 6
         self.pos_ff = pos[:a]
@@ -276,6 +282,20 @@ class _ReductionMap:
         self.pos_cf = pos[a + b:a + b + c]                 # (6, cols_cf)
         self.pos_cc = pos[a + b + c:].reshape(6, 6)
         self.nnz = ukeys.size
+
+    def retarget(self, keys: np.ndarray, indptr: np.ndarray, indices: np.ndarray, target=None) -> None:
+        """Write ``K_q`` on a larger pattern from now on: ``keys`` (sorted row * n_q + column, a superset of
+        this map's) with its CSR ``indptr``/``indices`` (the model-wide pattern that also holds the tendons'
+        Hessian blocks, :meth:`fem_reference.BellowsModel._canonical`): the positions are composed once, so
+        that no copy into that pattern is made per evaluation.  ``target``: the caller's token of that pattern,
+        given to every ``K_q`` written on it (its attribute ``_written_on``)."""
+        where = np.searchsorted(keys, self.keys)
+        if where.size and (where[-1] >= keys.size or not np.array_equal(keys[where], self.keys)):
+            raise InputError("retarget: the pattern does not contain this reduction's entries")
+        self.pos_ff, self.pos_fc, self.pos_cf, self.pos_cc = (where[self.pos_ff], where[self.pos_fc],
+                                                              where[self.pos_cf], where[self.pos_cc])
+        self.keys, self.indptr, self.indices, self.nnz = keys, indptr, indices, keys.size
+        self.target = target
 
     def matches(self, K: sp.csr_matrix) -> bool:
         """True when ``K`` has the pattern this map was built for."""
