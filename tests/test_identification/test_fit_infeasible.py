@@ -54,7 +54,8 @@ def test_scipy_trf_rejects_non_finite_trial_residuals():
     CollapsedStateError("stub", solver="fk", stretch=0.1),
 ])
 def test_failing_trial_solve_is_rejected_and_the_fit_finishes(monkeypatch, error):
-    """Model.fk raises (warm and cold) at the first trial θ away from the start: the fit still recovers the
+    """Model.fk raises (warm, and cold after a typed error other than ConvergenceError) at the first trial θ away
+    from the start: the fit still recovers the
     true parameters, counts the rejected trial, and the warm starts were not taken from the failed θ."""
     form, obs = _obs(TRUE)
     theta0 = np.array(TRUE) * np.array([1.15, 0.85, 1.05])
@@ -82,7 +83,9 @@ def test_failing_trial_solve_is_rejected_and_the_fit_finishes(monkeypatch, error
     monkeypatch.setattr(fitmod._Evaluator, "evaluate", evaluate)
     monkeypatch.setattr(Model, "fk", fk)
     res = fit(form, obs, BASE, theta0, max_nfev=60)
-    assert state["failed"] == 2              # warm start, then the cold retry, both failed
+    # warm start, then the cold retry, both failed — except after a ConvergenceError: Model.fk's own fallback
+    # already stepped the load up from the straight reference, which the cold retry would repeat exactly
+    assert state["failed"] == (1 if isinstance(error, ConvergenceError) else 2)
     assert res.rejected == 1
     np.testing.assert_allclose(res.theta, TRUE, rtol=1e-6)
     assert res.rms_tip < 1e-9
