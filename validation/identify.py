@@ -99,7 +99,7 @@ def compile_fit_kernels() -> None:
     report use: FK with a tip load and its stability check, the pressure sensitivity ∂Q/∂p, the admissibility
     rules — each argument-type signature the fits call.  :func:`from_fem` runs it in a background process
     while the FEM sweep leaves a core idle, so that the first run of a fresh install does not wait for the
-    compiler (≈ 25 s of one core: docs/identification.md §5)."""
+    compiler (≈ 25 s of one core: docs/identification.md §Measured)."""
     from ancf import Model
     model = Model(presets.paper())
     eq = model.fk((1.0, 0.0, 0.0), 20e3, (0.0, 0.0, -0.1))
