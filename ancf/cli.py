@@ -245,8 +245,14 @@ def demo(out: pathlib.Path = typer.Option(pathlib.Path("bellows_out"), help="Out
 
 
 def warm_up() -> None:
-    """Compile (first run) or load (later runs) the numba kernels, so timings show solver cost only."""
-    Model(presets.paper().replace(n_elements=1)).fk((0.5, 0.0, 0.0), 1e3)
+    """Compile (first run) or load (later runs) the numba kernels, so timings show solver cost only: FK with a
+    tip load and its stability check, the pressure sensitivity ∂Q/∂p and the admissibility rules, in every
+    argument-type signature the solvers and the fits of :mod:`validation.fit` call (types, not sizes, make a
+    signature: one element is enough)."""
+    model = Model(presets.paper().replace(n_elements=1))
+    eq = model.fk((0.5, 0.0, 0.0), 1e3, (0.0, 0.0, -0.1))
+    model.dQ_dp(eq.q, 1e3)
+    model.inadmissibility(eq.q)
 
 
 def run_demo(model: Model) -> list[dict]:

@@ -96,15 +96,11 @@ def describe_geometry(geometry) -> str:
 
 def compile_fit_kernels() -> None:
     """Compile (first run) or load (later runs) every numba kernel of the ANCF model that the fits and the
-    report use: FK with a tip load and its stability check, the pressure sensitivity ∂Q/∂p, the admissibility
-    rules — each argument-type signature the fits call.  :func:`from_fem` runs it in a background process
-    while the FEM sweep leaves a core idle, so that the first run of a fresh install does not wait for the
-    compiler (≈ 25 s of one core: docs/identification.md §Measured)."""
-    from ancf import Model
-    model = Model(presets.paper())
-    eq = model.fk((1.0, 0.0, 0.0), 20e3, (0.0, 0.0, -0.1))
-    model.dQ_dp(eq.q, 20e3)
-    model.inadmissibility(eq.q)
+    report use (:func:`ancf.cli.warm_up`, the same warm-up as ``bellows demo``'s).  :func:`from_fem` runs it in a
+    background process while the FEM sweep leaves a core idle, so that the first run of a fresh install does
+    not wait for the compiler (≈ 25 s of one core: docs/identification.md §Measured)."""
+    from ancf.cli import warm_up
+    warm_up()
 
 
 def fem_base_params(geometry, material, *, n_elements: int = 6, tension_max: float = 5.0,
