@@ -401,6 +401,22 @@ def run_tasks(fn: Callable[[Any], Any], tasks: Sequence[Any], *, workers: Option
                       computed_indices=todo)
 
 
+def _daemon_child(target, *args):
+    """A started daemon process running ``target(*args)`` (fork where safe; BLAS threads = 1)."""
+    import multiprocessing as mp
+    with _single_thread_env():
+        child = mp.get_context(_start_method()).Process(target=target, args=args, daemon=True)
+        child.start()
+    return child
+
+
+def _stop(child) -> None:
+    """Terminate ``child`` if it still runs, and reap it."""
+    if child.is_alive():
+        child.terminate()
+    child.join(5.0)
+
+
 def _beside_child(conn, fn, kwargs) -> None:
     try:
         out = ("ok", fn(**kwargs))
@@ -425,11 +441,8 @@ def run_beside(fn: Callable[..., Any], kwargs: dict, work: Callable[[], Any]) ->
     if not callable(fn) or not callable(work) or not isinstance(kwargs, dict):
         raise InputError("run_beside: fn and work must be callable and kwargs a dict")
     import multiprocessing as mp
-    ctx = mp.get_context(_start_method())
-    here, there = ctx.Pipe(duplex=False)
-    with _single_thread_env():
-        child = ctx.Process(target=_beside_child, args=(there, fn, kwargs), daemon=True)
-        child.start()
+    here, there = mp.get_context(_start_method()).Pipe(duplex=False)
+    child = _daemon_child(_beside_child, there, fn, kwargs)
     there.close()
     try:
         side = work()
@@ -441,9 +454,7 @@ def run_beside(fn: Callable[..., Any], kwargs: dict, work: Callable[[], Any]) ->
         child.join()
     finally:
         here.close()
-        if child.is_alive():
-            child.terminate()
-            child.join(5.0)
+        _stop(child)
     if status == "error":
         raise value
     return value, side
@@ -470,17 +481,11 @@ def in_background(fn: Callable[[], Any], *, nice: int = 19):
         raise InputError("in_background: fn must be callable")
     if isinstance(nice, bool) or not isinstance(nice, int) or not 0 <= nice <= 19:
         raise InputError(f"in_background: nice must be an integer in [0, 19], got {nice!r}")
-    import multiprocessing as mp
-    ctx = mp.get_context(_start_method())
-    with _single_thread_env():
-        child = ctx.Process(target=_background_child, args=(fn, nice), daemon=True)
-        child.start()
+    child = _daemon_child(_background_child, fn, nice)
     try:
         yield child
     finally:
-        if child.is_alive():
-            child.terminate()
-        child.join(5.0)
+        _stop(child)
 
 
 def _run_pool(fn, tasks, todo, nworkers, method, done) -> None:
