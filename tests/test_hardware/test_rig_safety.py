@@ -108,17 +108,28 @@ def test_pressure_held_by_default(paper_model, target):
     assert rig.pressure == P and not rig.pressure_supply.vented
 
 
-def test_ctrl_c_leaves_the_rig_safe_and_the_log_closed(paper_model, target, tmp_path):
+def _interrupted_run(paper_model, target, log, duration, at_third_sample):
+    """A held run on a loaded simulated rig whose status callback calls ``at_third_sample()`` at the third
+    sample; returns (rig, the samples' status dicts, the RunAborted raised)."""
     rig = SimulatedRig(paper_model, load=(0, 0, -0.3), options=__import__("hardware").PlantOptions(length_rate=5e-3))
     calls = []
 
     def status(s):
         calls.append(s)
         if len(calls) == 3:
-            raise KeyboardInterrupt
+            at_third_sample()
     with pytest.raises(RunAborted, match="Ctrl-C") as info:
-        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "r.h5", duration=math.inf, status=status)
-    assert str(tmp_path / "r.h5") in str(info.value)
+        run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=duration, status=status)
+    return rig, calls, info.value
+
+
+def _ctrl_c():
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_leaves_the_rig_safe_and_the_log_closed(paper_model, target, tmp_path):
+    rig, _, err = _interrupted_run(paper_model, target, tmp_path / "r.h5", math.inf, _ctrl_c)
+    assert str(tmp_path / "r.h5") in str(err)
     np.testing.assert_array_equal(rig.target, rig.lengths)
     d = read_run_log(tmp_path / "r.h5")
     assert d.ended.startswith("interrupted") and d.rows == 3
@@ -134,15 +145,8 @@ class _RaisesCtrlCWhenCollected:
 
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")     # the dropped one
 def test_ctrl_c_lost_in_a_finaliser_still_stops_the_run(paper_model, target, tmp_path):
-    rig = SimulatedRig(paper_model, load=(0, 0, -0.3), options=__import__("hardware").PlantOptions(length_rate=5e-3))
-    calls = []
-
-    def status(s):
-        calls.append(s)
-        if len(calls) == 3:
-            _RaisesCtrlCWhenCollected()                    # made and collected at once: its interrupt is dropped
-    with pytest.raises(RunAborted, match="Ctrl-C"):
-        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "r.h5", duration=60.0, status=status)
+    # the object is made and collected at once: its interrupt is dropped
+    _, calls, _ = _interrupted_run(paper_model, target, tmp_path / "r.h5", 60.0, _RaisesCtrlCWhenCollected)
     assert len(calls) == 3                                 # stopped at the next cycle, not after 60 s of holding
     assert read_run_log(tmp_path / "r.h5").ended.startswith("interrupted")
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler     # Python's handler is back
