@@ -48,6 +48,34 @@ def _status_printer(stream=None, every_s: float = 0.5):
     return status
 
 
+def compile_loop_kernels(params=None, controller: str = "lacc", compliance: Optional[str] = None,
+                         dynamics: bool = False) -> None:
+    """Compile (first run of an install) or load (later runs) every numba kernel the control loop calls, before
+    the rig moves: the controller's IK, locked FK and compliance, the bounded IK of a saturated step and the
+    simulated plant (with ``dynamics``: its time integration) — by a short run of the same controller on a
+    simulated rig of the same actuator (``params``, :class:`ancf.ActuatorParams`; default the ``paper`` preset)
+    with one element (types, not sizes, make a kernel's signature), and one target out of reach.
+    Otherwise the first saturation of a live run would stop the loop for the compiler (tens of seconds on a
+    fresh install), and a Ctrl-C could wait for it (tests/test_hardware/test_control_warm_up.py checks that a
+    run after it compiles nothing)."""
+    from ancf import Model, presets
+    from ancf.errors import InfeasibleTargetError
+    from controller import LACC, VFCC, run_on_rig
+    from hardware import SimulatedRig
+
+    params = (presets.paper() if params is None else params).replace(n_elements=1)
+    model = Model(params)
+    p, load = 30e3, (0.0, 0.0, -0.2)
+    ctrl = (LACC(model, p, compliance=compliance or "exact") if controller == "lacc" else VFCC(model, p))
+    rig = SimulatedRig(params, load=load, seed=0, dynamics=dynamics)
+    target = model.fk((1.5, 0.5, 0.5), p, load).tip
+    run_on_rig(ctrl, rig, target, max_iterations=2)
+    try:                                                   # the bounded IK: a tip 10 cm off to the side
+        model.ik(target + (0.0, 0.1, 0.0), p, load)
+    except InfeasibleTargetError:
+        pass
+
+
 def _end_status_line() -> None:
     """End the live status line (a terminal redraws one line with \\r; elsewhere every line is complete)."""
     if sys.stderr.isatty():
@@ -167,6 +195,9 @@ def control(
         overrides["dynamics"] = True
         if plant_damping_ratio is not None:
             overrides["damping"] = plant_damping_ratio
+    # the loop's kernels, before the rig is built (and a real one powered) and before the run log exists
+    typer.echo("loading the model's compiled kernels (compiling them on the first run of an install) …", err=True)
+    compile_loop_kernels(cfg.actuator_params(), controller, compliance, dynamics=simulated and dynamics)
     the_rig = build_rig(cfg, **overrides)
     if simulated and realtime:
         the_rig.pace = 1.0

@@ -460,7 +460,10 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
         if not design.training:
             raise InputError("the design has no training cases")
         check_cases(spec, design.cases)                  # before the first FEM solve
-    with in_background(compile_fit_kernels):   # the fits' kernels compile on a core the sweep leaves idle
+    # the fits' kernels compile beside the FEM (its own kernels compile in run_rod, on the other core) at the same
+    # priority: at nice 19 the sweep's two workers starved the compiler, it was stopped unfinished when the sweep
+    # ended and the fits compiled again on the critical path (docs/identification.md §Measured)
+    with in_background(compile_fit_kernels, nice=0):
         rod = run_rod(spec, cache_dir=cache_dir)
         base = fem_base_params(geometry, material, n_elements=n_elements, tension_max=tension_max,
                                pressure_max=pressure_max, rod=rod)

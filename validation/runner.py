@@ -20,7 +20,12 @@ that a caller can write results incrementally.  Nothing finished is lost:
 
 BLAS threads: worker processes run one BLAS thread each (``OMP_NUM_THREADS`` & co. are set to 1 for
 the pool), so that ``n`` workers on ``n`` cores do not oversubscribe them; dask's nanny does the same.
-Results are therefore equal across backends to round-off only (never compare them bitwise).
+A forked worker inherits the thread pools its parent's BLAS and MKL (PARDISO) libraries already started,
+which the variables no longer reach: every child process of this module also limits those pools to one
+thread (:func:`limit_threads`, threadpoolctl).  Measured on the quick report's FEM sweep on 2 cores: each
+worker had run PARDISO on 2 threads (146 % CPU per worker) and the sweep took 133 s against 105 s with the
+limit (docs/fem.md §4).  Results are therefore equal across backends to round-off only (never compare them
+bitwise).
 """
 
 from __future__ import annotations
@@ -211,14 +216,18 @@ def _start_method() -> str:
     return "spawn"
 
 
-def _worker_init() -> None:
+def limit_threads() -> None:
+    """One thread for this process's BLAS, MKL and OpenMP pools: the variables for libraries loaded from now
+    on, threadpoolctl for those already loaded (a forked child inherits its parent's pools, e.g. MKL's after
+    the parent ran PARDISO)."""
+    from threadpoolctl import threadpool_limits
     for var in _BLAS_VARS[:-1]:
         os.environ[var] = "1"
-    try:  # already-loaded BLAS (fork): limit it too, where threadpoolctl is installed
-        from threadpoolctl import threadpool_limits
-        threadpool_limits(1)
-    except ImportError:
-        pass
+    threadpool_limits(1)
+
+
+def _worker_init() -> None:
+    limit_threads()
 
 
 @contextlib.contextmanager
@@ -419,6 +428,7 @@ def _stop(child) -> None:
 
 def _beside_child(conn, fn, kwargs) -> None:
     try:
+        limit_threads()
         out = ("ok", fn(**kwargs))
     except BaseException as exc:          # noqa: BLE001 - handed to the parent, which raises it
         out = ("error", exc)
@@ -464,6 +474,7 @@ def _background_child(fn, nice: int) -> None:
     try:
         if nice and hasattr(os, "nice"):
             os.nice(nice)
+        limit_threads()
         fn()
     except BaseException:                 # noqa: BLE001 - what it did not finish, the caller does itself
         pass

@@ -102,11 +102,18 @@ def test_rig_runs_against_the_fakes(bench):
     assert valves.setpoint == 60e3
     rig.command([0.166, 0.165, 0.165])
     rig.advance()
-    np.testing.assert_allclose(rig.positions(), [0.166, 0.165, 0.165], atol=1e-9)
+    # reached: within the drive's position window in CSP (the last set-point's TPDO may still be one SYNC away;
+    # measured 0.165998 m), exact in profile position; the fakes then settle on the goal exactly
+    window = max(d.position_window for d in rig.drives) if cyclic else 1e-9
+    np.testing.assert_allclose(rig.positions(), [0.166, 0.165, 0.165], rtol=0, atol=window)
     h = rig.check_health()
     np.testing.assert_allclose(h["tensions"], [2.2, 1.6, 1.6])
     assert h["pressure"] == 60e3
     time.sleep(0.05)
+    deadline = time.monotonic() + 2.0                  # a SYNC cycle or two; generous for a loaded machine
+    while not np.allclose(rig.positions(), [0.166, 0.165, 0.165], rtol=0, atol=1e-9) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    np.testing.assert_allclose(rig.positions(), [0.166, 0.165, 0.165], rtol=0, atol=1e-9)
     np.testing.assert_allclose(rig.measure(frames=3), [0.17, 0.0, -0.002], atol=1e-7)
     if cyclic:                            # set-points and read-backs went by PDO: no SDO during the move
         assert [len(d.writes) for d in drives] == sdo_writes and all(d.syncs > 0 for d in drives)

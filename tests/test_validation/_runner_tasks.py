@@ -54,3 +54,16 @@ def write_niceness_then_sleep(path, seconds=60.0):
     import pathlib
     pathlib.Path(path).write_text(f"{os.getpid()} {os.nice(0)}")
     time.sleep(seconds)
+
+
+def thread_pools(task=None):
+    """The BLAS / MKL / OpenMP thread-pool sizes this process runs with (threadpoolctl), and its pid."""
+    from threadpoolctl import threadpool_info
+    return {"pid": os.getpid(), "pools": {i["internal_api"]: i["num_threads"] for i in threadpool_info()}}
+
+
+def write_thread_pools(path):
+    """For in_background: writes :func:`thread_pools` as JSON."""
+    import json
+    import pathlib
+    pathlib.Path(path).write_text(json.dumps(thread_pools()))

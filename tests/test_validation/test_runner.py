@@ -277,3 +277,32 @@ def test_in_background_runs_at_low_priority_and_stops_with_the_block(tmp_path):
         with pytest.raises(InputError, match="nice"):
             with in_background(time.time, nice=bad):
                 pass
+
+
+def test_every_child_runs_one_thread_per_pool_even_when_forked_from_a_multithreaded_parent(tmp_path):
+    """A forked child inherits the thread pools its parent's BLAS (and MKL, after a PARDISO solve) already
+    started, which the environment variables no longer reach: run_tasks' workers, run_beside's child and
+    in_background's child each limit them to one thread (on 2 cores, two FEM workers with 2-thread PARDISO
+    took 133 s for the quick report's sweep against 105 s; docs/fem.md §4)."""
+    import functools
+    import json
+
+    from threadpoolctl import threadpool_limits
+
+    from validation.runner import in_background, run_beside
+    with threadpool_limits(2):
+        parent = T.thread_pools()["pools"]
+        if not parent or max(parent.values()) < 2:
+            pytest.skip(f"the thread pools here cannot run 2 threads: {parent}")
+        workers = run_tasks(T.thread_pools, [{}, {}], workers=2, progress=False)
+        assert workers.backend.startswith("processes")
+        side, _ = run_beside(T.thread_pools, {}, lambda: None)
+        out = tmp_path / "pools.json"
+        with in_background(functools.partial(T.write_thread_pools, out), nice=0):
+            t0 = time.monotonic()
+            while not out.exists() and time.monotonic() - t0 < 30:
+                time.sleep(0.05)
+        background = json.loads(out.read_text())
+    for child in [*workers.results, side, background]:
+        assert child["pid"] != os.getpid()
+        assert set(child["pools"]) == set(parent) and all(n == 1 for n in child["pools"].values()), child
