@@ -9,6 +9,7 @@ Usage::
     python benchmarks/bench_fem.py --symmetry --repeat 3   # symmetric-subspace vs full Newton, interleaved
     python benchmarks/bench_fem.py --rings --repeat 3      # ring rotations in the Newton update on/off, cold bends
     python benchmarks/bench_fem.py --transfer --repeat 3   # refined solves from the coarse equilibrium / from rest
+    python benchmarks/bench_fem.py --worker-threads --repeat 3   # two forked FEM workers: 1 thread per pool / inherited
 
 Prints medians over ``--repeat`` runs and ratios to the fastest solver.  ``--compare-kernels`` times the
 numpy reference assembly (``HexAssembler(kernel="numpy")``) against the compiled kernel (``"numba"``,
@@ -23,6 +24,9 @@ the tip-position difference.  ``--rings`` does the same for the ring rotations o
 (:mod:`fem_reference.corotation`, ``RING_UPDATE`` on/off) on :data:`BEND_CASES`, cold bends from rest, with the
 factorisations; ``--transfer`` for the discretisation error's refined solves (the level refined 2× along the
 profile) started from the same case solved on the level (:mod:`fem_reference.transfer`) or from rest.
+``--worker-threads`` solves two bends at once in two worker processes forked by :func:`validation.runner.run_tasks`
+(as the report's sweep does) after the parent ran PARDISO on 2 threads: each worker's BLAS and MKL pools limited to
+one thread (:func:`validation.runner.limit_threads`, the default) against the pools the fork inherited.
 """
 
 from __future__ import annotations
@@ -324,6 +328,47 @@ def bench_transfer(level: str, repeat: int) -> dict:
     return dict(level=level, fine_level=vars(fine_level), rows=_interleaved("rest", cases, run, repeat))
 
 
+_WORKER_MODELS: dict = {}
+
+
+def _worker_solve(task: dict) -> tuple:
+    """Pool task of ``--worker-threads``: one cold solve on the coarse model of this process → (seconds, tip)."""
+    level = task["level"]
+    if level not in _WORKER_MODELS:
+        _WORKER_MODELS[level] = BellowsModel(presets.paper_bellows(), presets.paper_material(), level)
+    t0 = time.perf_counter()
+    res = _WORKER_MODELS[level].solve(**task["kw"])
+    return time.perf_counter() - t0, res.tip_position
+
+
+def bench_worker_threads(level: str, repeat: int) -> dict:
+    """Two bends in two forked workers, thread pools limited or inherited (see the module docstring)."""
+    import validation.runner as vr
+    from threadpoolctl import threadpool_info, threadpool_limits
+    pair = [BEND_CASES["T=2/0/0"], BEND_CASES["T=1/2.5/0,12.5kPa"]]
+    model = BellowsModel(presets.paper_bellows(), presets.paper_material(), level)
+    with threadpool_limits(2):
+        model.solve(tensions=(1.0, 1.0, 1.0))   # PARDISO started in this process, as the sweep's rod estimate does
+        pools = {i["internal_api"]: i["num_threads"] for i in threadpool_info()}
+        print(f"\n== two forked workers solving {len(pair)} bends at once, mesh {level}; parent's pools {pools}; "
+              f"{repeat} interleaved repetitions (wall time of the pair, the workers' model builds included)")
+
+        def run(kw, flag):
+            old = vr.limit_threads
+            if not flag:
+                vr.limit_threads = lambda: None          # the pools the fork inherited
+            try:
+                t0 = time.perf_counter()
+                out = vr.run_tasks(_worker_solve, [{"level": level, "kw": k} for k in pair], workers=2,
+                                   progress=False)
+                return time.perf_counter() - t0, 0, np.concatenate([r[1] for r in out.results])
+            finally:
+                vr.limit_threads = old
+
+        return dict(level=level, parent_pools=pools,
+                    rows=_interleaved("inherit", {"T=2/0/0 + T=1/2.5/0": {}}, run, repeat))
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--levels", nargs="+", default=["coarse"], choices=["coarse", "medium", "reference"])
@@ -338,9 +383,11 @@ def main(argv=None):
     ap.add_argument("--rings", action="store_true", help="only ring rotations on/off on cold bends (interleaved)")
     ap.add_argument("--transfer", action="store_true",
                     help="only refined solves from the coarse equilibrium vs from rest (interleaved)")
+    ap.add_argument("--worker-threads", action="store_true",
+                    help="only two forked FEM workers with thread pools limited vs inherited (interleaved)")
     a = ap.parse_args(argv)
     report = dict(python=sys.version.split()[0], machine=platform.machine(), levels=[])
-    for flag, fn in (("rings", bench_rings), ("transfer", bench_transfer)):
+    for flag, fn in (("rings", bench_rings), ("transfer", bench_transfer), ("worker_threads", bench_worker_threads)):
         if getattr(a, flag):
             report[flag] = [fn(level, a.repeat) for level in a.levels]
             if a.json:

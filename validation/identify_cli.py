@@ -44,8 +44,8 @@ N_FEM_CASES = len(default_design().cases)
 QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)}, no stiffness-vs-tension study and no FEM modes (the "
               f"Dynamics section shows the rod's). The FEM solves still dominate a run with an empty --cache: the "
               f"design's {N_FEM_CASES} load cases, then the FEM-error solves beside the fits (--no-fem-error skips "
-              "them): 2.6 min measured on 2 idle cores with pypardiso (the [pardiso] extra; 2.9–3.3 min on the first run "
-              "of a fresh install, which compiles the model's kernels), 4.3 min with SciPy's SuperLU "
+              "them): 2.4 min measured on 2 idle cores with pypardiso (the [pardiso] extra; 2.7 min on the first run "
+              "of a fresh install, which compiles the model's kernels), 4.6 min with SciPy's SuperLU "
               "(docs/identification.md); a re-run whose solves are cached takes seconds.")
 FREE_PARAMETERS = GEOMETRY_PARAMETERS + MATERIAL_PARAMETERS
 FEM_ERROR_HELP = ("Measure the FEM's own discretisation error: the held-out states with the largest deformation "
