@@ -49,7 +49,7 @@ def _status_printer(stream=None, every_s: float = 0.5):
 
 
 def compile_loop_kernels(params=None, controller: str = "lacc", compliance: Optional[str] = None,
-                         dynamics: bool = False) -> None:
+                         dynamics: bool = False) -> bool:
     """Compile (first run of an install) or load (later runs) every numba kernel the control loop calls, before
     the rig moves: the controller's IK, locked FK and compliance, the bounded IK of a saturated step and the
     simulated plant (with ``dynamics``: its time integration) — by a short run of the same controller on a
@@ -57,23 +57,33 @@ def compile_loop_kernels(params=None, controller: str = "lacc", compliance: Opti
     with one element (types, not sizes, make a kernel's signature), and one target out of reach.
     Otherwise the first saturation of a live run would stop the loop for the compiler (tens of seconds on a
     fresh install), and a Ctrl-C could wait for it (tests/test_hardware/test_control_warm_up.py checks that a
-    run after it compiles nothing)."""
+    run after it compiles nothing).  Returns False when a solve of the warm-up failed for this actuator (then what
+    it did not reach compiles when first used), True otherwise."""
+    import numpy as np
+
     from ancf import Model, presets
-    from ancf.errors import InfeasibleTargetError
+    from ancf.errors import BellowsError, InfeasibleTargetError
     from controller import LACC, VFCC, run_on_rig
     from hardware import SimulatedRig
 
     params = (presets.paper() if params is None else params).replace(n_elements=1)
     model = Model(params)
-    p, load = 30e3, (0.0, 0.0, -0.2)
+    # loads well inside this actuator's limits: a quarter of its pressure range, a bend by its first tendon
+    p, load = 0.25 * params.pressure_max, (0.0, 0.0, -0.05)
+    lo, span = params.tension_min, params.tension_max - params.tension_min
+    T = np.full(params.n_tendons, lo + 0.1 * span)
+    T[0] = lo + 0.3 * span
     ctrl = (LACC(model, p, compliance=compliance or "exact") if controller == "lacc" else VFCC(model, p))
-    rig = SimulatedRig(params, load=load, seed=0, dynamics=dynamics)
-    target = model.fk((1.5, 0.5, 0.5), p, load).tip
-    run_on_rig(ctrl, rig, target, max_iterations=2)
-    try:                                                   # the bounded IK: a tip 10 cm off to the side
-        model.ik(target + (0.0, 0.1, 0.0), p, load)
-    except InfeasibleTargetError:
-        pass
+    try:
+        target = model.fk(T, p, load).tip
+        run_on_rig(ctrl, SimulatedRig(params, load=load, seed=0, dynamics=dynamics), target, max_iterations=2)
+        try:                                               # the bounded IK: a tip 10 cm off to the side
+            model.ik(target + (0.0, 0.1, 0.0), p, load)
+        except InfeasibleTargetError:
+            pass
+    except BellowsError:   # its only product is the compiled kernels: the run itself says what is wrong
+        return False
+    return True
 
 
 def _end_status_line() -> None:

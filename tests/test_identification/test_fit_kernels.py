@@ -1,32 +1,14 @@
 """compile_fit_kernels, run in the background while the FEM sweep runs, must compile every numba signature
 the fits use: otherwise the first run of a fresh install waits for the compiler after the sweep."""
 
-import json
-import os
-import subprocess
-import sys
-import textwrap
+from kernel_signatures import grown, run_fresh
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-
-CHECK = textwrap.dedent("""
-    import json, sys, numpy as np
-    from numba.core.registry import CPUDispatcher
+CHECK = """
     from ancf import presets
     from validation.experiments import default_design
     from validation.fit import Observations, _Evaluator, predict
     from validation.forms import get_form
     from validation.identify import compile_fit_kernels
-
-    def signatures():
-        out = {}
-        for name, mod in list(sys.modules.items()):
-            if name.split(".")[0] != "ancf":
-                continue
-            for attr, obj in list(vars(mod).items()):
-                if isinstance(obj, CPUDispatcher):
-                    out[f"{name}.{attr}"] = len(obj.signatures)
-        return out
 
     compile_fit_kernels()
     before = signatures()
@@ -40,17 +22,14 @@ CHECK = textwrap.dedent("""
     _Evaluator(form, obs, base).evaluate(theta * 1.01, jacobian=True)
     after = signatures()
     print(json.dumps({"before": before, "after": after}))
-""")
+"""
 
 
 def test_the_background_compile_covers_every_kernel_signature_of_a_fit():
     """In a fresh interpreter: after compile_fit_kernels, one fit evaluation (FK from cold and warm starts, the
     exact Jacobian, the pressure sensitivity) adds no signature to any ancf kernel."""
-    run = subprocess.run([sys.executable, "-c", CHECK], cwd=ROOT, env={**os.environ, "PYTHONPATH": ROOT},
-                         capture_output=True, text=True, timeout=600, check=False)
-    assert run.returncode == 0, run.stderr[-2000:]
-    out = json.loads(run.stdout.strip().splitlines()[-1])
+    out = run_fresh(CHECK)
     before, after = out["before"], out["after"]
     assert before.get("ancf.compiled_solvers.fk_newton") == 1          # it did compile (or load) the FK loop
-    grown = {k: (before.get(k, 0), n) for k, n in after.items() if n > before.get(k, 0)}
-    assert not grown, f"kernels compiled by the fit but not by compile_fit_kernels: {grown}"
+    new = grown(before, after)
+    assert not new, f"kernels compiled by the fit but not by compile_fit_kernels: {new}"
