@@ -303,6 +303,10 @@ def test_every_child_runs_one_thread_per_pool_even_when_forked_from_a_multithrea
             while not out.exists() and time.monotonic() - t0 < 30:
                 time.sleep(0.05)
         background = json.loads(out.read_text())
+    forked = workers.backend == "processes (fork)"
     for child in [*workers.results, side, background]:
         assert child["pid"] != os.getpid()
-        assert set(child["pools"]) == set(parent) and all(n == 1 for n in child["pools"].values()), child
+        assert all(n == 1 for n in child["pools"].values()), child
+    # forked workers hold every pool of the parent (a spawned child — chosen when this process runs other threads —
+    # loads only what it imports, and the environment variables reach those)
+    assert not forked or all(set(w["pools"]) == set(parent) for w in workers.results), (workers.backend, parent)
