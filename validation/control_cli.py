@@ -66,6 +66,14 @@ def compile_loop_kernels(params=None, controller: str = "lacc", compliance: Opti
     from controller import LACC, VFCC, run_on_rig
     from hardware import SimulatedRig
 
+    from ancf import ActuatorParams
+    if controller not in CONTROLLERS:
+        raise InputError(f"controller must be one of {', '.join(CONTROLLERS)}, got {controller!r}")
+    if compliance is not None and (controller != "lacc" or compliance not in COMPLIANCE_METHODS):
+        raise InputError(f"compliance is LACC's, one of {', '.join(COMPLIANCE_METHODS)}; got {compliance!r} for "
+                         f"{controller}")
+    if params is not None and not isinstance(params, ActuatorParams):
+        raise InputError(f"params must be ancf.ActuatorParams or None, got {type(params).__name__}")
     params = (presets.paper() if params is None else params).replace(n_elements=1)
     model = Model(params)
     # loads well inside this actuator's limits: a quarter of its pressure range, a bend by its first tendon

@@ -226,10 +226,6 @@ def limit_threads() -> None:
     threadpool_limits(1)
 
 
-def _worker_init() -> None:
-    limit_threads()
-
-
 @contextlib.contextmanager
 def _single_thread_env():
     """BLAS thread variables = 1 while worker processes are started (spawned workers inherit them)."""
@@ -506,7 +502,7 @@ def _run_pool(fn, tasks, todo, nworkers, method, done) -> None:
     try:   # a Ctrl-C while the workers start or the tasks are submitted must stop them too (else exit waits)
         with _single_thread_env():
             pool = cf.ProcessPoolExecutor(max_workers=nworkers, mp_context=mp.get_context(method),
-                                          initializer=_worker_init)
+                                          initializer=limit_threads)
             futs = {pool.submit(fn, tasks[i]): i for i in todo}
         for f in cf.as_completed(futs):
             done(futs[f], f.result())

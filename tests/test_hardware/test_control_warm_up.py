@@ -52,3 +52,12 @@ def test_the_warm_up_runs_on_any_actuator_inside_its_limits(which):
               "free_base_stretch": presets.paper().replace(free_base_stretch=True)}[which]
     assert compile_loop_kernels(params) is True
     assert compile_loop_kernels(params, controller="vfcc") is True
+
+
+@pytest.mark.parametrize("kw", [dict(controller="pid"), dict(controller="vfcc", compliance="exact"),
+                                dict(compliance="magic"), dict(params={"name": "paper"})])
+def test_the_warm_up_refuses_bad_arguments_with_a_typed_error(kw):
+    from ancf.errors import InputError
+    from validation.control_cli import compile_loop_kernels
+    with pytest.raises(InputError):
+        compile_loop_kernels(**kw)
