@@ -22,11 +22,12 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from . import presets
+from . import clitools, presets
 from .errors import InputError
 from .export import equilibrium_summary, save_png, save_vtu, write_json
 from .model import Model
 from .outputs import atomic_write_text, prepare_output_dir, prepare_output_file
+from .params import N_ELEMENTS_MAX, N_ELEMENTS_MIN
 from .textfmt import number, one_of, vector
 
 console = Console(width=120)
@@ -37,12 +38,22 @@ PRESET_HELP = f"Preset name {one_of(presets.NAMES)} or a path to an actuator .to
 LOCKED_METHODS = {"active_set": "exact", "gamma": "paper eq. 6"}
 FORCE_HELP = "Overwrite existing output files."
 NO_LIMITS_HELP = "Analyse loads outside the actuator's operating limits (tensions, pressure) instead of rejecting them."
+#: ``--pressure-kpa`` of the model's commands: any finite number here; the actuator's limits are the model's check
+#: (with --no-limits as the override)
+PRESSURE_HELP = "Chamber pressure [kPa] (within the actuator's limits unless --no-limits)."
+#: ``--n-elements``: typer's own range check (shown in --help), the same range as the actuator file's n_elements
+N_ELEMENTS_RANGE = {"min": N_ELEMENTS_MIN, "max": N_ELEMENTS_MAX}
 
 
 def parse_vector(text: str, n: Optional[int], what: str) -> np.ndarray:
-    """'2,0,0' → array; clear error on a wrong count or a non-number."""
+    """'2,0,0' → array; clear error on a wrong count, an empty entry ('2,,0') or a non-number."""
+    parts = text.replace(" ", "").split(",")
+    if parts and parts[-1] == "":
+        parts.pop()                                    # a trailing comma: '2,0,0,'
+    if "" in parts:
+        raise InputError(f"{what}: expected comma-separated numbers, got an empty entry in {text!r}")
     try:
-        v = np.array([float(x) for x in text.replace(" ", "").split(",") if x != ""])
+        v = np.array([float(x) for x in parts])
     except ValueError:
         raise InputError(f"{what}: expected comma-separated numbers, got {text!r}") from None
     if n is not None and v.size != n:
@@ -92,10 +103,11 @@ def _timed(fn, *a, **k):
 
 
 def fk(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N], comma separated."),
-       pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+       pressure_kpa: float = typer.Option(0.0, help=PRESSURE_HELP, callback=clitools.FINITE),
        tip_force_n: str = typer.Option("0,0,0", help="External tip force [N] (world frame)."),
        preset: str = typer.Option("paper", help=PRESET_HELP),
-       n_elements: Optional[int] = typer.Option(None, help="Override the number of elements."),
+       n_elements: Optional[int] = typer.Option(None, help="Override the number of elements.",
+                                            **N_ELEMENTS_RANGE),
        vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
        no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP),
@@ -113,10 +125,11 @@ def fk(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N], comma 
 
 
 def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z'."),
-       pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+       pressure_kpa: float = typer.Option(0.0, help=PRESSURE_HELP, callback=clitools.FINITE),
        tip_force_n: str = typer.Option("0,0,0", help="Known tip force [N]."),
        preset: str = typer.Option("paper", help=PRESET_HELP),
-       n_elements: Optional[int] = typer.Option(None, help="Override the number of elements."),
+       n_elements: Optional[int] = typer.Option(None, help="Override the number of elements.",
+                                            **N_ELEMENTS_RANGE),
        vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
        no_limits: bool = typer.Option(False, "--no-limits", help="Accept a pressure outside the actuator's "
@@ -135,7 +148,7 @@ def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z
 
 
 def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm], comma separated."),
-           pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+           pressure_kpa: float = typer.Option(0.0, help=PRESSURE_HELP, callback=clitools.FINITE),
            tip_force_n: str = typer.Option("0,0,0", help="External tip force [N]."),
            method: str = typer.Option("active_set", help=f"Method {one_of(LOCKED_METHODS)}: "
                                       + ", ".join(f"{k} ({v})" for k, v in LOCKED_METHODS.items()) + "."),
@@ -149,6 +162,8 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
     vtu = _vtu_path(vtu, force)
     model = _model(preset, None)
     l0 = parse_vector(lengths_mm, model.m, "--lengths-mm") * 1e-3
+    if not np.all(l0 > 0):
+        raise InputError(f"--lengths-mm: tendon lengths must be > 0 mm, got {lengths_mm!r}")
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
     if method not in LOCKED_METHODS:
         raise InputError(f"--method must be one of {', '.join(LOCKED_METHODS)}, got {method!r}")
@@ -162,7 +177,7 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
 
 
 def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] at the state."),
-               pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+               pressure_kpa: float = typer.Option(0.0, help=PRESSURE_HELP, callback=clitools.FINITE),
                tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] at the state."),
                load_direction: str = typer.Option("0,0,-1", help="Direction of the extra load (locked active set)."),
                preset: str = typer.Option("paper", help=PRESET_HELP),
@@ -175,6 +190,8 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
     T = parse_vector(tensions_n, model.m, "--tensions-n")
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
     u = parse_vector(load_direction, 3, "--load-direction")
+    if not np.linalg.norm(u) > 0:
+        raise InputError(f"--load-direction must be a non-zero vector, got {load_direction!r}")
     eq = model.fk(T, pressure_kpa * 1e3, F, check_limits=not no_limits)
     forms = {"tension": cp.tension(model, eq)}
     for method in ("exact", "paper", "ik"):

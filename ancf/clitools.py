@@ -16,6 +16,7 @@ Rules (README "Errors and guarantees", docs/errors.md):
 from __future__ import annotations
 
 import datetime
+import math
 import os
 import pathlib
 import re
@@ -88,6 +89,100 @@ def write_traceback(exc: BaseException, argv: Sequence[str] | None = None) -> pa
         return path
     except OSError:
         return None
+
+
+# ---- option ranges, checked at the command-line boundary -------------------------------------------------------
+#
+# Every numeric option is checked while the command line is parsed, before any work: an out-of-range value is a
+# usage error (click's "Invalid value for '--option': …", one ``error:`` line, exit status 2), never a library's
+# own check surfacing later as an unexpected error.  Integers use typer's own ``min=``/``max=`` (typer shows the
+# range in --help); floats use :func:`number_range` as the option's ``callback`` (a float must also be finite,
+# and ranges may be open, which ``min=``/``max=`` cannot say); comma lists are parsed by :func:`parse_numbers`.
+# tests/test_cli_option_ranges.py holds refused values per option and fails on a numeric option without a row.
+
+#: largest seed: seeds are 32-bit, 0 … 2**32 − 1 (numpy's RandomState range; a seed stays one number in logs/JSON)
+SEED_MAX = 2**32 - 1
+#: most worker processes an option asks for (a local pool or a dask LocalCluster starts that many processes)
+WORKERS_MAX = 1024
+#: most Monte Carlo samples per mode (1000× the paper's 10 000; their inputs alone take ≈ 0.6 GB in memory)
+SAMPLES_MAX = 10_000_000
+
+
+def _g(x: float) -> str:
+    return str(x) if isinstance(x, int) else f"{x:g}"
+
+
+def describe_range(low: float | None = None, high: float | None = None, *, low_open: bool = False,
+                   high_open: bool = False) -> str:
+    """``"> 0"``, ``">= 0"``, ``"< 1"``, ``"in [0, 1)"``, ``"in (0, 20]"`` — or ``""`` for any finite number."""
+    if low is not None and high is not None:
+        return f"in {'(' if low_open else '['}{_g(low)}, {_g(high)}{')' if high_open else ']'}"
+    if low is not None:
+        return f"{'>' if low_open else '>='} {_g(low)}"
+    if high is not None:
+        return f"{'<' if high_open else '<='} {_g(high)}"
+    return ""
+
+
+def _in_range(v: float, low, high, low_open: bool, high_open: bool) -> bool:
+    return (math.isfinite(v)
+            and (low is None or (v > low if low_open else v >= low))
+            and (high is None or (v < high if high_open else v <= high)))
+
+
+def number_range(low: float | None = None, high: float | None = None, *, low_open: bool = False,
+                 high_open: bool = False, unit: str = ""):
+    """The ``callback`` of a float option: a given value must be a finite number in the range (``None``, an
+    optional option not given, passes); otherwise a usage error naming the option, e.g.
+    ``error: Invalid value for '--dt-ms': must be a finite number > 0 ms, got nan``.
+
+    The callback's ``.text`` is the range in words (``"a finite number > 0 ms"``, ``"a number in [0, 1)"``), for
+    the option's help."""
+    rng = describe_range(low, high, low_open=low_open, high_open=high_open)
+    bounded = low is not None and high is not None
+    text = ("a number" if bounded else "a finite number") + (f" {rng}" if rng else "") + (f" {unit}" if unit else "")
+
+    def check(value):
+        if value is None or _in_range(float(value), low, high, low_open, high_open):
+            return value
+        raise typer.BadParameter(f"must be {text}, got {_g(float(value))}")
+    check.text = text
+    return check
+
+
+#: any finite number (a pressure whose limits the model checks, with --no-limits as the override)
+FINITE = number_range()
+
+
+def parse_numbers(text: str, option: str, *, low: float | None = None, high: float | None = None,
+                  low_open: bool = False, high_open: bool = False, integer: bool = False, count: int | None = None,
+                  min_count: int = 1, scale: float = 1.0) -> list:
+    """A comma-separated list of numbers (``"0,25,50"``; spaces and a trailing comma are allowed) → a list of
+    floats (times ``scale``) or, with ``integer``, of ints; every entry finite and in the range, at least
+    ``min_count`` entries (exactly ``count`` if given).  Else a usage error naming ``option`` (exit status 2)."""
+    def bad(why: str):
+        raise typer.BadParameter(f"{why}, got {text!r}", param_hint=f"'{option}'")
+
+    parts = text.replace(" ", "").split(",")
+    if parts and parts[-1] == "":
+        parts.pop()                                            # "1,2," is "1,2"
+    what = "integers" if integer else "numbers"
+    if any(x == "" for x in parts):
+        bad(f"expected comma-separated {what} (an empty entry)")
+    try:
+        values = [float(x) for x in parts]
+    except ValueError:
+        bad(f"expected comma-separated {what}")
+    if integer and any(math.isfinite(v) and v != int(v) for v in values):
+        bad("expected whole numbers")
+    if count is not None and len(values) != count:
+        bad(f"expected {count} values")
+    if len(values) < min_count:
+        bad(f"expected at least {min_count} value{'s' if min_count > 1 else ''}")
+    rng = describe_range(low, high, low_open=low_open, high_open=high_open)
+    if any(not _in_range(v, low, high, low_open, high_open) for v in values):
+        bad(f"every value must be finite{' and ' + rng if rng else ''}")
+    return [int(v) for v in values] if integer else [v * scale for v in values]
 
 
 def run(app, args: Sequence[str] | None = None, prog_name: str = "bellows") -> None:

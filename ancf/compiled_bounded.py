@@ -45,7 +45,7 @@ from .solvers import _chol_apply, _chol_factor
 FAILED = 4
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def box_least_squares(A, b, lo, hi, mu):
     """min ½ |A x − b|² + ½ μ |x|² subject to lo ≤ x ≤ hi, for lo ≤ 0 ≤ hi (m,), A (k, m), μ ≥ 0 a small
     regularisation (the minimum-norm step where A has fewer rows than free columns).
@@ -131,7 +131,7 @@ def box_least_squares(A, b, lo, hi, mu):
     return False, x, W
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def tip_sensitivity(z0, T, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, h, F, tol, fk_iter):
     """FK at tensions T [N] (m,) from z0, then the tip p_end [m] (3,) and ∂p_end/∂T (3, m) [m/N] there.
 
@@ -161,7 +161,7 @@ def tip_sensitivity(z0, T, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, 
     return True, z, tip_position(q, h), Jp @ dz_dT, dz_dT, H, En, lc, it
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ik_bounded(T0, z0, lo, hi, pd, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, h, F, tol, fk_iter,
                max_iter, xtol):
     """Projected Gauss–Newton for the nearest reachable tip (module docstring) from tensions T0 (inside

@@ -37,7 +37,7 @@ from .solvers import _chol_solve_kernel
 CONVERGED, NOT_CONVERGED, BAD_START, NEEDS_LM = 0, 1, 2, 3
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def to_full(z, q_fix, P, use_P):
     """Full coordinates (ndof,) of free ones (nz,)."""
     if use_P:
@@ -47,7 +47,7 @@ def to_full(z, q_fix, P, use_P):
     return q
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def reduce_vec(v, P, use_P):
     """Pᵀ v for a vector (ndof,)."""
     if use_P:
@@ -55,7 +55,7 @@ def reduce_vec(v, P, use_P):
     return v[6:].copy()
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def reduce_rows(M, P, use_P):
     """M P for rows (k, ndof) → (k, nz)."""
     if use_P:
@@ -63,7 +63,7 @@ def reduce_rows(M, P, use_P):
     return np.ascontiguousarray(M[:, 6:])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def reduce_mat(K, P, use_P):
     """Pᵀ K P (nz, nz)."""
     if use_P:
@@ -71,7 +71,7 @@ def reduce_mat(K, P, use_P):
     return np.ascontiguousarray(K[6:, 6:])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _all_finite(a):
     for v in a.ravel():
         if not np.isfinite(v):
@@ -79,7 +79,7 @@ def _all_finite(a):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _norm(v):
     s = 0.0
     for x in v:
@@ -87,14 +87,14 @@ def _norm(v):
     return np.sqrt(s)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def is_positive_definite(H):
     """Cholesky succeeds on H (n, n) (the stability test of a returned state)."""
     ok, _ = _chol_solve_kernel(H, np.zeros(H.shape[0]), 0.0)
     return ok
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fk_eval(z, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F):
     """(Π, ∇Π (nz,), ∇²Π (nz, nz), usable) at free coordinates z (no tendon lengths: the loop computes them
     once, at the solution)."""
@@ -108,7 +108,7 @@ def _fk_eval(z, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F
     return En, g, H, _all_finite(g) and _all_finite(H)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def fk_newton(z0, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, tol, max_iter):
     """Newton on Π(z) from z0 (module docstring).
 
@@ -159,7 +159,7 @@ def fk_newton(z0, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, T, h,
     return NOT_CONVERGED, x, nh - 1, hist[:nh], H, False, En, no_lengths
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def stretch_range(q, n, N):
     """(min, max) of the local stretch |r_x| over the quadrature points of the n elements (N: shape table)."""
     lo, hi = np.inf, -np.inf
@@ -176,14 +176,14 @@ def stretch_range(q, n, N):
     return lo, hi
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def tip_position(q, h):
     """p_end = r_{n+1} + h t (as :func:`ancf.kinematics.tip_position`)."""
     a = q[-3:]
     return q[-6:-3] + h * a / _norm(a)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def tip_pose(q, h, e1):
     """(p_end (3,) [m], frame defined, tip rotation R (3, 3)) — :func:`ancf.kinematics.tip_position` and
     :func:`ancf.kinematics.tip_rotation` in one compiled call (q: an admissible state, |r_x| > 0 at the tip)."""
@@ -193,7 +193,7 @@ def tip_pose(q, h, e1):
     return q[-6:-3] + h * t, ok, R
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def tip_jacobian(q, h):
     """∂p_end/∂q (3, ndof) (as :func:`ancf.kinematics.tip_position_jacobian`)."""
     a = q[-3:]
@@ -208,7 +208,7 @@ def tip_jacobian(q, h):
     return J
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _ik_eval(x, nz, pd, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, h, F):
     """(R (nz + 3,), J (nz + 3, nz + m), usable, Π, tendon lengths (m,)) of the IK system at x = (z, T)."""
     m = x.size - nz
@@ -229,7 +229,7 @@ def _ik_eval(x, nz, pd, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so,
     return R, J, _all_finite(R) and _all_finite(J), En, lc
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _lu_solve(A, b):
     """Solve A x = b by Gaussian elimination with partial pivoting; (ok, x), ok False when a pivot is
     exactly zero (where ``np.linalg.solve`` raises LinAlgError)."""
@@ -261,7 +261,7 @@ def _lu_solve(A, b):
     return True, x
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ik_newton(x0, nz, pd, w, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, h, F, tol, max_iter):
     """Damped Newton on the IK system from x0 = (z0, T0) (module docstring).
 

@@ -96,6 +96,8 @@ PLAUSIBLE: dict[str, tuple[float, float, bool]] = {
     "shear_compliance_coeffs": (-1.0, 1.0, True),   # each s_j within ±1 m/N (the sum is checked ≥ 0)
 }
 INT_FIELDS = ("n_elements", "quadrature_points")
+#: the number of elements an actuator may have (``n_elements``; the CLI's ``--n-elements``, ``--n-ref`` share it)
+N_ELEMENTS_MIN, N_ELEMENTS_MAX = 1, 200
 BOOL_FIELDS = ("free_base_stretch",)
 TEXT_FIELDS = ("name", "description", "law")
 
@@ -359,8 +361,8 @@ class ActuatorParams(BaseModel):
     @field_validator("n_elements")
     @classmethod
     def _n(cls, v):
-        if not (1 <= v <= 200):
-            raise ValueError("n_elements must be in [1, 200]")
+        if not (N_ELEMENTS_MIN <= v <= N_ELEMENTS_MAX):
+            raise ValueError(f"n_elements must be in [{N_ELEMENTS_MIN}, {N_ELEMENTS_MAX}]")
         return v
 
     @field_validator("quadrature_points")

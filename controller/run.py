@@ -28,9 +28,9 @@ the summary's ``reach`` saturation time) until the load lets it track again.
 Faults: any :class:`~ancf.errors.BellowsError` during the run (hardware fault, limit, infeasible IK) makes
 the rig safe (:meth:`hardware.Rig.safe_stop`: drives hold — quick stop after a drive fault — pressure held
 or vented), writes the reason to the log, closes it and re-raises the error with ``.log_path`` and the
-partial ``.result`` attached.  Ctrl-C does the same and raises :class:`hardware.errors.RunAborted`, also
-when its first KeyboardInterrupt is lost in a finaliser (the loop checks a latch every cycle:
-:mod:`controller.interrupt`).
+partial ``.result`` attached.  Ctrl-C (and SIGTERM) does the same and raises :class:`hardware.errors.RunAborted`,
+also when its first KeyboardInterrupt is lost in a finaliser and when the process inherited SIGINT ignored
+(the loop checks a latch every cycle: :mod:`controller.interrupt`).
 
 This module imports :mod:`hardware` only inside :func:`run_on_rig` (for the run log and RunAborted).
 """
@@ -78,6 +78,7 @@ class RunResult:
     saturation: list = field(default_factory=list)
     reach_gaps: list = field(default_factory=list)
     summary: Optional[RunSummary] = None
+    recoveries: int = 0
 
     @property
     def converged(self) -> bool:
@@ -94,7 +95,7 @@ class RunResult:
                 "true_errors_m": [float(e) for e in self.true_errors], "static_states": self.static_states,
                 "estimate_N": None if self.estimate is None else self.estimate.tolist(),
                 "duration_s": self.duration, "log": None if self.log_path is None else str(self.log_path),
-                "summary": None if self.summary is None else self.summary.to_dict()}
+                "summary": None if self.summary is None else self.summary.to_dict(), "recoveries": self.recoveries}
 
 
 def _describe_controller(ctrl: Controller) -> dict:
@@ -116,7 +117,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
                idle_period: float = 0.1, initial_load=(0.0, 0.0, 0.0), sim_compute_time="measured",
                average_frames: int = 1, record_static: bool = True, applied_load=None,
                status: Optional[Callable[[dict], None]] = None,
-               run_info: Optional[dict] = None, shaper: Optional[tuple] = None) -> RunResult:
+               run_info: Optional[dict] = None, shaper: Optional[tuple] = None,
+               recover: Optional[Callable[[BellowsError], bool]] = None) -> RunResult:
     """Run ``controller`` on ``rig`` towards ``target`` (3,) [m]; see the module docstring.
 
     log : path of the run log (``.h5``; refused if it exists unless ``force``), an open
@@ -135,6 +137,11 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
     shaper : (A₁, delay [s]) of :func:`controller.shaping.zv_shaper`: every correction is sent as A₁ of the
         move, then the whole move ``delay`` later — a plant with inertia is left without ringing at the mode
         the shaper was made for (docs/dynamics.md); None: moves as commanded
+    recover : after a drive fault has stopped the rig (drives quick-stopped, pressure held or vented), called
+        with the fault: True resets the faulted drives and enables them where they stand
+        (:meth:`hardware.Rig.recover`), then the run goes on from a new IK with the current load estimate; False
+        ends the run on the fault.  Only for a person's decision (``bellows control`` asks); None (default):
+        every drive fault ends the run
     """
     if not isinstance(controller, Controller):
         raise InputError(f"run_on_rig needs a Controller, got {type(controller).__name__}")
@@ -201,99 +208,108 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         if opened_here:
             rig.open()
         t_start = rig.clock.now()
-        rig.set_pressure(controller.pressure)
-        rig.command(lengths, expected_tensions=controller.state.tensions)
-        rig.advance(None)
         k = 0
-        prev_start, prev_io, io = None, float("nan"), float("nan")
-        while True:
-            latch.check()
-            # loop timing (wall clock): this cycle's start, and the rig-call time of the previous cycle
-            start = time.perf_counter()
-            cycle_time = float("nan") if prev_start is None else start - prev_start
-            prev_start, prev_io, io = start, io, 0.0
-            readings = rig.check_health()
-            pm = rig.measure(average_frames) if average_frames > 1 else rig.measure()
-            io += time.perf_counter() - start
-            t = rig.clock.now()
-            truth = rig.true_tip() if simulated else None
-            rep = controller.step(pm)
-            if simulated and rep.command is not None and sim_compute_time != 0:
-                rig.advance(rep.compute_time if sim_compute_time == "measured" else float(sim_compute_time))
-            row = {"t": t, "iteration": k, "tip": pm, "error": rep.error, "error_norm": rep.error_norm,
-                   "command": rep.command, "position": readings["positions"], "tension": readings["tensions"],
-                   "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time,
-                   "saturated": float(getattr(rep, "saturated", False)), "io_time": prev_io,
-                   "reach_gap": float(getattr(rep, "reach_gap", 0.0)),
-                   "cycle_time": cycle_time}
-            if simulated:
-                row["true_tip"], row["true_load"] = truth, rig.load(t)
-                result.true_errors.append(float(np.linalg.norm(truth - pd)))
-            if runlog is not None:
-                runlog.sample(**row)
-            result.samples += 1
-            result.errors.append(rep.error_norm)
-            result.times.append(float(t))
-            result.saturation.append(_saturated(rig, controller, readings, rep))
-            result.reach_gaps.append(float(getattr(rep, "reach_gap", 0.0)))
-            result.estimate = np.asarray(rep.estimate, float).copy()
-            if status is not None:
-                status({"t": t - t_start, "iteration": k, "error_m": rep.error_norm, "mode": rep.mode,
-                        "saturated": bool(getattr(rep, "saturated", False)),
-                        "estimate_N": rep.estimate, "pressure_Pa": readings["pressure"],
-                        "tensions_N": readings["tensions"]})
-            if rep.command is None:
-                if not was_converged:
-                    rig.event("converged", f"tip error {rep.error_norm * 1e3:.4f} mm < tolerance "
-                                           f"{controller.tolerance * 1e3:.4f} mm after {k} corrections")
-                    if record_static and runlog is not None and np.all(np.isfinite(readings["tensions"])):
-                        F_known = (None if applied_load is None else
-                                   applied_load(t) if callable(applied_load) else applied_load)
-                        runlog.static_state(time=t, tensions=np.maximum(readings["tensions"], 0.0),
-                                            pressure=readings["pressure"], tip=pm, tip_force=F_known,
-                                            label=f"converged after {k} corrections")
-                        result.static_states += 1
-                was_converged = True
-                if duration is None:
-                    result.status = "converged"
-                    break
-                if rig.clock.now() - t_start >= duration:
-                    result.status = "held"
-                    break
-                t_io = time.perf_counter()
-                rig.advance(idle_period)
-                io += time.perf_counter() - t_io
-                continue
-            was_converged = False
-            if duration is None and max_iterations is not None and k >= max_iterations:
-                result.status = "not converged"
-                result.reason = (f"tip error {rep.error_norm * 1e3:.4f} mm after {k} corrections "
-                                 f"(tolerance {controller.tolerance * 1e3:.4f} mm)")
+        while True:        # one pass; another only after a drive fault a person chose to recover from
+            try:
+                rig.set_pressure(controller.pressure)
+                rig.command(lengths, expected_tensions=controller.state.tensions)
+                rig.advance(None)
+                prev_start, prev_io, io = None, float("nan"), float("nan")
+                while True:
+                    latch.check()
+                    # loop timing (wall clock): this cycle's start, and the rig-call time of the previous cycle
+                    start = time.perf_counter()
+                    cycle_time = float("nan") if prev_start is None else start - prev_start
+                    prev_start, prev_io, io = start, io, 0.0
+                    readings = rig.check_health()
+                    pm = rig.measure(average_frames) if average_frames > 1 else rig.measure()
+                    io += time.perf_counter() - start
+                    t = rig.clock.now()
+                    truth = rig.true_tip() if simulated else None
+                    rep = controller.step(pm)
+                    if simulated and rep.command is not None and sim_compute_time != 0:
+                        rig.advance(rep.compute_time if sim_compute_time == "measured" else float(sim_compute_time))
+                    row = {"t": t, "iteration": k, "tip": pm, "error": rep.error, "error_norm": rep.error_norm,
+                           "command": rep.command, "position": readings["positions"], "tension": readings["tensions"],
+                           "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time,
+                           "saturated": float(getattr(rep, "saturated", False)), "io_time": prev_io,
+                           "reach_gap": float(getattr(rep, "reach_gap", 0.0)),
+                           "cycle_time": cycle_time}
+                    if simulated:
+                        row["true_tip"], row["true_load"] = truth, rig.load(t)
+                        result.true_errors.append(float(np.linalg.norm(truth - pd)))
+                    if runlog is not None:
+                        runlog.sample(**row)
+                    result.samples += 1
+                    result.errors.append(rep.error_norm)
+                    result.times.append(float(t))
+                    result.saturation.append(_saturated(rig, controller, readings, rep))
+                    result.reach_gaps.append(float(getattr(rep, "reach_gap", 0.0)))
+                    result.estimate = np.asarray(rep.estimate, float).copy()
+                    if status is not None:
+                        status({"t": t - t_start, "iteration": k, "error_m": rep.error_norm, "mode": rep.mode,
+                                "saturated": bool(getattr(rep, "saturated", False)),
+                                "estimate_N": rep.estimate, "pressure_Pa": readings["pressure"],
+                                "tensions_N": readings["tensions"]})
+                    if rep.command is None:
+                        if not was_converged:
+                            rig.event("converged", f"tip error {rep.error_norm * 1e3:.4f} mm < tolerance "
+                                                   f"{controller.tolerance * 1e3:.4f} mm after {k} corrections")
+                            if record_static and runlog is not None and np.all(np.isfinite(readings["tensions"])):
+                                F_known = (None if applied_load is None else
+                                           applied_load(t) if callable(applied_load) else applied_load)
+                                runlog.static_state(time=t, tensions=np.maximum(readings["tensions"], 0.0),
+                                                    pressure=readings["pressure"], tip=pm, tip_force=F_known,
+                                                    label=f"converged after {k} corrections")
+                                result.static_states += 1
+                        was_converged = True
+                        if duration is None:
+                            result.status = "converged"
+                            break
+                        if rig.clock.now() - t_start >= duration:
+                            result.status = "held"
+                            break
+                        t_io = time.perf_counter()
+                        rig.advance(idle_period)
+                        io += time.perf_counter() - t_io
+                        continue
+                    was_converged = False
+                    if duration is None and max_iterations is not None and k >= max_iterations:
+                        result.status = "not converged"
+                        result.reason = (f"tip error {rep.error_norm * 1e3:.4f} mm after {k} corrections "
+                                         f"(tolerance {controller.tolerance * 1e3:.4f} mm)")
+                        break
+                    t_cmd, t_io = rig.clock.now(), time.perf_counter()
+                    if shaper is not None and rig.commanded is not None:
+                        # ZV input shaping: A₁ of the move now, all of it half a damped period later
+                        last = np.asarray(rig.commanded, float)
+                        rig.command(last + a1 * (np.asarray(rep.command, float) - last),
+                                    expected_tensions=controller.state.tensions)
+                        rig.advance(delay)
+                    rig.command(rep.command, expected_tensions=controller.state.tensions)
+                    rig.advance(None)
+                    if rig.clock.now() <= t_cmd:
+                        # nothing to move and no time passed (a simulated rig given the same command again, e.g. while
+                        # saturated): wait like a held target, or the loop would spin at one instant of rig time
+                        rig.advance(idle_period)
+                    io += time.perf_counter() - t_io
+                    k += 1
+                    result.iterations = k
+                    if duration is not None and rig.clock.now() - t_start >= duration:
+                        result.status = "held"
+                        break
                 break
-            t_cmd, t_io = rig.clock.now(), time.perf_counter()
-            if shaper is not None and rig.commanded is not None:
-                # ZV input shaping: A₁ of the move now, all of it half a damped period later
-                last = np.asarray(rig.commanded, float)
-                rig.command(last + a1 * (np.asarray(rep.command, float) - last),
-                            expected_tensions=controller.state.tensions)
-                rig.advance(delay)
-            rig.command(rep.command, expected_tensions=controller.state.tensions)
-            rig.advance(None)
-            if rig.clock.now() <= t_cmd:
-                # nothing to move and no time passed (a simulated rig given the same command again, e.g. while
-                # saturated): wait like a held target, or the loop would spin at one instant of rig time
-                rig.advance(idle_period)
-            io += time.perf_counter() - t_io
-            k += 1
-            result.iterations = k
-            if duration is not None and rig.clock.now() - t_start >= duration:
-                result.status = "held"
-                break
+            except DriveFault as exc:
+                if not _recovered(rig, controller, exc, recover, result):
+                    raise
+                lengths = controller.start(pd, result.estimate if result.estimate is not None else initial_load)
+                was_converged = False
     except KeyboardInterrupt:
-        rig.safe_stop("interrupted (Ctrl-C)")
-        result.status, result.reason = "interrupted", "Ctrl-C"
+        by = latch.signal_name or "Ctrl-C"
+        rig.safe_stop(f"interrupted ({by})")
+        result.status, result.reason = "interrupted", by
         where = f"; log: {result.log_path}" if result.log_path else ""
-        exc = RunAborted(f"run interrupted by Ctrl-C after {result.iterations} corrections; rig made safe{where}")
+        exc = RunAborted(f"run interrupted by {by} after {result.iterations} corrections; rig made safe{where}")
         exc.log_path, exc.result = result.log_path, result
         _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
         raise exc from None
@@ -314,6 +330,20 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         latch.__exit__()
     _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
     return result
+
+
+def _recovered(rig, controller: Controller, exc, recover, result: RunResult) -> bool:
+    """A drive fault inside the loop: stop the rig, ask ``recover`` (a person), and on yes bring the drives back
+    (:meth:`hardware.Rig.recover`).  Returns whether the run goes on."""
+    if recover is None:
+        return False
+    reason = f"{type(exc).__name__}: {exc}"
+    rig.safe_stop(f"drive fault: {reason}", quick=True)
+    if not recover(exc):
+        return False
+    rig.recover(reason)
+    result.recoveries += 1
+    return True
 
 
 def _saturated(rig, controller: Controller, readings: dict, rep) -> tuple:

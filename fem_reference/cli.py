@@ -32,7 +32,7 @@ from ancf.outputs import atomic_write_text, prepare_output_dir
 from ancf.textfmt import one_of, vector
 from .assembly import ELEMENTS
 from .mesh import MESH_LEVELS
-from .model import LINEAR_SOLVERS
+from .model import LINEAR_SOLVERS, OperatingLimits
 
 app = typer.Typer(help="scikit-fem 3-D hyperelastic reference model of the bellows actuator.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
@@ -83,6 +83,12 @@ def _locked(text: str | None) -> list[float | None] | None:
     return vals
 
 
+# option ranges, checked while the command line is parsed (ancf.clitools: a value outside is a usage error, exit 2)
+#: moduli [MPa]: positive, at most 1 TPa (stiffer than any solid; the wall is a rubber of a few MPa)
+MODULUS_MPA = clitools.number_range(0.0, 1e6, low_open=True, unit="MPa")
+MAX_TIME_S = clitools.number_range(0.0, low_open=True, unit="s")
+
+
 def _modulus(value_mpa: float | None, default_pa: float, option: str) -> float:
     """A given modulus is used (and must be positive); only an absent one takes the preset's value."""
     if value_mpa is None:
@@ -98,7 +104,10 @@ def _geometry(preset):
 
 @app.command(short_help="Solve one static load case: tip pose, tensions, cable lengths, timings.")
 def solve(
-    pressure_kpa: float = typer.Option(0.0, help="cavity gauge pressure [kPa]"),
+    pressure_kpa: float = typer.Option(0.0, callback=clitools.FINITE,
+                                       help="cavity gauge pressure [kPa] (within "
+                                            f"{OperatingLimits.pressure_min / 1e3:g} to "
+                                            f"{OperatingLimits.pressure_max / 1e3:g} kPa unless --no-limits)"),
     tensions_n: str = typer.Option("0,0,0", help="tendon tensions [N], comma-separated (θ = 0, 120°, 240°)"),
     tip_force_n: str = typer.Option("0,0,0", help="dead tip force (x,y,z) [N], world frame"),
     locked_lengths_mm: str | None = typer.Option(
@@ -108,8 +117,11 @@ def solve(
     element: ElementChoice = typer.Option(ElementChoice("mixed"), help="wall element: mixed (u–p, locking-free) "
                                           "or displacement (Hex27 alone; locks in bending, docs/fem.md §3a)"),
     preset: PresetChoice = typer.Option(PresetChoice("paper"), help="geometry preset"),
-    mu_mpa: float | None = typer.Option(None, help="shear modulus [MPa] (default: preset)"),
-    kappa_mpa: float | None = typer.Option(None, help="bulk modulus [MPa] (default: preset)"),
+    mu_mpa: float | None = typer.Option(None, callback=MODULUS_MPA,
+                                        help=f"shear modulus, {MODULUS_MPA.text} (default: preset)"),
+    kappa_mpa: float | None = typer.Option(None, callback=MODULUS_MPA,
+                                           help=f"bulk modulus, {MODULUS_MPA.text}, above 2/3 of the shear modulus "
+                                                "(default: preset)"),
     solver: str = typer.Option("auto", help=f"linear solver {one_of(LINEAR_SOLVERS)} (a library's solver where it "
                                             "is installed; auto: pardiso if installed, else splu)"),
     compliance: bool = typer.Option(False, help="also compute the 3×3 tip compliance (tension and locked)"),
@@ -118,7 +130,8 @@ def solve(
     force: bool = typer.Option(False, "--force", help="overwrite results already in --out"),
     no_limits: bool = typer.Option(False, "--no-limits", help="analyse loads outside the model's operating "
                                    "limits (pressure, tensions, tip force) instead of rejecting them"),
-    max_time_s: float | None = typer.Option(None, help="give up after this many seconds of solving [s]"),
+    max_time_s: float | None = typer.Option(None, callback=MAX_TIME_S,
+                                            help=f"give up after this many seconds of solving, {MAX_TIME_S.text}"),
     json_out: bool = typer.Option(False, "--json", help="print the JSON summary on stdout"),
 ):
     """Solve one static load case and report tip pose, tensions, cable lengths and timings."""
@@ -145,8 +158,11 @@ def solve(
     if not no_limits:     # the loads, before minutes of meshing and solving
         OperatingLimits().check_loads(T, pressure_kpa * 1e3, F, [v is not None for v in locked or [None] * 3])
     base = presets.paper_material()
-    mat = Material.neo_hookean(mu=_modulus(mu_mpa, base.mu, "--mu-mpa"),
-                               kappa=_modulus(kappa_mpa, base.kappa, "--kappa-mpa"), density=base.density)
+    mu, kappa = _modulus(mu_mpa, base.mu, "--mu-mpa"), _modulus(kappa_mpa, base.kappa, "--kappa-mpa")
+    if not kappa > 2 * mu / 3:          # a positive Poisson ratio (Material's own rule, in the options' terms)
+        raise InputError(f"--kappa-mpa must exceed 2/3 of --mu-mpa (a Poisson ratio > 0), got {kappa / 1e6:g} MPa and "
+                         f"{mu / 1e6:g} MPa (an option not given is the preset's)")
+    mat = Material.neo_hookean(mu=mu, kappa=kappa, density=base.density)
     with console.status(f"building {mesh.value} mesh and assembler ..."):
         model = BellowsModel(_geometry(preset), mat, mesh.value, linear_solver=solver, element=element.value)
     console.print(f"[bold]{model.n_dofs}[/] reduced DOFs, {model.bmesh.n_elements} Hex2 elements")

@@ -36,14 +36,25 @@ def build_rig(cfg: RigConfig, **sim_overrides):
         opts.update(sim_overrides)
         return SimulatedRig(cfg.actuator_params(), 0.0, load=load, options=PlantOptions(**opts), limits=limits,
                             on_fault_pressure=cfg.on_fault_pressure, name=cfg.name, config=cfg.to_dict())
-    from .epos4 import Epos4Drive
+    from .canbus import CanBus
+    from .epos4_cyclic import Epos4CyclicDrive
+    from .epos4_profile import Epos4ProfileDrive
     from .serial_devices import SerialForceSensor, SerialPressureSupply
     from .tracking import NatNetTracker
-    drives = [Epos4Drive(node_id=d["node_id"], channel=d["channel"], interface=d.get("interface", "socketcan"),
-                         bitrate=d.get("bitrate", 1_000_000), counts_per_metre=d["counts"],
-                         zero_length=d["zero_length"], limits=limits, cyclic=d.get("cyclic", False),
-                         sync_period=d.get("sync_period", 0.002), heartbeat_timeout=d.get("heartbeat_timeout", 0.5))
-              for d in cfg.drives]
+    buses: dict = {}                                      # one CanBus (socket, SYNC, host heartbeat) per bus
+    drives = []
+    for d in cfg.drives:
+        key = (d.get("interface", "socketcan"), d["channel"])
+        if key not in buses:
+            buses[key] = CanBus(key[0], key[1], d.get("bitrate", 1_000_000))
+        common = dict(bus=buses[key], counts_per_metre=d["counts"], zero_length=d["zero_length"], limits=limits,
+                      speed=cfg.speed if cfg.speed is not None else limits.speed_max,
+                      acceleration=cfg.acceleration, counts_per_turn=d["counts_per_turn"])
+        if d.get("cyclic", False):
+            cyc = {k: d[k] for k in ("sync_period", "heartbeat_timeout", "following_error_window") if k in d}
+            drives.append(Epos4CyclicDrive(d["node_id"], **common, **cyc))
+        else:
+            drives.append(Epos4ProfileDrive(d["node_id"], **common))
     forces = [SerialForceSensor(d["port"], channel=d["channel"], baudrate=d.get("baudrate", 115200),
                                 scale=d.get("scale", 1.0), offset=d.get("offset", 0.0),
                                 timeout=limits.sensor_timeout) for d in cfg.force_sensors]

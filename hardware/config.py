@@ -1,9 +1,12 @@
 """Rig description files (TOML): which backend drives each device, ports, node ids, unit conversions,
 limits and calibration.  Units are part of the key names, as in actuator files (``tension_max_N``,
 ``pressure_max_kPa``, ``counts_per_mm``); a dimensioned key without a unit, an unknown unit, an unknown
-key or a missing required key is a :class:`~hardware.errors.RigConfigError` naming the key.
+key or a missing required key is a :class:`~hardware.errors.RigConfigError` naming the key.  So is a
+setting that contradicts another one or that the rig would ignore (two SYNC periods on one CAN bus, a cyclic
+setting on a profile-position drive, ``[simulation]`` in a hardware file, ...; docs/rig.md, "Conflicts and
+plausibility"): the message names both keys as written.
 
-A complete file (every key documented in docs/rig.md)::
+A complete file (every key documented in docs/rig.md; the sections of both backends, so not one loadable rig)::
 
     name = "bench A"
     backend = "sim"                  # "sim" (SimulatedRig) | "hardware" (the device backends below)
@@ -11,6 +14,7 @@ A complete file (every key documented in docs/rig.md)::
     on_fault_pressure = "hold"       # "hold" | "vent"
     settle_time_s = 0.1
     speed_mm_per_s = 5               # tendon speed asked of the drives (<= limits.speed_max)
+    acceleration_mm_per_s2 = 50      # tendon acceleration and deceleration asked of the drives (> 0)
 
     [limits]
     length_min_mm = 100
@@ -41,10 +45,12 @@ A complete file (every key documented in docs/rig.md)::
     channel = "can0"
     bitrate = 1000000
     counts_per_mm = 2000.0           # encoder counts per mm of tendon length
+    counts_per_turn = 4096           # encoder counts per motor revolution (required: the EPOS4 speaks rpm)
     zero_length_mm = 160.0           # tendon length at encoder count 0
-    cyclic = false                   # true: cyclic synchronous position over PDO + SYNC (docs/rig.md)
-    sync_period_ms = 2               # SYNC / set-point period (cyclic)
-    heartbeat_timeout_ms = 500       # a drive silent this long is a fault (cyclic)
+    cyclic = true                    # cyclic synchronous position over PDO + SYNC (default false: profile position)
+    sync_period_ms = 2               # cyclic only: SYNC / set-point period, one per bus (default 2 ms)
+    heartbeat_timeout_ms = 500       # cyclic only: a drive silent this long is a fault, a silent host stops it
+    following_error_window_mm = 1    # cyclic only: the drive faults when it lags its demand by more (default 1 mm)
 
     [[force_sensors]]
     backend = "serial"
@@ -98,11 +104,12 @@ DIMENSIONS = {
     "stiffness": {"N_per_m": 1.0, "N_per_mm": 1e3},
     "force_per_count": {"N_per_count": 1.0},
     "counts_per_length": {"per_m": 1.0, "per_mm": 1e3},
+    "acceleration": {"m_per_s2": 1.0, "mm_per_s2": 1e-3},
 }
 INT, STR, BOOL, NUM, MATRIX3 = "int", "str", "bool", "num", "matrix3"
 
 TOP = {"name": STR, "backend": STR, "actuator": STR, "on_fault_pressure": STR, "settle_time": "time",
-       "speed": "speed"}
+       "speed": "speed", "acceleration": "acceleration"}
 LIMITS = {"length_min": "length", "length_max": "length", "max_step": "length", "speed_max": "speed",
           "tension_max": "force", "tension_min": "force", "pressure_max": "pressure", "pressure_band": "pressure",
           "sensor_timeout": "time"}
@@ -110,8 +117,8 @@ SIMULATION = {"seed": INT, "plant_actuator": STR, "tracker_noise": "length", "tr
               "force_noise": "force", "pressure_noise": "pressure", "length_resolution": "length",
               "length_rate": "speed", "tendon_friction": "force", "tendon_stiffness": "stiffness"}
 DRIVE = {"backend": STR, "node_id": INT, "interface": STR, "channel": STR, "bitrate": INT,
-         "counts": "counts_per_length", "zero_length": "length", "current_limit_A": NUM,
-         "cyclic": BOOL, "sync_period": "time", "heartbeat_timeout": "time"}
+         "counts": "counts_per_length", "counts_per_turn": NUM, "zero_length": "length", "current_limit_A": NUM,
+         "cyclic": BOOL, "sync_period": "time", "heartbeat_timeout": "time", "following_error_window": "length"}
 FORCE = {"backend": STR, "port": STR, "baudrate": INT, "channel": INT, "scale": "force_per_count",
          "offset": "force"}
 PRESSURE = {"backend": STR, "port": STR, "baudrate": INT}
@@ -126,6 +133,48 @@ COUNTS_PER_MM_RANGE = (10.0, 1e6)
 FORCE_CHANNELS = 3
 BACKENDS = {"drives": ("sim", "epos4"), "force_sensors": ("sim", "serial"), "pressure": ("sim", "serial"),
             "tracker": ("sim", "natnet")}
+#: drive settings of cyclic synchronous position only: refused on a drive without ``cyclic = true``
+CYCLIC_ONLY = ("sync_period", "heartbeat_timeout", "following_error_window")
+#: node id of the host's own heartbeat on a bus with cyclic drives (COB-ID 0x700 + 127 = 0x77F; the drives consume
+#: it): no drive on such a bus may use it (``hardware.canbus.MASTER_NODE_ID``)
+HOST_HEARTBEAT_NODE = 127
+#: period of the host's heartbeat [s] (``hardware.canbus.MASTER_HEARTBEAT_PERIOD``)
+HOST_HEARTBEAT_PERIOD = 0.05
+#: producer heartbeat time a cyclic drive is given [s] (``Epos4CyclicDrive(heartbeat_time=)``)
+DRIVE_HEARTBEAT_TIME = 0.05
+#: SYNC period of a cyclic drive whose rig file gives none [s] (the builder's and ``Epos4CyclicDrive``'s default;
+#: used here only to compare drives on one bus, never stored in the parsed table)
+SYNC_PERIOD_DEFAULT = 0.002
+#: accepted SYNC period [s]
+SYNC_PERIOD_RANGE = (1e-4, 0.1)
+#: largest heartbeat timeout [ms]: the drive's consumer heartbeat time 0x1016 is 16 bits of ms
+HEARTBEAT_TIMEOUT_MAX_MS = 0xFFFF
+#: data bytes of the frames one cyclic drive adds to every SYNC cycle (``hardware.epos4_cyclic``): RPDO 1 (target
+#: position), TPDO 1 (statusword + position demand), TPDO 2 (position actual + current)
+CYCLIC_PDO_BYTES = (4, 6, 8)
+#: largest unsigned 32-bit value (profile velocity / acceleration, following error window; as a window it switches
+#: the drive's following-error check off)
+U32_MAX = 2 ** 32 - 1
+
+
+def can_frame_bits(n_bytes: int) -> int:
+    """Worst-case length [bit] of a CAN 2.0A (11-bit id) data frame with ``n_bytes`` data bytes, stuff bits
+    included: 8n + 47 + ⌊(34 + 8n − 1) / 4⌋ (Davis, Burns, Bril, Lukkien 2007)."""
+    return 8 * n_bytes + 47 + (34 + 8 * n_bytes - 1) // 4
+
+
+def sync_period_problem(period: float) -> Optional[str]:
+    """Why a SYNC period [s] cannot be used (None: it can): 0.1 … 100 ms, and a whole number of 0.1 ms (up to
+    25.5 ms) or of ms — what the drive's interpolation time period 0x60C2 (value ≤ 255 · 10^index) can say."""
+    lo, hi = SYNC_PERIOD_RANGE
+    if not lo <= period <= hi:
+        return f"{period * 1e3:g} ms is outside {lo * 1e3:g} … {hi * 1e3:g} ms"
+    for unit in (1e-4, 1e-3):
+        v = period / unit
+        if abs(v - round(v)) < 1e-6 * max(1.0, v) and 1 <= round(v) <= 255:
+            return None
+    return (f"{period * 1e3:g} ms is not a whole number of 0.1 ms (up to 25.5 ms) or of ms: the drive's "
+            f"interpolation time period 0x60C2 cannot say it")
 
 
 def _spellings(spec: dict) -> dict:
@@ -216,6 +265,8 @@ class RigConfig:
     on_fault_pressure: str = "hold"
     settle_time: float = 0.0
     speed: Optional[float] = None
+    #: tendon acceleration and deceleration asked of the drives [m/s²] (None: the drives' default)
+    acceleration: Optional[float] = None
     limits: dict = field(default_factory=dict)
     simulation: dict = field(default_factory=dict)
     drives: tuple = ()
@@ -223,7 +274,8 @@ class RigConfig:
     pressure: dict = field(default_factory=dict)
     tracker: dict = field(default_factory=dict)
     base_dir: str = "."
-    #: ``{"drives[1].counts": "drives[1].counts_per_mm"}``: the keys as written in the file (for messages)
+    #: ``{"drives[1].counts": "drives[1].counts_per_mm", "speed": "speed_mm_per_s"}``: the keys as written in the
+    #: file (for messages)
     spelled: dict = field(default_factory=dict, compare=False, repr=False)
 
     # --------------------------------------------------------------------------------------- loading
@@ -253,16 +305,17 @@ class RigConfig:
         data = dict(data)
         sections = {k: data.pop(k) for k in ("limits", "simulation", "drives", "force_sensors", "pressure", "tracker")
                     if k in data}
-        top = parse_table(data, TOP, where)
+        spelled: dict = {}
+        top = parse_table(data, TOP, where, spelled)
         backend = top.get("backend", "sim")
         if backend not in ("sim", "hardware"):
             raise RigConfigError(f"{where}.backend: 'sim' or 'hardware', got {backend!r}")
         ofp = top.get("on_fault_pressure", "hold")
         if ofp not in ("hold", "vent"):
             raise RigConfigError(f"{where}.on_fault_pressure: 'hold' or 'vent', got {ofp!r}")
-        limits = parse_table(sections.get("limits", {}), LIMITS, f"{where}.limits")
-        sim = parse_table(sections.get("simulation", {}), SIMULATION, f"{where}.simulation")
-        devs, spelled = {}, {}
+        limits = parse_table(sections.get("limits", {}), LIMITS, f"{where}.limits", spelled, "limits")
+        sim = parse_table(sections.get("simulation", {}), SIMULATION, f"{where}.simulation", spelled, "simulation")
+        devs = {}
         for key, spec in (("drives", DRIVE), ("force_sensors", FORCE)):
             raw = sections.get(key, [])
             if not isinstance(raw, list):
@@ -273,13 +326,17 @@ class RigConfig:
             devs[key] = parse_table(sections.get(key, {}), spec, f"{where}.{key}", spelled, key)
         cfg = cls(name=top.get("name", "rig"), backend=backend, actuator=top.get("actuator", "paper"),
                   on_fault_pressure=ofp, settle_time=top.get("settle_time", 0.0), speed=top.get("speed"),
-                  limits=limits, simulation=sim, base_dir=base_dir, spelled=spelled, **devs)
+                  acceleration=top.get("acceleration"), limits=limits, simulation=sim, base_dir=base_dir,
+                  spelled=spelled, **devs)
         cfg._validate(where)
         return cfg
 
     def _validate(self, where: str) -> None:
         if self.settle_time < 0:
             raise RigConfigError(f"{where}.settle_time: must be >= 0 s")
+        if self.acceleration is not None and not self.acceleration > 0:
+            raise RigConfigError(f"{where}: {self._key('', 'acceleration')} ({self.acceleration * 1e3:g} mm/s²): must "
+                                 f"be > 0 (the tendon acceleration and deceleration asked of the drives)")
         try:
             lim = self.safety_limits()
             if self.speed is not None:
@@ -287,11 +344,20 @@ class RigConfig:
         except LimitError as exc:
             raise RigConfigError(f"{where}: {exc}") from None
         if self.backend == "sim":
-            for k in ("drives", "force_sensors"):
-                if any(d.get("backend", "sim") != "sim" for d in getattr(self, k)):
-                    raise RigConfigError(f"{where}.{k}: backend = 'sim' rig with a non-simulated device; "
-                                         f"set backend = 'hardware'")
+            for k in ("drives", "force_sensors", "pressure", "tracker"):
+                items = getattr(self, k)
+                for i, d in enumerate(items if isinstance(items, tuple) else (items,)):
+                    b = d.get("backend", "sim")
+                    if b != "sim":
+                        t = f"{k}[{i}]" if isinstance(items, tuple) else k
+                        raise RigConfigError(f"{where}: {t}.backend = {b!r} in a backend = 'sim' rig file (a "
+                                             f"simulated rig opens no device): set backend = 'hardware', or remove "
+                                             f"the device table")
             return
+        if self.simulation:
+            raise RigConfigError(f"{where}: {self._key('simulation', next(iter(self.simulation)))} in a backend = "
+                                 f"'hardware' rig file: [simulation] configures only the simulated rig (remove it, "
+                                 f"or set backend = 'sim')")
         for key in ("drives", "force_sensors", "pressure", "tracker"):
             items = getattr(self, key)
             items = items if isinstance(items, tuple) else (items,)
@@ -305,6 +371,12 @@ class RigConfig:
                                          f"got {b!r}")
         for i, d in enumerate(self.drives):
             _require(d, ("node_id", "channel", "counts", "zero_length"), f"{where}.drives[{i}]")
+            if "counts_per_turn" not in d:                   # every drive is an EPOS4 here
+                raise RigConfigError(
+                    f"{where}: drives[{i}].counts_per_turn is missing (encoder counts per motor revolution; required "
+                    f"for a backend = 'epos4' drive): the EPOS4 takes its profile velocity and acceleration in rpm "
+                    f"of the motor shaft, so without it the rig file's tendon speed cannot be asked of the drive "
+                    f"(it would keep the speed it has stored)")
         for i, d in enumerate(self.force_sensors):
             _require(d, ("port", "channel"), f"{where}.force_sensors[{i}]")
         _require(self.pressure, ("port",), f"{where}.pressure")
@@ -313,8 +385,14 @@ class RigConfig:
         self._check_conflicts(where, lim)
 
     def _key(self, table: str, f: str) -> str:
-        """The key ``f`` of ``table`` ("drives[1]", "tracker") as written in the file."""
-        return self.spelled.get(f"{table}.{f}", f"{table}.{f}" + ("_*" if f in ("counts", "zero_length") else ""))
+        """The key ``f`` of ``table`` ("drives[1]", "tracker", "limits"; "" the top level) as written in the file;
+        a dimensioned key the file does not give is ``<key>_*``."""
+        path = f"{table}.{f}" if table else f
+        if path in self.spelled:
+            return self.spelled[path]
+        spec = {"": TOP, "limits": LIMITS, "simulation": SIMULATION, "drives": DRIVE, "force_sensors": FORCE,
+                "pressure": PRESSURE, "tracker": TRACKER}.get(table.split("[")[0], {})
+        return path + ("_*" if spec.get(f) in DIMENSIONS else "")
 
     def _check_conflicts(self, where: str, lim: SafetyLimits) -> None:
         """Hardware rig: values in range and no two devices on one address (see docs/rig.md, "Conflicts")."""
@@ -329,7 +407,10 @@ class RigConfig:
         if len(self.force_sensors) != len(self.drives):
             bad(f"{len(self.force_sensors)} [[force_sensors]] tables for {len(self.drives)} [[drives]] "
                 f"(one per tendon, the {m} tendons of actuator {self.actuator!r})")
-        # drives: node ids, bitrates, encoder scale
+        # drives: node ids, bitrates, encoder scale, speed and acceleration in the drive's units, cyclic settings
+        speed = self.speed if self.speed is not None else lim.speed_max        # what the builder asks of the drives
+        speed_key = (self._key("", "speed") if self.speed is not None else self._key("limits", "speed_max")) \
+            + f" ({speed * 1e3:g} mm/s)"
         buses: dict = {}
         for i, d in enumerate(self.drives):
             t = f"drives[{i}]"
@@ -360,8 +441,12 @@ class RigConfig:
                 bad(f"{key} with {self._key(t, 'zero_length')}: the travel limits "
                     f"{lim.length_min * 1e3:g}…{lim.length_max * 1e3:g} mm reach {reach * d['counts']:.3g} counts, "
                     f"outside the drive's 32-bit position range")
+            self._check_drive_units(t, d, speed, speed_key, bad)
+            self._check_cyclic_settings(t, d, speed, speed_key, bad)
+        self._check_cyclic_buses(buses, bad)
         # serial instruments: baudrates, load-cell channels, one port per instrument
         channels: dict = {}
+        ports: dict = {}
         for i, d in enumerate(self.force_sensors):
             t = f"force_sensors[{i}]"
             if d.get("baudrate", 115200) <= 0:
@@ -373,6 +458,14 @@ class RigConfig:
                 bad(f"force_sensors[{channels[key]}].channel and {t}.channel both read channel {d['channel']} "
                     f"of {d['port']} (two tendons on one sensor channel)")
             channels[key] = i
+            if d["port"] in ports:
+                j = ports[d["port"]]
+                o = self.force_sensors[j].get("baudrate", 115200)
+                if o != d.get("baudrate", 115200):
+                    bad(f"{self._key(f'force_sensors[{j}]', 'baudrate')} = {o} and {self._key(t, 'baudrate')} = "
+                        f"{d.get('baudrate', 115200)} differ on {d['port']} (the sensors on one port share one serial "
+                        f"line: one baudrate; 115200 when not given)")
+            ports.setdefault(d["port"], i)
         if self.pressure.get("baudrate", 115200) <= 0:
             bad(f"pressure.baudrate = {self.pressure['baudrate']}: must be > 0")
         for i, d in enumerate(self.force_sensors):
@@ -392,6 +485,109 @@ class RigConfig:
                 natnet_version(self.tracker["natnet_version"])
             except RigConfigError as exc:
                 bad(f"tracker.natnet_version: {exc}")
+
+    def _check_drive_units(self, t: str, d: dict, speed: float, speed_key: str, bad) -> None:
+        """``counts_per_turn``, and the tendon speed and acceleration in the drive's units (rpm, rpm/s of the motor:
+        v · counts per m · 60 / counts_per_turn; 0x6081, 0x6083/0x6084, unsigned 32 bits)."""
+        cpt = d["counts_per_turn"]
+        if not cpt > 0:
+            bad(f"{self._key(t, 'counts_per_turn')} = {cpt:g}: must be > 0 (encoder counts per motor revolution)")
+        cpt_key, counts_key = f"{self._key(t, 'counts_per_turn')} = {cpt:g}", self._counts_key(t, d)
+        asked = [(speed_key, speed, "rpm", "profile velocity 0x6081")]
+        if self.acceleration is not None:
+            asked.append((f"{self._key('', 'acceleration')} ({self.acceleration * 1e3:g} mm/s²)", self.acceleration,
+                          "rpm/s", "profile acceleration and deceleration 0x6083/0x6084"))
+        for key, v, unit, obj in asked:
+            x = v * d["counts"] * 60.0 / cpt
+            if not 1.0 <= x <= U32_MAX:
+                why = (f"below the drive's unit of 1 {unit}: it cannot be asked of the drive" if x < 1.0
+                       else f"beyond the drive's 32-bit {obj}")
+                bad(f"{key} with {counts_key} and {cpt_key}: {x:.3g} {unit} of the motor shaft, {why}")
+
+    def _check_cyclic_settings(self, t: str, d: dict, speed: float, speed_key: str, bad) -> None:
+        """The settings of cyclic synchronous position: only on a cyclic drive, each in the drive's range."""
+        cyclic = d.get("cyclic", False)
+        for f in CYCLIC_ONLY:
+            if f in d and not cyclic:
+                bad(f"{self._key(t, f)} is a setting of cyclic synchronous position, but {t}.cyclic is "
+                    f"{'false' if 'cyclic' in d else 'not set (false)'}: profile position would ignore it (set "
+                    f"{t}.cyclic = true, or remove the key)")
+        if not cyclic:
+            return
+        counts_key = self._counts_key(t, d)
+        if "sync_period" in d:
+            problem = sync_period_problem(d["sync_period"])
+            if problem:
+                bad(f"{self._key(t, 'sync_period')}: {problem}")
+        if "heartbeat_timeout" in d:
+            hb = d["heartbeat_timeout"]
+            if (hb <= DRIVE_HEARTBEAT_TIME or hb < 2 * HOST_HEARTBEAT_PERIOD
+                    or round(hb * 1e3) > HEARTBEAT_TIMEOUT_MAX_MS):
+                lo = max(DRIVE_HEARTBEAT_TIME, 2 * HOST_HEARTBEAT_PERIOD)
+                bad(f"{self._key(t, 'heartbeat_timeout')} ({hb * 1e3:g} ms): it must be longer than the drive's "
+                    f"producer heartbeat time ({DRIVE_HEARTBEAT_TIME * 1e3:g} ms), at least twice the host's heartbeat "
+                    f"period (2 × {HOST_HEARTBEAT_PERIOD * 1e3:g} ms: the drive stops itself when the host is silent "
+                    f"this long) and fit the drive's 16-bit consumer heartbeat time 0x1016: accepted "
+                    f"{lo * 1e3:g} … {HEARTBEAT_TIMEOUT_MAX_MS} ms")
+        if "following_error_window" in d:
+            w = d["following_error_window"]
+            key = f"{self._key(t, 'following_error_window')} ({w * 1e3:g} mm)"
+            if not w > 0:
+                bad(f"{key}: must be > 0 (the drive faults when it lags its demand by more)")
+            c = w * d["counts"]
+            if round(c) < 1:
+                bad(f"{key} with {counts_key}: {c:.3g} counts, less than one count (the drive's following error "
+                    f"window 0x6065 is a whole number of counts)")
+            if c >= U32_MAX:
+                bad(f"{key} with {counts_key}: {c:.3g} counts does not fit the drive's following error window 0x6065 "
+                    f"(unsigned 32 bits; 0xFFFFFFFF switches the check off)")
+        period = d.get("sync_period", SYNC_PERIOD_DEFAULT)
+        step = speed * d["counts"] * period
+        if step < 1.0:
+            bad(f"{speed_key} with {counts_key} and {self._sync_key(t, d)}: {step:.3g} counts per SYNC period, but "
+                f"the cyclic set-point ramp moves whole counts, at least 1 count per SYNC period "
+                f"({1e3 / (d['counts'] * period):.3g} mm/s here, faster than the {speed * 1e3:g} mm/s asked)")
+
+    def _counts_key(self, t: str, d: dict) -> str:
+        """The encoder scale of drive table ``t`` as written, with its value (for messages)."""
+        return f"{self._key(t, 'counts')} ({d['counts'] * 1e-3:g} counts/mm)"
+
+    def _sync_key(self, t: str, d: dict) -> str:
+        """The SYNC period of drive table ``t`` as written, or its default (for messages)."""
+        if "sync_period" in d:
+            return f"{self._key(t, 'sync_period')} ({d['sync_period'] * 1e3:g} ms)"
+        return f"{self._key(t, 'sync_period')} (not given: the default {SYNC_PERIOD_DEFAULT * 1e3:g} ms)"
+
+    def _check_cyclic_buses(self, buses: dict, bad) -> None:
+        """A bus with cyclic drives: node 127 is the host's heartbeat, one SYNC period, its PDOs fit the period."""
+        for bus, members in buses.items():
+            cyc = [i for i in members if self.drives[i].get("cyclic", False)]
+            if not cyc:
+                continue
+            name = f"{bus[0]}:{bus[1]}"
+            listed = ", ".join(f"drives[{i}]" for i in cyc)
+            for i in members:
+                if self.drives[i]["node_id"] == HOST_HEARTBEAT_NODE:
+                    bad(f"{self._key(f'drives[{i}]', 'node_id')} = {HOST_HEARTBEAT_NODE} on CAN bus {name}, which has "
+                        f"cyclic drives ({listed}): node {HOST_HEARTBEAT_NODE} is the host's own heartbeat there "
+                        f"(COB-ID 0x{0x700 + HOST_HEARTBEAT_NODE:03X}, consumed by the cyclic drives); give the drive "
+                        f"a node id 1…{HOST_HEARTBEAT_NODE - 1}")
+            first = self.drives[cyc[0]]
+            period = first.get("sync_period", SYNC_PERIOD_DEFAULT)
+            for j in cyc[1:]:
+                other = self.drives[j]
+                if not math.isclose(other.get("sync_period", SYNC_PERIOD_DEFAULT), period, rel_tol=1e-9):
+                    bad(f"{self._sync_key(f'drives[{cyc[0]}]', first)} and {self._sync_key(f'drives[{j}]', other)} "
+                        f"differ on CAN bus {name}: only one SYNC runs per bus, shared by its cyclic drives (give "
+                        f"them one sync_period)")
+            bitrate = first.get("bitrate", 1_000_000)
+            bits = can_frame_bits(0) + len(cyc) * sum(can_frame_bits(n) for n in CYCLIC_PDO_BYTES)
+            if bits / bitrate > period:
+                bad(f"{self._key(f'drives[{cyc[0]}]', 'bitrate')} = {bitrate} and "
+                    f"{self._sync_key(f'drives[{cyc[0]}]', first)} on CAN bus {name}: one SYNC cycle of its "
+                    f"{len(cyc)} cyclic drive{'s' if len(cyc) > 1 else ''} (SYNC, then RPDO 1, TPDO 1 and TPDO 2 of "
+                    f"each: {bits} bits at worst-case bit stuffing) takes {bits / bitrate * 1e3:.3g} ms, longer than "
+                    f"the SYNC period (raise the bitrate or the sync_period)")
 
     # --------------------------------------------------------------------------------------- derived
     def actuator_params(self, which: str = "actuator"):

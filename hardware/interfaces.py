@@ -8,9 +8,10 @@ called when something has already gone wrong; what it could not do is returned a
 =================  ====================================================================================
 interface          what a backend implements
 =================  ====================================================================================
-TendonDrive        enable, move_to(length [m]), position [m], current [A], target_reached, hold,
-                   quick_stop, disable, fault_reset, check (raises DriveFault); hold and disable
-                   never re-enable a quick-stopped or faulted drive
+TendonDrive        enable, start (cyclic traffic, once every drive is enabled), move_to(length [m]),
+                   position [m], current [A], target_reached, hold, quick_stop, disable, fault_reset,
+                   recover, check (raises DriveFault); hold and disable never re-enable a
+                   quick-stopped or faulted drive
 ForceSensor        read() → tension [N]  (raises SensorTimeout)
 PressureSupply     set(p [Pa]), read() → p [Pa], hold(), vent()
 TipTracker         read() → :class:`TrackedPose` (timestamp, frame number, position [m], validity)
@@ -59,6 +60,10 @@ class TendonDrive(Device):
     @abc.abstractmethod
     def enable(self) -> None: ...
 
+    def start(self) -> None:
+        """Begin cyclic operation; called once every drive of the rig is enabled (e.g. a bus's SYNC starts only
+        when all its drives are enabled).  Nothing to do for a drive without cyclic traffic."""
+
     @abc.abstractmethod
     def move_to(self, length: float) -> None:
         """Start a move to the tendon length [m] (returns at once; see :meth:`target_reached`)."""
@@ -86,6 +91,13 @@ class TendonDrive(Device):
 
     @abc.abstractmethod
     def fault_reset(self) -> None: ...
+
+    def recover(self) -> None:
+        """Bring a stopped or faulted drive back to enabled **where it stands** (it moves again only on the next
+        :meth:`move_to`); an enabled drive is left alone.  Only for a person who has confirmed it
+        (:meth:`hardware.Rig.recover`).  Default: reset the fault, enable."""
+        self.fault_reset()
+        self.enable()
 
     @abc.abstractmethod
     def check(self) -> None:

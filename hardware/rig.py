@@ -112,6 +112,8 @@ class Rig:
                 opened.append(d)
             for d in self.drives:
                 d.enable()
+            for d in self.drives:                     # cyclic traffic (a bus's SYNC) once every drive is enabled
+                d.start()
         except BaseException:
             for d in reversed(opened):
                 d.make_safe()
@@ -295,6 +297,32 @@ class Rig:
                                f"{'vented' if self.on_fault_pressure == 'vent' else 'held'}"
                        + (f"; problems: {'; '.join(problems)}" if problems else ""))
         return problems
+
+    def recover(self, reason: str = "") -> list:
+        """After a drive fault, and only when a person has confirmed it: bring every stopped or faulted drive back
+        to enabled **where it stands** (:meth:`TendonDrive.recover`; a cyclic EPOS4 from its actual position, its
+        set-point frozen there — no jump), restart cyclic traffic, and forget the last command (the next one is
+        checked against the drives' actual positions).  Nothing moves until the next :meth:`command`.  Returns the
+        names of the drives it touched; a drive that does not come back raises :class:`DriveFault` (the rig
+        stays stopped)."""
+        touched = []
+        for d in self.drives:
+            try:
+                d.check()
+                ok = getattr(d, "enabled", True) and (not hasattr(d, "state") or d.state() == "OPERATION ENABLED")
+            except DriveFault:
+                ok = False
+            if not ok:
+                touched.append(d.name)
+            d.recover()
+        for d in self.drives:
+            d.start()
+        for d in self.drives:
+            d.check()
+        self.commanded = None
+        self.event("recovered", f"drives {', '.join(touched) or 'none'} reset and enabled where they stand"
+                   + (f" ({reason})" if reason else ""))
+        return touched
 
     def describe(self) -> dict:
         """JSON-friendly description (for run logs)."""

@@ -367,6 +367,12 @@ class SimDrive(TendonDrive):
         self.p.faults.pop("drive_fault", None)
         self.faulted = False
 
+    def recover(self) -> None:
+        if self.faulted or self.p.fault("drive_fault") is not None:
+            self.fault_reset()
+        self.hold()                                # where it stands: the next move_to moves it
+        self.enable()
+
     def check(self) -> None:
         f = self.p.fault("drive_fault")
         if f is not None and f.get("drive", 0) == self.i:

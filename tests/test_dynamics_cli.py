@@ -57,7 +57,7 @@ def test_simulate_command_writes_the_run(tmp_path):
 
 @pytest.mark.parametrize("args, text", [
     (("simulate", "--tensions-n", "2,0", "--t-end-s", "0.1"), "expected 3 values"),
-    (("simulate", "--tensions-n", "2,0,0", "--dt-ms", "0"), "must be > 0"),
+    (("simulate", "--tensions-n", "2,0,0", "--dt-ms", "0"), "'--dt-ms': must be a finite number > 0"),
     (("simulate", "--tensions-n", "9,0,0", "--t-end-s", "0.1"), "--no-limits"),
     (("modes", "--count", "0"), "count"),
 ])

@@ -18,6 +18,7 @@ from typing import Optional
 
 import typer
 
+from ancf.clitools import SEED_MAX
 from ancf.compliance import METHODS as COMPLIANCE_METHODS
 from ancf.errors import InputError
 from ancf.textfmt import one_of, vector
@@ -101,6 +102,21 @@ def _end_status_line() -> None:
     sys.stderr.flush()
 
 
+def _ask_recovery(exc) -> bool:
+    """A person decides whether a stopped rig goes on after a drive fault (end of input: no)."""
+    _end_status_line()
+    typer.echo(f"drive fault: {exc}\nthe drives are stopped (quick stop) and the pressure "
+               "held or vented as the rig file says.", err=True)
+    try:
+        yes = typer.confirm("Reset the faulted drives, enable them where they stand and go on?", default=False,
+                            err=True)
+    except (typer.Abort, EOFError):
+        yes = False
+    if not sys.stdin.isatty():            # the answer was not typed (no echoed newline): end the prompt's line
+        typer.echo("", err=True)
+    return yes
+
+
 def control(
     rig: str = typer.Option("sim", "--rig", help="'sim' (simulated rig, paper preset) or a rig TOML file"),
     target_mm: str = typer.Option(..., "--target-mm", help="desired tip position X,Y,Z [mm]"),
@@ -135,6 +151,10 @@ def control(
     log: Optional[pathlib.Path] = typer.Option(None, "--log", help="run log to write (.h5)"),
     force: bool = typer.Option(False, "--force", help="overwrite an existing run log"),
     json_out: bool = typer.Option(False, "--json", help="print the result as JSON"),
+    on_drive_fault: str = typer.Option("ask", "--on-drive-fault",
+                                       help="after a drive fault has stopped the rig: 'ask' (a person decides "
+                                            "whether to reset the drives where they stand and go on; no answer "
+                                            "= stop) or 'stop'"),
 ):
     """Run a tip-position controller live on a rig (simulated or real).
 
@@ -171,10 +191,20 @@ def control(
         raise InputError(f"--controller must be one of {', '.join(CONTROLLERS)}, got {controller!r}")
     if compliance is not None and compliance not in COMPLIANCE_METHODS:
         raise InputError(f"--compliance must be one of {', '.join(COMPLIANCE_METHODS)}, got {compliance!r}")
+    if on_drive_fault not in ("ask", "stop"):
+        raise InputError(f"--on-drive-fault must be 'ask' or 'stop', got {on_drive_fault!r}")
     if controller == "vfcc" and compliance is not None:
         raise InputError("--compliance applies to LACC only; VF-CC has no compliance option")
-    if duration_s is not None and not (duration_s > 0):
-        raise InputError(f"--duration-s must be > 0 s, got {duration_s}")
+    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
+        raise InputError(f"--duration-s must be a finite time > 0 s, got {duration_s}")
+    if load_mass_g is not None and not (0 <= load_mass_g <= 1000):
+        raise InputError(f"--load-mass-g must be in [0, 1000] g, got {load_mass_g}")
+    if seed is not None and not (0 <= seed <= SEED_MAX):
+        raise InputError(f"--seed must be in [0, {SEED_MAX}], got {seed}")
+    if plant_damping_ratio is not None and not (0 <= plant_damping_ratio <= 1):
+        raise InputError(f"--plant-damping-ratio must be in [0, 1], got {plant_damping_ratio}")
+    if shaping_damping_ratio is not None and not (0 <= shaping_damping_ratio < 1):
+        raise InputError(f"--shaping-damping-ratio must be in [0, 1), got {shaping_damping_ratio:g}")
     if max_iterations is not None and max_iterations < 0:
         raise InputError(f"--max-iterations must be >= 0, got {max_iterations}")
     if duration_s is not None and max_iterations is not None:
@@ -226,8 +256,6 @@ def control(
     shaper = None
     if shaping_damping_ratio is not None:
         from controller import zv_shaper
-        if not 0 <= shaping_damping_ratio < 1:
-            raise InputError(f"--shaping-damping-ratio must be in [0, 1), got {shaping_damping_ratio:g}")
         start = model.ik(target, p)                          # the mode of the start state, tendons locked
         locked = model.fk_locked(start.tendon_lengths, p, q0=start.q, tensions0=start.tensions)
         f1 = float(model.modes(locked, 1).frequencies_hz[0])
@@ -245,7 +273,7 @@ def control(
                          # the simulated experiment knows the load it applies: its static states record it
                          applied_load=the_rig.load if simulated else None,
                          run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": load_profile},
-                         shaper=shaper)
+                         shaper=shaper, recover=_ask_recovery if on_drive_fault == "ask" else None)
     except RunAborted as exc:
         _end_status_line()
         raise RunAborted(f"{exc}") from None

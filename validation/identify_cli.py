@@ -21,11 +21,13 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from ancf import clitools
 from ancf.errors import InputError
 from ancf.export import to_jsonable
 from ancf.outputs import atomic_write_text, prepare_output_dir, prepare_output_file
 from ancf.textfmt import one_of
 from fem_reference.mesh import MESH_LEVELS
+from fem_reference.model import OperatingLimits
 
 from .calibrate import GEOMETRY_PARAMETERS, MATERIAL_PARAMETERS
 from .designs import PRESETS as DESIGN_PRESETS
@@ -68,18 +70,32 @@ def _cases_check(cases: str) -> str:
         raise InputError(f"--cases must be 'default' or 'informative', got {cases!r}")
     return cases
 FIT_D_OPT = typer.Option(False, help="Also fit the tendon routing distance d.")
-WORKERS_OPT = typer.Option(None, help=WORKERS_HELP)
+WORKERS_OPT = typer.Option(None, min=1, max=clitools.WORKERS_MAX, help=WORKERS_HELP)
 SCHEDULER_OPT = typer.Option(None, help=SCHEDULER_HELP)
 CACHE_OPT = typer.Option(DEFAULT_CACHE, help=CACHE_HELP)
 FORCE_OPT = typer.Option(False, help="Overwrite results already in --out.")
-TMAX_OPT = typer.Option(None, help="Largest tendon tension of the virtual experiments [N] (default: the design's).")
-PMAX_OPT = typer.Option(None, help="Largest pressure of the virtual experiments [kPa] (default: the design's).")
+# option ranges (clitools.number_range: a given value outside is a usage error, exit status 2)
+POSITIVE = clitools.number_range(0.0, low_open=True)
+# a pressure of the FEM model within its operating limits (fem_reference.model.OperatingLimits: calibrate's solves
+# check them); the virtual experiments' largest tension and pressure are only > 0 here: whether their load cases
+# stay within those limits depends on --cases and is checked with the cases, before any solve (fem_sweep.check_cases)
+FEM_PRESSURE_KPA = clitools.number_range(0.0, OperatingLimits.pressure_max / 1e3, low_open=True, unit="kPa")
+TENSION_N = clitools.number_range(0.0, low_open=True, unit="N")
+PRESSURE_KPA = clitools.number_range(0.0, low_open=True, unit="kPa")
+HELDOUT = clitools.number_range(0.0, 1.0, high_open=True)                # validation.identify's range
+RANGE_FACTOR = clitools.number_range(1.0, 10.0, low_open=True)         # beyond 10× it is another design
+START_S = clitools.number_range(0.0, unit="s")
+END_S = clitools.number_range(0.0, low_open=True, unit="s")
+TMAX_OPT = typer.Option(None, callback=TENSION_N, help="Largest tendon tension of the virtual experiments, "
+                                                       f"{TENSION_N.text} (default: the design's).")
+PMAX_OPT = typer.Option(None, callback=PRESSURE_KPA, help="Largest pressure of the virtual experiments, "
+                                                          f"{PRESSURE_KPA.text} (default: the design's).")
 
 console = Console(width=120)
 
 
 def _forms(text: Optional[str], quick: bool = False) -> tuple:
-    if not text:
+    if text is None:                   # not given (a given empty list is an error below, not the default)
         return QUICK_FORMS if quick else FORMS
     names = tuple(x.strip() for x in text.split(",") if x.strip())
     bad = [n for n in names if n not in FORMS]
@@ -219,9 +235,10 @@ def identify_cmd(
         base: Optional[str] = typer.Option(None, help="Required with --measurements: the actuator as built (preset "
                                                       "or .toml) — length, tendon routing, masses, limits, starting "
                                                       "stiffness."),
-        heldout_fraction: float = typer.Option(0.25, help="With --measurements: share of states held out to choose "
-                                                          "the model form (states labelled 'heldout…' are held out "
-                                                          "instead)."),
+        heldout_fraction: float = typer.Option(0.25, callback=HELDOUT,
+                                               help=f"With --measurements: share of states held out to choose "
+                                                    f"the model form, {HELDOUT.text} (states labelled 'heldout…' are "
+                                                    "held out instead)."),
         gravity: bool = typer.Option(True, help="With --measurements: the states were measured under gravity."),
         tension_max_n: Optional[float] = TMAX_OPT,
         pressure_max_kpa: Optional[float] = PMAX_OPT,
@@ -413,14 +430,19 @@ def report_cmd(
 
 def calibrate_cmd(
         design: str = typer.Option("paper", help=DESIGN_HELP + " The starting design."),
-        target_ea_n: Optional[float] = typer.Option(None, help="Target axial stiffness EA at rest [N]."),
-        target_ei_n_m2: Optional[float] = typer.Option(None, help="Target bending stiffness EI at rest [N m²]."),
-        target_d_eff_mm: Optional[float] = typer.Option(None, help="Target pressure diameter D_eff [mm] (secant at "
-                                                                   "--pressure-kpa)."),
+        target_ea_n: Optional[float] = typer.Option(None, callback=POSITIVE,
+                                                    help="Target axial stiffness EA at rest [N], > 0."),
+        target_ei_n_m2: Optional[float] = typer.Option(None, callback=POSITIVE,
+                                                       help="Target bending stiffness EI at rest [N m²], > 0."),
+        target_d_eff_mm: Optional[float] = typer.Option(None, callback=POSITIVE,
+                                                        help="Target pressure diameter D_eff [mm], > 0 (secant at "
+                                                             "--pressure-kpa)."),
         free: str = typer.Option("wall_thickness,root_radius,crest_radius",
                                  help=f"Parameters to adjust, comma separated, from {one_of(FREE_PARAMETERS)}."),
-        range_factor: float = typer.Option(1.6, help="Each free parameter stays within [start/f, start·f]."),
-        pressure_kpa: float = typer.Option(60.0, help="Pressure of the secant D_eff measure [kPa]."),
+        range_factor: float = typer.Option(1.6, callback=RANGE_FACTOR, help="Each free parameter stays within "
+                                           f"[start/f, start·f]; f is {RANGE_FACTOR.text}."),
+        pressure_kpa: float = typer.Option(60.0, callback=FEM_PRESSURE_KPA,
+                                           help=f"Pressure of the secant D_eff measure, {FEM_PRESSURE_KPA.text}."),
         mesh: str = MESH_OPT,
         workers: Optional[int] = WORKERS_OPT,
         cache: pathlib.Path = CACHE_OPT,
@@ -436,10 +458,6 @@ def calibrate_cmd(
                                 ("D_eff", None if target_d_eff_mm is None else target_d_eff_mm * 1e-3)) if v is not None}
     if not target:
         raise InputError("give at least one of --target-ea-n, --target-ei-n-m2, --target-d-eff-mm")
-    if not (range_factor > 1.0):
-        raise InputError(f"--range-factor must be > 1, got {range_factor}")
-    if not (pressure_kpa > 0):
-        raise InputError(f"--pressure-kpa must be > 0, got {pressure_kpa}")
     names = [n.strip() for n in free.split(",") if n.strip()]
     bad = [n for n in names if n not in FREE_PARAMETERS]
     if bad or not names:
@@ -461,8 +479,10 @@ def calibrate_cmd(
 
 def damping_cmd(record: pathlib.Path = typer.Argument(..., help="A free decay: simulation.csv of `bellows "
                                                      "simulate`, or a run log (.h5)."),
-                start_s: Optional[float] = typer.Option(None, help="Fit from this time [s] (skip the release)."),
-                end_s: Optional[float] = typer.Option(None, help="Fit up to this time [s]."),
+                start_s: Optional[float] = typer.Option(None, callback=START_S, help="Fit from this time, "
+                                                        f"{START_S.text} (skip the release)."),
+                end_s: Optional[float] = typer.Option(None, callback=END_S, help=f"Fit up to this time, {END_S.text} "
+                                                      "(after --start-s)."),
                 true_tip: bool = typer.Option(False, "--true-tip", help="Run log of a simulated rig: fit its "
                                               "noise-free tip instead of the tracker's."),
                 tendons: Optional[str] = typer.Option(None, help="How the tendons were held, for the model's "
@@ -479,6 +499,8 @@ def damping_cmd(record: pathlib.Path = typer.Argument(..., help="A free decay: s
 
     if tendons not in (None, "held", "locked"):
         raise InputError(f"--tendons must be 'held' or 'locked', got {tendons!r}")
+    if start_s is not None and end_s is not None and not end_s > start_s:
+        raise InputError(f"--end-s must be after --start-s, got {start_s:g} s and {end_s:g} s")
     t, tip, info = read_decay(record, true_tip=true_tip)
     fit = fit_free_decay(t, tip, t_start=start_s, t_end=end_s)
     out = {"record": str(record), **fit.to_dict()}

@@ -22,10 +22,12 @@ from typing import Optional
 import typer
 from rich.console import Console
 
+from ancf import clitools
 from ancf.errors import BellowsError
 from ancf.export import to_jsonable
 from ancf import presets as ancf_presets
 from ancf.outputs import prepare_output_dir
+from ancf.params import N_ELEMENTS_MAX, N_ELEMENTS_MIN
 from ancf.textfmt import one_of
 
 from . import paper
@@ -39,17 +41,27 @@ DEFAULT_OUT = pathlib.Path("bellows_out/paper")
 _DEFAULT_COMPARE = ("paper_unscaled", "paper_scaled", "paper_scaled_020", "paper_diameter")
 PRESET_HELP = f"Actuator preset name {one_of(ancf_presets.NAMES)} or a path to an actuator .toml file."
 
+# option ranges, checked while the command line is parsed (ancf.clitools): integers by typer's min=/max=, floats by
+# clitools.number_range, comma lists by clitools.parse_numbers; a value outside is a usage error (exit status 2)
+SAMPLES = {"min": 1, "max": clitools.SAMPLES_MAX}
+SEED = {"min": 0, "max": clitools.SEED_MAX}
+WORKERS = {"min": 1, "max": clitools.WORKERS_MAX}
+N_ELEMENTS = {"min": N_ELEMENTS_MIN, "max": N_ELEMENTS_MAX}
+#: payloads of the studies [kg] (the same (0, 1] kg as the cyclic mass of validation.dynamic_studies)
+MASS_KG = clitools.number_range(0.0, 1.0, low_open=True, unit="kg")
+MASS_G = clitools.number_range(0.0, 1000.0, low_open=True, unit="g")
+#: the cyclic loads' frequencies [Hz]: at most validation.dynamic_studies' 20 Hz, at least 0.01 Hz (a 100 s period;
+#: lower ones would simulate for days)
+FREQ_HZ = {"low": 0.01, "high": 20.0}
+#: the loop's times [ms] (the paper's rig: 100, 10, 20 ms): at most 10 s each
+LOOP_MS = clitools.number_range(0.0, 10_000.0, unit="ms")
+MOTOR_RATE = clitools.number_range(0.0, low_open=True, unit="mm/s")
+RATIO = clitools.number_range(0.0, 1.0)
+
 
 def _console(as_json: bool) -> Console:
     # with --json the table and notes go to stderr so that stdout stays valid JSON
     return Console(width=130, stderr=as_json)
-
-
-def _floats(text: str, what: str, scale: float = 1.0) -> list[float]:
-    try:
-        return [float(x) * scale for x in text.replace(" ", "").split(",") if x != ""]
-    except ValueError:
-        raise typer.BadParameter(f"{what}: expected comma-separated numbers, got {text!r}") from None
 
 
 def _echo_json(data) -> None:
@@ -93,13 +105,14 @@ def _interrupted(exc: RunInterrupted) -> None:
 
 
 @app.command()
-def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per mode (paper: 10 000)."),
-              seed: int = typer.Option(0, help="Random seed (same seed → identical clouds)."),
-              workers: Optional[int] = typer.Option(None, help="Worker processes (default: all cores; 1 = serial)."),
+def workspace(samples: int = typer.Option(10_000, **SAMPLES, help="Monte Carlo samples per mode (paper: 10 000)."),
+              seed: int = typer.Option(0, **SEED, help="Random seed (same seed → identical clouds)."),
+              workers: Optional[int] = typer.Option(None, **WORKERS,
+                                                    help="Worker processes (default: all cores; 1 = serial)."),
               scheduler: Optional[str] = typer.Option(
                   None, help="dask scheduler address (tcp://host:8786), or 'local' for a temporary "
                              "LocalCluster with --workers processes."),
-              chunk_size: int = typer.Option(100, help="Samples per task."),
+              chunk_size: int = typer.Option(100, **SAMPLES, help="Samples per task."),
               warm_start: bool = typer.Option(True, help="Warm-start FK within a chunk (Morton order)."),
               preset: str = typer.Option("paper", help=PRESET_HELP),
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
@@ -126,19 +139,22 @@ def workspace(samples: int = typer.Option(10_000, help="Monte Carlo samples per 
 
 
 @app.command()
-def stiffness(pressures_kpa: str = typer.Option("0,25,50", help="Chamber pressures in kPa, comma separated."),
+def stiffness(pressures_kpa: str = typer.Option("0,25,50",
+                                                help="Chamber pressures in kPa, comma separated, each >= 0."),
               tensions_n: str = typer.Option("0,1,2,3,4,5",
-                                             help="Tensions of the top tendon T1 in N, comma separated."),
-              mass_kg: float = typer.Option(0.05, help="Tip payload in kg (paper: 0.05)."),
+                                             help="Tensions of the top tendon T1 in N, comma separated, each >= 0."),
+              mass_kg: float = typer.Option(0.05, callback=MASS_KG,
+                                            help=f"Tip payload, {MASS_KG.text} (paper: 0.05)."),
               preset: str = typer.Option("paper", help=PRESET_HELP),
               out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
               force: bool = typer.Option(False, "--force", help=FORCE_HELP),
               as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Stiffness vs T1, constant tension vs locked tendons (paper Sec V-C, Fig 9)."""
+    pressures = clitools.parse_numbers(pressures_kpa, "--pressures-kpa", low=0.0, scale=1e3)
+    tensions = clitools.parse_numbers(tensions_n, "--tensions-n", low=0.0)
     con = _console(as_json)
     with _scheduler_errors(None):
-        res = paper.stiffness_vs_tension(pressures=_floats(pressures_kpa, "--pressures-kpa", 1e3),
-                                         tensions=_floats(tensions_n, "--tensions-n"), mass=mass_kg, out=out,
+        res = paper.stiffness_vs_tension(pressures=pressures, tensions=tensions, mass=mass_kg, out=out,
                                          params=preset, force=force)
     if as_json:
         _echo_json(res)
@@ -187,14 +203,22 @@ for _name, _summary in CONTROL_COMMANDS.items():
 
 
 @app.command("dynamic", short_help="Cyclic loads 0.125–2 Hz: quasi-static LACC on a static vs a dynamic plant.")
-def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2", help="Cyclic load frequencies [Hz]."),
-            cycles: int = typer.Option(3, help="Load cycles per frequency (the first is not judged)."),
-            mass_g: float = typer.Option(80.0, help="Cyclic tip mass [g] (paper: 80)."),
-            motor_rate_mm_s: float = typer.Option(5.0, help="Motor speed [mm/s] (the loop's travel time)."),
-            settle_ms: float = typer.Option(100.0, help="Wait after each move before measuring [ms]."),
-            compute_ms: float = typer.Option(10.0, help="Controller step time on the rig clock [ms]."),
-            latency_ms: float = typer.Option(20.0, help="Actuation latency per move [ms]."),
-            damping_ratio: float = typer.Option(0.1, help="Damping ratio of the dynamic plant's first mode."),
+def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2",
+                                               help="Cyclic load frequencies [Hz], comma separated, each in "
+                                                    f"[{FREQ_HZ['low']:g}, {FREQ_HZ['high']:g}]."),
+            cycles: int = typer.Option(3, min=2, max=50,              # validation.dynamic_studies' range
+                                       help="Load cycles per frequency (the first is not judged)."),
+            mass_g: float = typer.Option(80.0, callback=MASS_G, help=f"Cyclic tip mass, {MASS_G.text} (paper: 80)."),
+            motor_rate_mm_s: float = typer.Option(5.0, callback=MOTOR_RATE,
+                                                  help=f"Motor speed, {MOTOR_RATE.text} (the loop's travel time)."),
+            settle_ms: float = typer.Option(100.0, callback=LOOP_MS,
+                                            help=f"Wait after each move before measuring, {LOOP_MS.text}."),
+            compute_ms: float = typer.Option(10.0, callback=LOOP_MS,
+                                             help=f"Controller step time on the rig clock, {LOOP_MS.text}."),
+            latency_ms: float = typer.Option(20.0, callback=LOOP_MS,
+                                             help=f"Actuation latency per move, {LOOP_MS.text}."),
+            damping_ratio: float = typer.Option(0.1, callback=RATIO, help="Damping ratio of the dynamic plant's "
+                                                f"first mode, {RATIO.text}."),
             shaping: bool = typer.Option(False, "--shaping", help="Also run the dynamic plant with ZV-shaped "
                                          "moves (input shaping at the model's first locked mode)."),
             preset: str = typer.Option("paper", help=PRESET_HELP),
@@ -204,10 +228,10 @@ def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2", help="Cycli
     """Cyclic loading at rising frequency: quasi-static LACC on the static vs the dynamic plant
     (docs/dynamics.md).  Writes dynamic_loading.json and dynamic_loading.png."""
     from .dynamic_studies import dynamic_loading
+    freqs = clitools.parse_numbers(frequencies_hz, "--frequencies-hz", **FREQ_HZ)
     con = _console(as_json)
     with _scheduler_errors(None):
         params = paper.resolve_params(preset)
-        freqs = _floats(frequencies_hz, "--frequencies-hz")
         out = prepare_output_dir(out, ("dynamic_loading.json", "dynamic_loading.png"), force=force)
         with con.status("running the cyclic loads on both plants") as st:
             res = dynamic_loading(frequencies=freqs, cycles=cycles, cyclic_mass=mass_g * 1e-3,
@@ -223,9 +247,9 @@ def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2", help="Cycli
 
 
 @app.command("all")
-def all_(samples: int = typer.Option(10_000, help="Workspace Monte Carlo samples per mode."),
-         seed: int = typer.Option(0, help="Random seed."),
-         workers: Optional[int] = typer.Option(None, help="Worker processes for the workspace."),
+def all_(samples: int = typer.Option(10_000, **SAMPLES, help="Workspace Monte Carlo samples per mode."),
+         seed: int = typer.Option(0, **SEED, help="Random seed."),
+         workers: Optional[int] = typer.Option(None, **WORKERS, help="Worker processes for the workspace."),
          scheduler: Optional[str] = typer.Option(None, help="dask scheduler address, or 'local'."),
          out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
          progress: bool = typer.Option(True, help="Show a progress bar."),
@@ -243,15 +267,17 @@ def all_(samples: int = typer.Option(10_000, help="Workspace Monte Carlo samples
 
 
 @app.command()
-def convergence(n_values: str = typer.Option("1,2,3,4,5,6,8", help="Numbers of elements, comma separated."),
-                n_ref: int = typer.Option(16, help="Elements of the reference solution."),
+def convergence(n_values: str = typer.Option("1,2,3,4,5,6,8", help="Numbers of elements, comma separated, each "
+                                             f"{N_ELEMENTS_MIN} to {N_ELEMENTS_MAX}."),
+                n_ref: int = typer.Option(16, **N_ELEMENTS, help="Elements of the reference solution."),
                 preset: str = typer.Option("paper", help=PRESET_HELP),
                 as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Tip error vs the number of elements n (paper: 6.1 -> 0.3 mm from n = 1 to 6)."""
     from .studies.convergence import element_convergence
+    ns = clitools.parse_numbers(n_values, "--n-values", low=N_ELEMENTS_MIN, high=N_ELEMENTS_MAX, integer=True)
     con = _console(as_json)
     with _scheduler_errors(None):
-        res = element_convergence(preset, n_values=[int(x) for x in _floats(n_values, "--n-values")], n_ref=n_ref)
+        res = element_convergence(preset, n_values=ns, n_ref=n_ref)
     if as_json:
         _echo_json(res)
         return
@@ -262,8 +288,10 @@ def convergence(n_values: str = typer.Option("1,2,3,4,5,6,8", help="Numbers of e
 
 
 @app.command()
-def loads(mass_kg: float = typer.Option(0.110, help="Payload of the locked drift [kg] (paper: 0.110)."),
-          hold_mass_kg: float = typer.Option(0.100, help="Payload to hold in each configuration [kg]."),
+def loads(mass_kg: float = typer.Option(0.110, callback=MASS_KG,
+                                       help=f"Payload of the locked drift, {MASS_KG.text} (paper: 0.110)."),
+          hold_mass_kg: float = typer.Option(0.100, callback=MASS_KG,
+                                             help=f"Payload to hold in each configuration, {MASS_KG.text}."),
           preset: str = typer.Option("paper", help=PRESET_HELP),
           as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Locked drift under a payload, holding a payload in the Table I configurations, and the IK time."""
@@ -288,9 +316,10 @@ def loads(mass_kg: float = typer.Option(0.110, help="Payload of the locked drift
 @app.command()
 def compare(presets: str = typer.Option(",".join(_DEFAULT_COMPARE),
                                         help="Presets to compare, comma separated (names or .toml paths)."),
-            samples: int = typer.Option(5000, help="Workspace samples per mode and seed."),
-            seeds: str = typer.Option("0,1", help="Workspace seeds, comma separated (two give the spread)."),
-            workers: Optional[int] = typer.Option(None, help="Worker processes for the workspace."),
+            samples: int = typer.Option(5000, **SAMPLES, help="Workspace samples per mode and seed."),
+            seeds: str = typer.Option("0,1", help=f"Workspace seeds, comma separated, each 0 to {clitools.SEED_MAX} "
+                                                  "(two give the spread)."),
+            workers: Optional[int] = typer.Option(None, **WORKERS, help="Worker processes for the workspace."),
             control: bool = typer.Option(True, help="Run the controller studies (Table I, ablation, loading)."),
             out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/paper_compare"), help=OUT_HELP),
             progress: bool = typer.Option(True, help="Show progress."),
@@ -302,9 +331,11 @@ def compare(presets: str = typer.Option(",".join(_DEFAULT_COMPARE),
     tensions, convergence n = 1, 6 vs 16, drift, holding, IK time and the controller studies: a few
     minutes on 2 cores.  Writes compare.json (after every preset) and compare.png/.svg."""
     from .studies import comparison, tables
-    con = _console(as_json)
     names = [x for x in presets.replace(" ", "").split(",") if x]
-    seed_list = [int(x) for x in _floats(seeds, "--seeds")]
+    if not names:
+        raise typer.BadParameter(f"expected at least one preset, got {presets!r}", param_hint="'--presets'")
+    seed_list = clitools.parse_numbers(seeds, "--seeds", low=0, high=clitools.SEED_MAX, integer=True)
+    con = _console(as_json)
     with _scheduler_errors(None):
         res = comparison.compare(names, samples=samples, seeds=seed_list, workers=workers,
                                  control=comparison.CONTROL if control else (), out=out, force=force,

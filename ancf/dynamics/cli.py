@@ -21,25 +21,32 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..cli import FORCE_HELP, NO_LIMITS_HELP, PRESET_HELP, _model, console, parse_vector, warm_up
+from .. import clitools
+from ..cli import FORCE_HELP, NO_LIMITS_HELP, PRESET_HELP, PRESSURE_HELP, _model, console, parse_vector, warm_up
 from ..errors import InputError
 from ..export import write_json
-from .transient import rayleigh_about
+from .transient import MAX_STEPS, rayleigh_about
 from ..outputs import prepare_output_dir
 
 MODES_FILES = ("modes.png", "modes.json")
 SIM_FILES = ("simulation.csv", "simulation.json", "simulation.png")
 
+# option ranges (clitools.number_range: a given value outside is a usage error, exit status 2)
+RATIO = clitools.number_range(0.0, 1.0)                                  # damping ratios, rho_inf
+RAMP_MS = clitools.number_range(0.0, unit="ms")
+T_END_S = clitools.number_range(0.0, 1e6, low_open=True, unit="s")      # ancf.dynamics.transient's range
+DT_MS = clitools.number_range(0.0, low_open=True, unit="ms")
+
 
 def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of the equilibrium."),
-          pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa]."),
+          pressure_kpa: float = typer.Option(0.0, help=PRESSURE_HELP, callback=clitools.FINITE),
           tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] of the equilibrium (world frame)."),
           locked: bool = typer.Option(False, "--locked", help="Tendons locked at the equilibrium's lengths "
                                       "(motors holding position) instead of tensions held."),
-          count: int = typer.Option(6, help="Number of modes."),
-          damping_ratio: Optional[float] = typer.Option(None, help="Damping ratio of the first mode "
-                                                        "(stiffness-proportional); default: the actuator file's "
-                                                        "damping coefficients."),
+          count: int = typer.Option(6, min=1, help="Number of modes (at most the model's free coordinates)."),
+          damping_ratio: Optional[float] = typer.Option(None, callback=RATIO, help="Damping ratio of the first mode "
+                                                        f"(stiffness-proportional), {RATIO.text}; default: the "
+                                                        "actuator file's damping coefficients."),
           preset: str = typer.Option("paper", help=PRESET_HELP),
           out: Optional[pathlib.Path] = typer.Option(None, help="Folder for modes.png and modes.json."),
           force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -50,6 +57,8 @@ def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of t
     model = _model(preset, None)
     T = parse_vector(tensions_n, model.m, "--tensions-n")
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    if count > model.nz:
+        raise InputError(f"--count must be at most {model.nz} (the model's free coordinates), got {count}")
     warm_up()
     eq = model.fk(T, pressure_kpa * 1e3, F, check_limits=not no_limits)
     if locked:
@@ -133,16 +142,19 @@ def save_modes_png(path, model, eq, r, title: str) -> pathlib.Path:
 
 def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] applied at t = 0."),
              start_tensions_n: str = typer.Option("0,0,0", help="Tensions [N] of the start equilibrium."),
-             pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa] (constant)."),
+             pressure_kpa: float = typer.Option(0.0, help="Chamber pressure [kPa] (constant; within the actuator's "
+                                               "limits unless --no-limits).", callback=clitools.FINITE),
              tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] (constant; also in the start state)."),
-             ramp_ms: float = typer.Option(0.0, help="Ramp the tensions linearly over this time [ms]; 0: a step."),
-             t_end_s: float = typer.Option(1.0, help="Simulated time [s]."),
-             dt_ms: float = typer.Option(1.0, help="Time step [ms] (the output interval)."),
-             damping_ratio: Optional[float] = typer.Option(None, help="Damping ratio of the first mode about "
-                                                           "the final equilibrium (stiffness-proportional); "
-                                                           "default: the actuator file's coefficients."),
-             rho_inf: float = typer.Option(0.9, help="Integrator's high-frequency spectral radius (1: none "
-                                           "of its numerical dissipation)."),
+             ramp_ms: float = typer.Option(0.0, callback=RAMP_MS, help="Ramp the tensions linearly over this time, "
+                                           f"{RAMP_MS.text}; 0: a step."),
+             t_end_s: float = typer.Option(1.0, callback=T_END_S, help=f"Simulated time, {T_END_S.text}."),
+             dt_ms: float = typer.Option(1.0, callback=DT_MS, help=f"Time step (the output interval), {DT_MS.text}; "
+                                         "at most --t-end-s and at most 10^7 steps."),
+             damping_ratio: Optional[float] = typer.Option(None, callback=RATIO, help="Damping ratio of the first "
+                                                           "mode about the final equilibrium (stiffness-proportional), "
+                                                           f"{RATIO.text}; default: the actuator file's coefficients."),
+             rho_inf: float = typer.Option(0.9, callback=RATIO, help="Integrator's high-frequency spectral radius, "
+                                           f"{RATIO.text} (1: none of its numerical dissipation)."),
              preset: str = typer.Option("paper", help=PRESET_HELP),
              out: pathlib.Path = typer.Option(pathlib.Path("bellows_sim"), help="Output folder."),
              force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -150,15 +162,16 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
     """Step response in time: from the start equilibrium to new tensions (tip motion, energy)."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
+    if dt_ms * 1e-3 > t_end_s:
+        raise InputError(f"--dt-ms must be at most --t-end-s, got {dt_ms:g} ms and {t_end_s:g} s")
+    if t_end_s / (dt_ms * 1e-3) > MAX_STEPS:
+        raise InputError(f"--t-end-s / --dt-ms is more than {MAX_STEPS:.0e} steps ({t_end_s:g} s in steps of "
+                         f"{dt_ms:g} ms): use a larger --dt-ms")
     folder = prepare_output_dir(out, SIM_FILES, force=force)
     model = _model(preset, None)
     T1 = parse_vector(tensions_n, model.m, "--tensions-n")
     T0 = parse_vector(start_tensions_n, model.m, "--start-tensions-n")
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
-    if not ramp_ms >= 0:
-        raise InputError(f"--ramp-ms must be ≥ 0, got {ramp_ms:g}")
-    if not (dt_ms > 0 and t_end_s > 0):
-        raise InputError(f"--dt-ms and --t-end-s must be > 0, got {dt_ms:g} ms and {t_end_s:g} s")
     warm_up()
     p = pressure_kpa * 1e3
     start = model.fk(T0, p, F, check_limits=not no_limits)

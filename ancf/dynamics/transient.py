@@ -81,6 +81,10 @@ class Simulation:
         return float(self.t[-1] - self.t[0]) / self.wall_time if self.wall_time > 0 else float("inf")
 
 
+#: most time steps of one transient run (t_end / dt)
+MAX_STEPS = 10_000_000
+
+
 def resolve_damping(model, damping, K0: np.ndarray, Mz: np.ndarray) -> dict:
     """The damping coefficients {alpha [1/s], beta [s], axial [N s]} of a run (module docstring of
     :meth:`ancf.Model.simulate` for the accepted forms)."""
@@ -143,7 +147,7 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
         raise InputError(f"t_end and dt must be > 0 s, got t_end = {t_end:g} s, dt = {dt:g} s")
     rho_inf = check_scalar("rho_inf", rho_inf, low=0.0, high=1.0)
     nsteps = int(math.ceil(t_end / dt - 1e-9))
-    if nsteps > 10_000_000:
+    if nsteps > MAX_STEPS:
         raise InputError(f"t_end / dt = {nsteps} steps is more than 10⁷; use a larger dt")
     if isinstance(max_halvings, bool) or not isinstance(max_halvings, int) or not 0 <= max_halvings <= 20:
         raise InputError(f"max_halvings must be an integer 0…20, got {max_halvings!r}")

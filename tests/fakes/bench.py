@@ -106,6 +106,7 @@ class ModelBench:
         self.offset = np.asarray(offset_mm, float) * 1e-3
         self.channel = f"bench-{uuid.uuid4().hex[:8]}"
         l0 = np.asarray(initial_lengths, float)
+        self.n = len(l0)
         self.drives = [FakeEpos4(node_id=i + 1, channel=self.channel,
                                  initial_counts=int(round((l0[i] - self.zero) * self.cpm))) for i in range(len(l0))]
         self.loadcells = FakeSerialInstrument()
@@ -175,9 +176,54 @@ class ModelBench:
         data = tomllib.loads(toml_text)
         d0, f0 = data["drives"][0], data["force_sensors"][0]
         data["drives"] = [{**d0, "node_id": i + 1, "interface": "virtual", "channel": self.channel}
-                          for i in range(len(self.drives))]
-        data["force_sensors"] = [{**f0, "port": self.loadcells.port, "channel": i + 1} for i in range(len(self.drives))]
+                          for i in range(self.n)]
+        data["force_sensors"] = [{**f0, "port": self.loadcells.port, "channel": i + 1} for i in range(self.n)]
         data["pressure"] = {**data["pressure"], "port": self.valves.port}
         data["tracker"] = {**data["tracker"], "address": "127.0.0.1", "port": self.port}
         data["tracker"].pop("multicast_group", None)
+        return dump_toml(data)
+
+
+class ProcessModelBench(ModelBench):
+    """The same bench with its drives in another process (:class:`fakes.drive_process.DriveProcess`, their own
+    SYNC clock, reached over :mod:`fakes.canbridge`), run in cyclic synchronous position: a host stall cannot
+    stall them, and they record every per-SYNC demand step.  ``.proc`` is the drive process; the rig file's
+    drives are written ``cyclic = true`` at ``sync_period_ms``."""
+
+    def __init__(self, params, *, counts_per_mm: float, initial_lengths, sync_period_ms: float = 5.0,
+                 max_mm_per_s: float = 1000.0, **kw):
+        super().__init__(params, counts_per_mm=counts_per_mm, initial_lengths=initial_lengths, **kw)
+        from .canbridge import register
+        from .drive_process import DriveProcess
+        self.interface = register()
+        self.sync_period_ms = float(sync_period_ms)
+        l0 = np.asarray(initial_lengths, float)
+        counts = [int(round((li - self.zero) * self.cpm)) for li in l0]
+        self.proc = DriveProcess([{"node_id": i + 1, "initial_counts": c, "target_counts": c,
+                                   "max_counts_per_s": max_mm_per_s * 1e-3 * self.cpm} for i, c in enumerate(counts)])
+        self.nodes = [i + 1 for i in range(len(counts))]
+        self.drives = []                               # no in-process drives
+
+    def lengths(self) -> np.ndarray:
+        pos = self.proc.positions()
+        return np.array([pos[n] for n in self.nodes], float) / self.cpm + self.zero
+
+    def __enter__(self):
+        self.proc.__enter__()
+        try:
+            return super().__enter__()
+        except BaseException:
+            self.proc.__exit__(None, None, None)
+            raise
+
+    def __exit__(self, *exc):
+        try:
+            return super().__exit__(*exc)
+        finally:
+            self.proc.__exit__(None, None, None)
+
+    def rig_file(self, toml_text: str) -> str:
+        data = tomllib.loads(super().rig_file(toml_text))
+        data["drives"] = [{**d, "interface": self.interface, "channel": self.proc.channel, "cyclic": True,
+                           "sync_period_ms": self.sync_period_ms} for d in data["drives"]]
         return dump_toml(data)

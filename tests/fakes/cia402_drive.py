@@ -2,7 +2,7 @@
 machine and profile position mode (new-setpoint handshake, target reached), with fault injection.
 
     with FakeEpos4(node_id=1, channel="rig0") as fake:
-        ...  # an Epos4Drive(node_id=1, channel="rig0", interface="virtual", ...) talks to it
+        ...  # an Epos4ProfileDrive(node_id=1, channel="rig0", interface="virtual", ...) talks to it
 
 The motor moves at ``counts_per_second`` in a background thread; ``inject_fault(code)`` sets the fault
 bit, stores the error code in 0x603F and sends an EMCY; ``following_error()`` sets statusword bit 13;

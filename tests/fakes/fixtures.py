@@ -19,3 +19,12 @@ def quiet_canopen():
     """canopen logs every SDO fallback and timeout; keep the test output readable."""
     logging.getLogger("canopen").setLevel(logging.ERROR)
     yield
+
+
+def hold_the_gil(seconds: float) -> None:
+    """Stall every other thread of this process for ``seconds``, as a compiled kernel that does not release the
+    GIL does: libc's ``usleep`` called through ``ctypes.PyDLL``, which keeps the GIL held during the call.
+    (Raising ``sys.setswitchinterval`` instead leaves threads that started waiting meanwhile with its long
+    timeout, starving them for far longer than asked.)"""
+    import ctypes
+    ctypes.PyDLL(None).usleep(int(seconds * 1e6))

@@ -12,9 +12,6 @@ The run must exit 0 genuinely: the controller converges on the tip the fakes rep
 """
 
 import json
-import pathlib
-import re
-import shlex
 
 import numpy as np
 import pytest
@@ -22,40 +19,11 @@ import pytest
 pytest.importorskip("canopen")
 pytest.importorskip("serial")
 
+from fakes.doc_commands import ROOT, DocumentedCspRun, documented_rig_file, rig_toml_commands  # noqa: E402
 from fakes.fixtures import quiet_canopen  # noqa: E402,F401  (fixture)
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
 DOCS = ("README.md", "docs/rig.md")
 DURATION_S = "2"
-
-
-def bash_commands(text: str) -> list:
-    """The command lines of the ```bash blocks of a Markdown text: continuations joined, comments and
-    optional [...] parts dropped."""
-    out = []
-    for block in re.findall(r"```bash\n(.*?)```", text, flags=re.S):
-        joined = re.sub(r"\\\n\s*", " ", block)
-        for line in joined.splitlines():
-            line = re.sub(r"\s\[[^\]]*\]", "", line)                   # optional parts: [--force]
-            words = shlex.split(line, comments=True)
-            if words:
-                out.append(words)
-    return out
-
-
-def rig_toml_commands(text: str) -> list:
-    cmds = []
-    for w in bash_commands(text):
-        if w[:2] == ["bellows", "control"] and "--rig" in w and w[w.index("--rig") + 1].endswith(".toml"):
-            cmds.append(w)
-    return cmds
-
-
-def documented_rig_file() -> str:
-    """The example rig file of docs/rig.md (the ```toml block of "Rig files (TOML)")."""
-    text = (ROOT / "docs/rig.md").read_text()
-    section = text[text.index("## Rig files (TOML)"):]
-    return re.search(r"```toml\n(.*?)```", section, flags=re.S).group(1)
 
 
 def test_the_extraction_finds_what_it_should():
@@ -115,7 +83,52 @@ def test_documented_hardware_command_runs_on_the_fake_bench(doc, words, tmp_path
     assert sm["faults"] == []
     log = read_run_log(tmp_path / log_name)
     assert log.rows == res["samples"] > 5 and log.ended == "held" and log.summary["met_tolerance"]
-    assert not log.attrs["rig"]["simulated"] and log.attrs["rig"]["drives"] == ["Epos4Drive"] * 3
+    assert not log.attrs["rig"]["simulated"] and log.attrs["rig"]["drives"] == ["Epos4ProfileDrive"] * 3
     # the drives moved: from 1 mm off to the IK lengths, and the fake tip followed them to the target
     np.testing.assert_allclose(log.samples["position"][-1], l_ik, atol=2e-6)
     assert np.linalg.norm(log.samples["tip"][-1] - target) < 2e-4
+
+
+def test_documented_hardware_command_in_csp_keeps_the_step_limit_beside_a_cpu_heavy_job(tmp_path, monkeypatch,
+                                                                                         capsys, quiet_canopen):
+    """The docs/rig.md command on the documented rig file with its drives in cyclic synchronous position, the
+    drives in another process with their own SYNC clock (fakes.bench.ProcessModelBench), and a CPU-heavy job
+    beside the loop (a busy thread, and this process's GIL held for 100 ms at a time, as a compiled kernel
+    does): the run holds the target, and no SYNC moved a drive's demand by more than speed · sync period."""
+    import threading
+    import time
+    from fakes.fixtures import hold_the_gil
+    from validation.cli import main
+
+    run = DocumentedCspRun(duration_s=3, extra=["--on-drive-fault", "stop"])
+    drive = run.drive
+    step = run.step
+    stop = threading.Event()
+
+    def cpu_heavy():
+        while not stop.is_set():
+            sum(i * i for i in range(50_000))
+            hold_the_gil(0.1)                            # as a compiled kernel does
+            time.sleep(0.2)
+    with run.bench(tmp_path, monkeypatch) as bench:
+        job = threading.Thread(target=cpu_heavy, daemon=True)
+        job.start()
+        try:
+            with pytest.raises(SystemExit) as info:
+                main(run.args)
+        finally:
+            stop.set()
+            job.join(5.0)
+        records = {n: bench.proc.records(n) for n in bench.nodes}
+        errors = list(bench.errors)
+    out, err = capsys.readouterr()
+    assert info.value.code == 0, f"bellows {' '.join(run.args)}\n{out}\n{err}"
+    assert not errors
+    res = json.loads(out.strip().splitlines()[-1])
+    assert res["status"] == "held" and res["summary"]["faults"] == []
+    for n, recs in records.items():
+        steps = [abs(r["step"]) for r in recs if r["state"] == "OPERATION ENABLED"]
+        assert len(steps) > 100, n                        # SYNCs kept coming while the host was busy
+        assert max(steps) <= step, (n, max(steps), step)
+        moved_mm = abs(recs[-1]["demand"] - recs[0]["demand"]) / drive["counts_per_mm"]
+        assert moved_mm > 0.5, n                          # it did move (from 1 mm off the IK lengths)

@@ -10,7 +10,7 @@ pytest.importorskip("canopen")
 from fakes.cia402_drive import FakeEpos4  # noqa: E402
 from hardware import DriveFault, LimitError  # noqa: E402
 from hardware import epos4 as e4  # noqa: E402
-from hardware.epos4 import Epos4Drive  # noqa: E402
+from hardware.epos4_profile import Epos4ProfileDrive as Epos4Drive  # noqa: E402
 from hardware.errors import CommunicationError  # noqa: E402
 from hardware.limits import SafetyLimits  # noqa: E402
 

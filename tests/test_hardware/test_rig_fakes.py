@@ -20,10 +20,9 @@ from fakes.fixtures import quiet_canopen  # noqa: E402,F401  (fixture)
 
 
 @pytest.fixture
-def fake_bench(tmp_path, quiet_canopen, request):
-    """The fake instruments running, and a rig file describing them: (path, drives, loadcells, valves, natnet).
-    Indirect parameter ``True``: the drives run cyclic synchronous position over PDO + SYNC."""
-    cyclic = getattr(request, "param", False)
+def fake_bench(tmp_path, quiet_canopen):
+    """The fake instruments running, and a rig file describing them: (path, drives, loadcells, valves, natnet);
+    the drives in profile position."""
     ch = f"bench-{uuid.uuid4().hex[:8]}"
     drives = [FakeEpos4(node_id=i + 1, channel=ch, initial_counts=165_000) for i in range(3)]
     port = free_udp_port()
@@ -52,9 +51,8 @@ node_id = {i + 1}
 interface = "virtual"
 channel = "{ch}"
 counts_per_mm = 1000
+counts_per_turn = 4096
 zero_length_mm = 0
-cyclic = {'true' if cyclic else 'false'}
-sync_period_ms = 10
 ''' for i in range(3)) + "".join(f'''
 [[force_sensors]]
 backend = "serial"
@@ -89,34 +87,24 @@ def bench(fake_bench):
         yield rig, drives, loadcells, valves, nat
 
 
-@pytest.mark.parametrize("fake_bench", [False, True], ids=["profile position over SDO", "CSP over PDO+SYNC"],
-                         indirect=True)
 def test_rig_runs_against_the_fakes(bench):
+    """Profile position over SDO (cyclic synchronous position on the whole fake bench, with the drives in another
+    process: test_doc_rig_command.py and test_rig_recovery.py)."""
     rig, drives, loadcells, valves, nat = bench
     time.sleep(0.05)
-    assert all(d.state == "OPERATION ENABLED" for d in drives)
-    cyclic = drives[0].mode == e4.CYCLIC_SYNC_POSITION
-    assert all(d.mode == (e4.CYCLIC_SYNC_POSITION if cyclic else e4.PROFILE_POSITION) for d in drives)
-    sdo_writes = [len(d.writes) for d in drives]
+    assert all(d.state == "OPERATION ENABLED" and d.mode == e4.PROFILE_POSITION for d in drives)
     rig.set_pressure(60e3)
     assert valves.setpoint == 60e3
     rig.command([0.166, 0.165, 0.165])
     rig.advance()
-    # reached: within the drive's position window in CSP (the last set-point's TPDO may still be one SYNC away;
-    # measured 0.165998 m), exact in profile position; the fakes then settle on the goal exactly
-    window = max(d.position_window for d in rig.drives) if cyclic else 1e-9
-    np.testing.assert_allclose(rig.positions(), [0.166, 0.165, 0.165], rtol=0, atol=window)
+    np.testing.assert_allclose(rig.positions(), [0.166, 0.165, 0.165], rtol=0, atol=1e-9)
     h = rig.check_health()
     np.testing.assert_allclose(h["tensions"], [2.2, 1.6, 1.6])
     assert h["pressure"] == 60e3
-    time.sleep(0.05)
-    deadline = time.monotonic() + 2.0                  # a SYNC cycle or two; generous for a loaded machine
-    while not np.allclose(rig.positions(), [0.166, 0.165, 0.165], rtol=0, atol=1e-9) and time.monotonic() < deadline:
-        time.sleep(0.01)
-    np.testing.assert_allclose(rig.positions(), [0.166, 0.165, 0.165], rtol=0, atol=1e-9)
     np.testing.assert_allclose(rig.measure(frames=3), [0.17, 0.0, -0.002], atol=1e-7)
-    if cyclic:                            # set-points and read-backs went by PDO: no SDO during the move
-        assert [len(d.writes) for d in drives] == sdo_writes and all(d.syncs > 0 for d in drives)
+    # the rig file's speed (10 mm/s) reached the drives as profile velocity: 10 mm/s · 1000 counts/mm → rpm
+    assert all([v for i, v in d.writes if i == e4.PROFILE_VELOCITY][-1] == round(10e-3 * 1e6 * 60 / 4096)
+               for d in drives)
 
 
 def test_limits_send_nothing_to_the_drives(bench):
@@ -236,7 +224,7 @@ def test_bellows_control_on_the_fake_hardware(fake_bench, tmp_path):
     out = json.loads(res.stdout.strip().splitlines()[-1])
     assert out["status"] == "converged" and out["iterations"] == 0
     d = read_run_log(log)
-    assert not d.attrs["rig"]["simulated"] and d.attrs["rig"]["drives"] == ["Epos4Drive"] * 3
+    assert not d.attrs["rig"]["simulated"] and d.attrs["rig"]["drives"] == ["Epos4ProfileDrive"] * 3
     np.testing.assert_allclose(d.samples["tension"][0], [2.2, 1.6, 1.6])
     assert np.all(np.isnan(d.samples["true_tip"]))                         # no truth on hardware
     st = read_static_states(log)

@@ -146,10 +146,52 @@ class _RaisesCtrlCWhenCollected:
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")     # the dropped one
 def test_ctrl_c_lost_in_a_finaliser_still_stops_the_run(paper_model, target, tmp_path):
     # the object is made and collected at once: its interrupt is dropped
+    before = signal.getsignal(signal.SIGINT)
     _, calls, _ = _interrupted_run(paper_model, target, tmp_path / "r.h5", 60.0, _RaisesCtrlCWhenCollected)
     assert len(calls) == 3                                 # stopped at the next cycle, not after 60 s of holding
     assert read_run_log(tmp_path / "r.h5").ended.startswith("interrupted")
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler     # Python's handler is back
+    assert signal.getsignal(signal.SIGINT) is before                        # the handler it had is back
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+@pytest.mark.parametrize("disposition", ["ignored", "custom"])
+def test_ctrl_c_stops_the_run_whatever_sigint_was_before(paper_model, target, tmp_path, disposition):
+    # a process started in the background by a non-interactive shell inherits SIGINT ignored (CI does): Python
+    # then installs no KeyboardInterrupt handler; an application's own handler is chained, not replaced
+    seen = []
+    before = signal.SIG_IGN if disposition == "ignored" else (lambda signum, frame: seen.append(signum))
+    old = signal.signal(signal.SIGINT, before)
+    try:
+        _, calls, _ = _interrupted_run(paper_model, target, tmp_path / "r.h5", 60.0, _RaisesCtrlCWhenCollected)
+        assert len(calls) == 3
+        assert signal.getsignal(signal.SIGINT) is before                      # restored as it was
+    finally:
+        signal.signal(signal.SIGINT, old)
+    assert seen == ([] if disposition == "ignored" else [signal.SIGINT])
+
+
+class _SigtermWhenCollected:
+    def __del__(self):
+        signal.raise_signal(signal.SIGTERM)
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_sigterm_stops_the_run_through_the_safe_stop(paper_model, target, tmp_path):
+    # SIGTERM's default action would kill the process with the drives enabled and the log open
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    rig = SimulatedRig(paper_model, load=(0, 0, -0.3), options=__import__("hardware").PlantOptions(length_rate=5e-3))
+    calls = []
+
+    def status(s):
+        calls.append(s)
+        if len(calls) == 3:
+            _SigtermWhenCollected()
+    with pytest.raises(RunAborted, match="SIGTERM"):
+        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "r.h5", duration=60.0, status=status)
+    assert len(calls) == 3
+    np.testing.assert_array_equal(rig.target, rig.lengths)
+    assert read_run_log(tmp_path / "r.h5").ended.startswith("interrupted")
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
 
 
 def test_context_manager_makes_safe_on_exception(paper_model, target):
@@ -170,3 +212,36 @@ def test_fault_reset_clears_a_drive_fault(paper_model, target):
         rig.check_health()
     rig.drives[1].fault_reset()
     rig.check_health()
+
+
+@pytest.mark.parametrize("confirm", [True, False])
+def test_a_drive_fault_is_recovered_only_when_a_person_confirms(paper_model, target, tmp_path, confirm):
+    rig = SimulatedRig(paper_model, load=(0, 0, -0.3), options=__import__("hardware").PlantOptions(length_rate=5e-3))
+    rig.inject("drive_fault", at=0.5, drive=2)
+    asked = []
+
+    def person(exc):
+        asked.append(exc)
+        # asked after the stop: every drive quick-stopped where it was, nothing enabled
+        assert not any(d.enabled for d in rig.drives)
+        np.testing.assert_array_equal(rig.target, rig.lengths)
+        return confirm
+    log = tmp_path / "r.h5"
+    if confirm:
+        res = run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=3.0, idle_period=0.2, recover=person)
+        assert res.status == "held" and res.recoveries == 1 and res.final_error < 0.2e-3
+        kinds = [k for _, k, _ in read_run_log(log).events]
+        assert "recovered" in kinds and kinds.index("stop") < kinds.index("recovered")
+    else:
+        with pytest.raises(DriveFault):
+            run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=3.0, idle_period=0.2, recover=person)
+        assert read_run_log(log).ended.startswith("fault")
+    assert len(asked) == 1 and isinstance(asked[0], DriveFault)
+
+
+def test_without_a_person_a_drive_fault_ends_the_run(paper_model, target):
+    rig = SimulatedRig(paper_model, options=__import__("hardware").PlantOptions(length_rate=5e-3))
+    rig.inject("drive_fault", at=0.5)
+    with pytest.raises(DriveFault):
+        run_on_rig(LACC(paper_model, P), rig, target, duration=3.0, idle_period=0.2)
+    assert not rig.drives[0].enabled

@@ -205,6 +205,7 @@ def test_control_rejects_sim_options_on_a_hardware_rig(monkeypatch, capsys, tmp_
     rig = tmp_path / "rig.toml"
     rig.write_text('backend = "hardware"\n'
                    + "".join(f'[[drives]]\nbackend="epos4"\nnode_id={i}\nchannel="can0"\ncounts_per_mm=100\n'
+                             f'counts_per_turn=4096\n'
                              f'zero_length_mm=160\n[[force_sensors]]\nbackend="serial"\nport="/dev/null"\n'
                              f'channel={i}\n' for i in (1, 2, 3))
                    + '[pressure]\nbackend="serial"\nport="/dev/zero"\n[tracker]\nbackend="natnet"\n')

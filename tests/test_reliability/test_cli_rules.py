@@ -35,7 +35,7 @@ def one_error_line(err: str) -> str:
     (["fk", "--tensions-n", "1,2"], "expected 3 values"),
     (["fk", "--tensions-n", "9,0,0"], "--no-limits"),                     # CLI terms, not check_limits=False
     (["fk", "--pressure-kpa", "500"], "kPa"),
-    (["fk", "--n-elements", "0"], "n_elements"),
+    (["fk", "--n-elements", "0"], "--n-elements"),
     (["fk", "--preset", "/nonexistent/file.toml"], "cannot read"),
     (["locked", "--lengths-mm", "150,150,150", "--preset", "paper_unscaled"], "outside the actuator's limits"),
     (["locked", "--lengths-mm", "160,160,160", "--method", "newton"], "--method"),

@@ -1,0 +1,52 @@
+"""Recovery from a drive fault needs a person: ``bellows control`` on the documented rig file, its drives in cyclic
+synchronous position in another process (fakes.bench.ProcessModelBench); a drive faults mid-run.  The command
+asks; "y" resets the drives where they stand and the run goes on (no set-point jump on re-enable), "n" (or no
+answer) ends it with the fault and the drives stopped."""
+
+import json
+import threading
+
+import pytest
+
+pytest.importorskip("canopen")
+pytest.importorskip("serial")
+
+from fakes.fixtures import quiet_canopen  # noqa: E402,F401  (fixture)
+from fakes.doc_commands import DocumentedCspRun  # noqa: E402
+
+
+@pytest.mark.parametrize("answer", ["y\n", "n\n", ""], ids=["yes", "no", "no answer"])
+def test_bellows_control_asks_before_recovering_a_drive_fault(tmp_path, monkeypatch, capsys, quiet_canopen, answer):
+    import io
+    from hardware.runlog import read_run_log
+    from validation.cli import main
+
+    run = DocumentedCspRun(duration_s=4)
+    with run.bench(tmp_path, monkeypatch) as bench:
+        fault = threading.Timer(1.5, bench.proc.inject_fault, args=(2, 0x8611))
+        fault.start()
+        monkeypatch.setattr("sys.stdin", io.StringIO(answer))      # the person at the terminal
+        try:
+            with pytest.raises(SystemExit) as info:
+                main(run.args)
+        finally:
+            fault.cancel()
+        records = bench.proc.records(2)
+        states = {n: bench.proc.state(n) for n in bench.nodes}
+    out, err = capsys.readouterr()
+    log = read_run_log(tmp_path / run.opt("--log"))
+    kinds = [k for _, k, _ in log.events]
+    assert "Reset the faulted drives" in err                          # it asked
+    enabled = [abs(r["step"]) for r in records if r["state"] == "OPERATION ENABLED"]
+    assert max(enabled) <= run.step                                   # no jump, before or after the recovery
+    if answer == "y\n":
+        assert info.value.code == 0, out + err
+        res = json.loads(out.strip().splitlines()[-1])
+        assert res["status"] == "held" and res["recoveries"] == 1
+        assert "recovered" in kinds and log.ended == "held"
+        assert states[2] != "FAULT"
+    else:
+        errors = [line for line in err.splitlines() if line.startswith("error:")]
+        assert info.value.code == 2 and len(errors) == 1 and "0x8611" in errors[0], out + err
+        assert "recovered" not in kinds and log.ended.startswith("fault")
+        assert states[2] == "FAULT" and all(states[n] != "OPERATION ENABLED" for n in (1, 3))
