@@ -26,7 +26,7 @@ is enabled — :meth:`hardware.Rig.open` does both in that order):
 4. NMT operational, then shutdown → switch on → enable operation over SDO, each confirmed by an SDO read of the
    statusword, then one RPDO with the actual position (before SYNC starts, the drive holds 0x607A anyway).
 5. :meth:`start`: the bus's SYNC (:meth:`hardware.canbus.CanBus.start_sync`; one per bus, after every drive of
-   the bus is enabled), then the first TPDO and heartbeat of the drive within ``state_timeout``.
+   the bus is enabled), then the first TPDOs and heartbeat of the drive within ``state_timeout``.
 
 **Set-points** are sent by :meth:`_on_tpdo1`, the callback of the drive's TPDO 1 — one per SYNC, from the
 drive — by the rule of :mod:`hardware.setpoints`: at most one step of ``speed · sync_period`` per SYNC period
@@ -193,14 +193,14 @@ class Epos4CyclicDrive(Epos4Drive):
             rp.transmit()
 
     def start(self) -> None:
-        """Step 5: the bus's SYNC, then the drive's first TPDO and heartbeat within ``state_timeout``."""
+        """Step 5: the bus's SYNC, then the drive's first TPDOs (1 and 2) and heartbeat within ``state_timeout``."""
         node = self._node()
         t_asked = time.time()
         self.bus.start_sync(self.sync_period)
         t0 = time.monotonic()
         while True:
-            ts = node.tpdo[1].timestamp
-            if ts is not None and ts >= t_asked and node.nmt.timestamp is not None:
+            ts = [node.tpdo[n].timestamp for n in (1, 2)]
+            if all(t is not None and t >= t_asked for t in ts) and node.nmt.timestamp is not None:
                 return
             if time.monotonic() - t0 > self.state_timeout:
                 raise DriveFault(f"no TPDO / heartbeat within {self.state_timeout:g} s after SYNC started",
