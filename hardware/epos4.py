@@ -326,19 +326,20 @@ class Epos4Drive(TendonDrive):
         self._emcy.clear()
         self._wait_state(("SWITCH ON DISABLED", "READY TO SWITCH ON", "SWITCHED ON", "OPERATION ENABLED"))
 
-    def recover(self) -> None:
+    def recover(self) -> bool:
         """Back to OPERATION ENABLED where the drive stands (confirmed by a person: :meth:`hardware.Rig.recover`):
         QUICK STOP ACTIVE → disable voltage 0x00; FAULT → fault reset; then :meth:`enable` (a cyclic drive from
         its actual position: 0x607A := 0x6064, the set-point frozen there).  An enabled drive is left alone."""
         st = state_of(self._read(STATUSWORD))
         if st == "OPERATION ENABLED" and not self._emcy:
-            return
+            return False
         if st == "QUICK STOP ACTIVE":
             self._control(CW_DISABLE_VOLTAGE)
             self._wait_state(("SWITCH ON DISABLED",), what="recover (controlword 0x00)")
         elif st in ("FAULT", "FAULT REACTION ACTIVE") or self._emcy:
             self.fault_reset()
         self.enable()
+        return True
 
     def _wait_state(self, states, what: str = "fault reset") -> str:
         """Poll the statusword over SDO (fresh in both modes) until the drive is in one of ``states``."""

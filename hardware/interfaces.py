@@ -92,12 +92,13 @@ class TendonDrive(Device):
     @abc.abstractmethod
     def fault_reset(self) -> None: ...
 
-    def recover(self) -> None:
+    def recover(self) -> bool:
         """Bring a stopped or faulted drive back to enabled **where it stands** (it moves again only on the next
         :meth:`move_to`); an enabled drive is left alone.  Only for a person who has confirmed it
-        (:meth:`hardware.Rig.recover`).  Default: reset the fault, enable."""
+        (:meth:`hardware.Rig.recover`).  Returns whether the drive needed it.  Default: reset the fault, enable."""
         self.fault_reset()
         self.enable()
+        return True
 
     @abc.abstractmethod
     def check(self) -> None:

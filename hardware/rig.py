@@ -305,16 +305,7 @@ class Rig:
         checked against the drives' actual positions).  Nothing moves until the next :meth:`command`.  Returns the
         names of the drives it touched; a drive that does not come back raises :class:`DriveFault` (the rig
         stays stopped)."""
-        touched = []
-        for d in self.drives:
-            try:
-                d.check()
-                ok = getattr(d, "enabled", True) and (not hasattr(d, "state") or d.state() == "OPERATION ENABLED")
-            except DriveFault:
-                ok = False
-            if not ok:
-                touched.append(d.name)
-            d.recover()
+        touched = [d.name for d in self.drives if d.recover()]
         for d in self.drives:
             d.start()
         for d in self.drives:

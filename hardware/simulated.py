@@ -367,11 +367,14 @@ class SimDrive(TendonDrive):
         self.p.faults.pop("drive_fault", None)
         self.faulted = False
 
-    def recover(self) -> None:
-        if self.faulted or self.p.fault("drive_fault") is not None:
+    def recover(self) -> bool:
+        faulted = self.faulted or self.p.fault("drive_fault") is not None
+        if faulted:
             self.fault_reset()
+        needed = faulted or not self.enabled
         self.hold()                                # where it stands: the next move_to moves it
         self.enable()
+        return needed
 
     def check(self) -> None:
         f = self.p.fault("drive_fault")

@@ -230,8 +230,11 @@ def test_a_drive_fault_is_recovered_only_when_a_person_confirms(paper_model, tar
     if confirm:
         res = run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=3.0, idle_period=0.2, recover=person)
         assert res.status == "held" and res.recoveries == 1 and res.final_error < 0.2e-3
-        kinds = [k for _, k, _ in read_run_log(log).events]
+        events = read_run_log(log).events
+        kinds = [k for _, k, _ in events]
         assert "recovered" in kinds and kinds.index("stop") < kinds.index("recovered")
+        # every drive was quick-stopped, so each one was brought back
+        assert all(f"sim drive {i}" in events[kinds.index("recovered")][2] for i in (1, 2, 3))
     else:
         with pytest.raises(DriveFault):
             run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=3.0, idle_period=0.2, recover=person)
