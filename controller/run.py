@@ -171,6 +171,8 @@ def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.P
         a1, delay = number("shaper A1", shaper[0]), number("shaper delay [s]", shaper[1])
         if not 0 < a1 <= 1:
             raise InputError(f"shaper A1 must be in (0, 1], got {a1:g}")
+    if recover is not None and not callable(recover):
+        raise InputError(f"recover must be a callable (fault -> bool) or None, got {type(recover).__name__}")
     from hardware.errors import DriveFault, HardwareError, RunAborted
     from hardware.runlog import RunLog
 

@@ -44,7 +44,11 @@ class CanBus:
 
     def __init__(self, interface: str = "socketcan", channel: str = "can0", bitrate: int = 1_000_000, *,
                  network=None):
-        self.interface, self.channel, self.bitrate = str(interface), str(channel), int(bitrate)
+        if isinstance(bitrate, bool) or not isinstance(bitrate, int) or bitrate <= 0:
+            raise LimitError(f"CAN bitrate must be a positive integer [bit/s], got {bitrate!r}")
+        if not (isinstance(interface, str) and interface and isinstance(channel, str) and channel):
+            raise LimitError(f"CAN interface and channel must be non-empty text, got {interface!r}, {channel!r}")
+        self.interface, self.channel, self.bitrate = interface, channel, bitrate
         self.network = network
         self._own = network is None
         self._users = 0
@@ -93,6 +97,8 @@ class CanBus:
     # ----------------------------------------------------------------------------------- SYNC
     def start_sync(self, period: float) -> None:
         """Start the bus's SYNC producer at ``period`` [s] (idempotent for the same period)."""
+        if isinstance(period, bool) or not isinstance(period, (int, float)) or not 1e-4 <= period <= 0.1:
+            raise LimitError(f"SYNC period must be 0.1 ms … 100 ms, got {period!r} s", device=self.name)
         with self._lock:
             if self.network is None:
                 raise CommunicationError("the bus is not open", device=self.name)

@@ -70,6 +70,8 @@ TPDO2_PERIOD = 0.01
 
 def interpolation_period(period: float) -> tuple:
     """0x60C2 (value, index) for a SYNC period [s]: period = value · 10^index, value ≤ 255."""
+    if isinstance(period, bool) or not isinstance(period, (int, float)) or not 0 < period < math.inf:
+        raise LimitError(f"SYNC period must be a positive number of seconds, got {period!r}")
     for index in (-4, -3):
         value = period / 10.0 ** index
         if abs(value - round(value)) < 1e-6 * max(1.0, value) and 1 <= round(value) <= 255:

@@ -101,6 +101,12 @@ def test_cyclic_options_are_checked(proc):
     with pytest.raises(LimitError, match="0x60C2"):
         interpolation_period(0.00235)
     assert interpolation_period(0.002) == (20, -4) and interpolation_period(0.05) == (50, -3)
+    for bad in (0, -1e-3, float("nan"), "2 ms", True):
+        with pytest.raises(LimitError):
+            interpolation_period(bad)
+    for kw in ({"bitrate": 0}, {"bitrate": "1M"}, {"channel": ""}, {"interface": None}):
+        with pytest.raises(LimitError):
+            CanBus(**{"interface": "bellows-bridge", "channel": proc.channel, **kw})
 
 
 def test_one_sync_per_bus(proc):
@@ -111,5 +117,8 @@ def test_one_sync_per_bus(proc):
         bus.start_sync(0.005)                                # the same period again: nothing new
         with pytest.raises(LimitError, match="one SYNC per bus"):
             bus.start_sync(0.002)
+        for bad in (0.0, float("nan"), 1.0, "5 ms"):
+            with pytest.raises(LimitError):
+                bus.start_sync(bad)
     finally:
         bus.close()

@@ -108,9 +108,9 @@ def test_pressure_held_by_default(paper_model, target):
     assert rig.pressure == P and not rig.pressure_supply.vented
 
 
-def _interrupted_run(paper_model, target, log, duration, at_third_sample):
+def _interrupted_run(paper_model, target, log, duration, at_third_sample, by="Ctrl-C"):
     """A held run on a loaded simulated rig whose status callback calls ``at_third_sample()`` at the third
-    sample; returns (rig, the samples' status dicts, the RunAborted raised)."""
+    sample; returns (rig, the samples' status dicts, the RunAborted raised — its message names ``by``)."""
     rig = SimulatedRig(paper_model, load=(0, 0, -0.3), options=__import__("hardware").PlantOptions(length_rate=5e-3))
     calls = []
 
@@ -118,7 +118,7 @@ def _interrupted_run(paper_model, target, log, duration, at_third_sample):
         calls.append(s)
         if len(calls) == 3:
             at_third_sample()
-    with pytest.raises(RunAborted, match="Ctrl-C") as info:
+    with pytest.raises(RunAborted, match=by) as info:
         run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=duration, status=status)
     return rig, calls, info.value
 
@@ -179,15 +179,8 @@ class _SigtermWhenCollected:
 def test_sigterm_stops_the_run_through_the_safe_stop(paper_model, target, tmp_path):
     # SIGTERM's default action would kill the process with the drives enabled and the log open
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
-    rig = SimulatedRig(paper_model, load=(0, 0, -0.3), options=__import__("hardware").PlantOptions(length_rate=5e-3))
-    calls = []
-
-    def status(s):
-        calls.append(s)
-        if len(calls) == 3:
-            _SigtermWhenCollected()
-    with pytest.raises(RunAborted, match="SIGTERM"):
-        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "r.h5", duration=60.0, status=status)
+    rig, calls, _ = _interrupted_run(paper_model, target, tmp_path / "r.h5", 60.0, _SigtermWhenCollected,
+                                     by="SIGTERM")
     assert len(calls) == 3
     np.testing.assert_array_equal(rig.target, rig.lengths)
     assert read_run_log(tmp_path / "r.h5").ended.startswith("interrupted")
@@ -240,6 +233,12 @@ def test_a_drive_fault_is_recovered_only_when_a_person_confirms(paper_model, tar
             run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=3.0, idle_period=0.2, recover=person)
         assert read_run_log(log).ended.startswith("fault")
     assert len(asked) == 1 and isinstance(asked[0], DriveFault)
+
+
+def test_recover_must_be_a_callable(paper_model, target):
+    from ancf.errors import InputError
+    with pytest.raises(InputError, match="recover"):
+        run_on_rig(LACC(paper_model, P), SimulatedRig(paper_model), target, recover=True)
 
 
 def test_without_a_person_a_drive_fault_ends_the_run(paper_model, target):
