@@ -23,6 +23,7 @@ import typer
 
 from ancf import clitools
 from validation.cli import app, main
+from cli_commands import commands  # noqa: E402
 
 #: valid values of required options, so that a row tests only its own option
 BASE = {
@@ -203,16 +204,6 @@ def test_the_entry_point_gives_the_same_lines(no_work, capsys, argv):
 
 # ---- the table covers every option ------------------------------------------------------------------------------
 
-def _commands() -> dict:
-    def walk(cmd, prefix=()):
-        if hasattr(cmd, "commands"):
-            for name, sub in cmd.commands.items():
-                yield from walk(sub, prefix + (name,))
-        else:
-            yield " ".join(prefix), cmd
-    return dict(walk(typer.main.get_command(app)))
-
-
 def _annotation(param):
     """The option's Python type: typer >= 0.26 keeps it on the parameter; older typer has click types."""
     desc = getattr(param, "type_descriptor", None)
@@ -239,17 +230,17 @@ def _needs_a_row(param) -> bool:
 
 def test_every_numeric_option_has_a_row():
     covered = {(c, o) for c, o, *_ in RANGES}
-    missing = [f"{name} {p.opts[0]}" for name, cmd in _commands().items() for p in cmd.params
+    missing = [f"{name} {p.opts[0]}" for name, cmd in commands().items() for p in cmd.params
                if _needs_a_row(p) and (name, p.opts[0]) not in covered]
     assert not missing, ("numeric or number-list options without a row in RANGES (add their refused values, and a "
                          f"range check if they have none): {', '.join(missing)}")
 
 
 def test_every_row_names_an_existing_option():
-    commands = _commands()
+    every = commands()
     for command, option, *_ in RANGES:
-        assert command in commands, f"no command {command!r}"
-        params = commands[command].params
+        assert command in every, f"no command {command!r}"
+        params = every[command].params
         names = {o for p in params for o in (p.opts or [])} | {p.name for p in params}
         assert option in names, f"{command} has no option {option}"
 

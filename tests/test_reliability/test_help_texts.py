@@ -8,7 +8,6 @@ in the code cannot leave a stale help text behind.
 import re
 
 import pytest
-import typer
 
 from ancf import presets
 from ancf.compliance import METHODS
@@ -18,22 +17,13 @@ from fem_reference.model import LINEAR_SOLVERS
 from validation.control_cli import CONTROLLERS
 from hardware.loads import PROFILES
 from validation.calibrate import GEOMETRY_PARAMETERS, MATERIAL_PARAMETERS
-from validation.cli import app, main
+from validation.cli import main
 from validation.designs import PRESETS as DESIGNS
 from validation.forms import FORMS
+from cli_commands import commands  # noqa: E402
 
 
-def _commands():
-    def walk(cmd, prefix=()):
-        if hasattr(cmd, "commands"):
-            for n, c in cmd.commands.items():
-                yield from walk(c, prefix + (n,))
-        else:
-            yield " ".join(prefix), cmd
-    return dict(walk(typer.main.get_command(app)))
-
-
-COMMANDS = _commands()
+COMMANDS = commands()
 
 
 def _option(command: str, opt: str):
