@@ -213,7 +213,7 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
                   *(f"{d['stiffness_N_per_m'][a]:.1f}" for a in axes))
     console.print(t)
     console.print("  'exact' is the exact locked linearisation; 'paper'/'ik' are the paper's stacked "
-                  "least-squares forms (see validation/compliance_check.py for their error).")
+                  "least-squares forms (see validation/checks/compliance_check.py for their error).")
 
 
 def params(preset: str = typer.Option("paper", help=PRESET_HELP),
@@ -264,7 +264,7 @@ def demo(out: pathlib.Path = typer.Option(pathlib.Path("bellows_out"), help="Out
 def warm_up() -> None:
     """Compile (first run) or load (later runs) the numba kernels, so timings show solver cost only: FK with a
     tip load and its stability check, the pressure sensitivity ∂Q/∂p and the admissibility rules, in every
-    argument-type signature the solvers and the fits of :mod:`validation.fit` call (types, not sizes, make a
+    argument-type signature the solvers and the fits of :mod:`validation.identification.fit` call (types, not sizes, make a
     signature: one element is enough)."""
     model = Model(presets.paper().replace(n_elements=1))
     eq = model.fk((0.5, 0.0, 0.0), 1e3, (0.0, 0.0, -0.1))

@@ -24,9 +24,9 @@ the tip-position difference.  ``--rings`` does the same for the ring rotations o
 (:mod:`fem_reference.corotation`, ``RING_UPDATE`` on/off) on :data:`BEND_CASES`, cold bends from rest, with the
 factorisations; ``--transfer`` for the discretisation error's refined solves (the level refined 2× along the
 profile) started from the same case solved on the level (:mod:`fem_reference.transfer`) or from rest.
-``--worker-threads`` solves two bends at once in two worker processes forked by :func:`validation.runner.run_tasks`
+``--worker-threads`` solves two bends at once in two worker processes forked by :func:`validation.infra.runner.run_tasks`
 (as the report's sweep does) after the parent ran PARDISO on 2 threads: each worker's BLAS and MKL pools limited to
-one thread (:func:`validation.runner.limit_threads`, the default) against the pools the fork inherited.
+one thread (:func:`validation.infra.runner.limit_threads`, the default) against the pools the fork inherited.
 """
 
 from __future__ import annotations
@@ -343,7 +343,7 @@ def _worker_solve(task: dict) -> tuple:
 
 def bench_worker_threads(level: str, repeat: int) -> dict:
     """Two bends in two forked workers, thread pools limited or inherited (see the module docstring)."""
-    import validation.runner as vr
+    import validation.infra.runner as vr
     from threadpoolctl import threadpool_info, threadpool_limits
     pair = [BEND_CASES["T=2/0/0"], BEND_CASES["T=1/2.5/0,12.5kPa"]]
     model = BellowsModel(presets.paper_bellows(), presets.paper_material(), level)

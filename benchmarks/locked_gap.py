@@ -7,7 +7,7 @@ straight-line tendons (the reduced model's tendon), the deviation of the guided 
 from the straight line's, EI from a pure moment and from a tip force, the rotation-free share of the lateral
 compliance, the FEM's ratio without it, the ratio of the reduced model matched to the FEM's held compliance
 and its locked-compliance error, and the same for a rod with a series rotation-free compliance
-(validation/locked_gap.py).
+(validation/checks/locked_gap.py).
 
 Usage::
 
@@ -27,12 +27,12 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from ancf.export import to_jsonable  # noqa: E402
-from validation.locked_gap import format_table, measure  # noqa: E402
+from validation.checks.locked_gap import format_table, measure  # noqa: E402
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--design", default="paper", help="design preset or TOML file (validation/designs.py)")
+    ap.add_argument("--design", default="paper", help="design preset or TOML file (validation/reference/designs.py)")
     ap.add_argument("--mesh", default="coarse", help="FEM mesh level")
     ap.add_argument("--cache", default=None, help="directory for one .npz per FEM state (reused when present)")
     ap.add_argument("--json", default=None, help="also write every number to this JSON file")

@@ -54,7 +54,7 @@ Newton-like iteration: Table I comes out ≈ 1e-5 mm after five iterations (the 
 With the literal unweighted stacks (``constraint_weight=1``) the two paper forms come out close to the
 constant-tension compliance — about 3× the plant's locked compliance — so LACC with them is a stable but
 slow integral law (measured error ratio ≈ 0.74 per step for "ik", 0.77 for "paper": 7–8 iterations to
-0.2 mm from ≈ 2 mm).  ``validation.control_studies.compliance_ablation`` measures this.  The stacked forms
+0.2 mm from ≈ 2 mm).  ``validation.paper.control.compliance_ablation`` measures this.  The stacked forms
 also misjudge the axial compliance, so with the literal inverse an axial error (e.g. from model mismatch)
 builds a spurious axial load estimate; safeguard 1 prevents it.
 """

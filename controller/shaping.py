@@ -10,7 +10,7 @@ The ZV shaper splits every move Δl into two parts,
 T_d = 1/(f √(1 − ζ²)) the damped period: the second impulse starts a vibration of the same amplitude in
 antiphase, so the mode is left at rest (Singer & Seering 1990).  It needs the mode's frequency (the model's
 :meth:`ancf.Model.modes` about the locked state) and damping (identified from a free decay,
-:mod:`validation.identify_dynamics`); it costs half a damped period per move.
+:mod:`validation.identification.damping`); it costs half a damped period per move.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ For p ∈ {0, 25, 50} kPa and top-tendon tension T1 ∈ {0, 1, ..., 5} N (others
 solve the equilibrium, then the vertical tip stiffness under a 50 g payload both at constant tension
 and with the motors locked (every cable length fixed; a locked cable may go slack, never push — the same
 experiment as the reduced model's exact locked compliance), (a) from the condensed tangent (linearised,
-:func:`validation.fem_sweep.locked_compliance`) and (b) from the nonlinear solve with the payload,
+:func:`validation.reference.fem_sweep.locked_compliance`) and (b) from the nonlinear solve with the payload,
 k = 0.05·9.81/(z_unload − z_load).  ``bellows report`` runs the same protocol on both models.
 
 Run:  python examples/fem_locked_stiffness.py [--mesh coarse] [--quick]
@@ -19,7 +19,7 @@ import numpy as np
 
 def main(argv=None):
     from fem_reference import BellowsModel, presets
-    from validation.fem_sweep import locked_compliance
+    from validation.reference.fem_sweep import locked_compliance
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--mesh", default="coarse")

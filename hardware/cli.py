@@ -1,8 +1,8 @@
 """``bellows log show|export``: inspect the run logs that ``bellows control`` writes.
 
 (``bellows control`` itself runs a controller on a rig, so it lives above both packages, in
-:mod:`validation.control_cli`: ``hardware`` never imports ``controller``.)  Handled errors are one ``error:``
-line with exit status 2 (:func:`validation.cli.main`); an existing CSV is replaced only with ``--force``.
+:mod:`validation.commands.control`: ``hardware`` never imports ``controller``.)  Handled errors are one ``error:``
+line with exit status 2 (:func:`validation.commands.main.main`); an existing CSV is replaced only with ``--force``.
 """
 
 from __future__ import annotations

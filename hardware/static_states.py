@@ -3,7 +3,7 @@
 A *static state* is an equilibrium held long enough to be measured: the tendon tensions, the chamber
 pressure, the tip load if it is known, the tip position and, optionally, marker positions along the
 body — each with its uncertainty.  The rig layer writes them (a run log holds them in its
-``/static_states`` group) and :func:`validation.identify.from_measurements` fits the reduced model to
+``/static_states`` group) and :func:`validation.identification.identify.from_measurements` fits the reduced model to
 them.  The format is documented in ``docs/data-formats.md``; in short:
 
 HDF5 (canonical).  A group (the file root or ``/static_states``) with attributes

@@ -3,7 +3,7 @@ each command's options and help)."""
 
 import typer
 
-from validation.cli import app
+from validation.commands.main import app
 
 
 def commands() -> dict:

@@ -8,7 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 from ancf import Model, presets
-from validation.cli import app, main
+from validation.commands.main import app, main
 
 runner = CliRunner()
 

@@ -8,7 +8,7 @@ option gets a row there; ``test_every_numeric_option_has_a_row`` walks the whole
 a numeric (int/float) or number-list option without one, so that a new option without a range check is caught.
 
 Only refused inputs run, in-process under the console entry point's error contract (:func:`ancf.clitools.run`,
-what :func:`validation.cli.main` calls; the command tree is built once, not per case, to keep this file fast —
+what :func:`validation.commands.main.main` calls; the command tree is built once, not per case, to keep this file fast —
 ``test_the_entry_point_gives_the_same_lines`` checks ``main`` itself on a sample): no study, solve, FEM or rig
 starts — the ``no_work`` fixture turns each command's first expensive call into an immediate failure, so that a
 check that regresses fails here at once instead of running for minutes.
@@ -22,7 +22,7 @@ import pytest
 import typer
 
 from ancf import clitools
-from validation.cli import app, main
+from validation.commands.main import app, main
 from cli_commands import commands  # noqa: E402
 
 #: valid values of required options, so that a row tests only its own option
@@ -70,7 +70,7 @@ RANGES = [
     ("simulate", "--dt-ms", ["1e-5"], "--dt-ms", ["--t-end-s", "1000"]),   # 10^11 steps
     ("simulate", "--damping-ratio", RATIO),
     ("simulate", "--rho-inf", RATIO),
-    # identification: validation/identify_cli.py
+    # identification: validation/commands/identify.py
     ("identify-damping", "--start-s", NON_NEGATIVE),
     ("identify-damping", "--end-s", POSITIVE),
     ("identify-damping", "--end-s", ["0.2", "0.3"], "--end-s", ["--start-s", "0.3"]),
@@ -85,7 +85,7 @@ RANGES = [
     ("calibrate", "--range-factor", ["1", "0.5", "-1", "11", *NAN_INF]),
     ("calibrate", "--pressure-kpa", [*POSITIVE, "201"]),
     ("calibrate", "--free", ["", ",", "no_such_parameter"]),
-    # the controller on a rig: validation/control_cli.py
+    # the controller on a rig: validation/commands/control.py
     ("control", "--target-mm", VECTOR3),
     ("control", "--pressure-kpa", ["-1", *NAN_INF]),
     ("control", "--tolerance-mm", ["-1", *NAN_INF]),
@@ -95,7 +95,7 @@ RANGES = [
     ("control", "--max-iterations", ["-1"]),
     ("control", "--plant-damping-ratio", RATIO, "--plant-damping-ratio", ["--dynamics"]),
     ("control", "--shaping-damping-ratio", ["-0.1", "1", *NAN_INF]),
-    # the paper's studies: validation/paper_cli.py
+    # the paper's studies: validation/commands/paper.py
     *[(f"paper {c}", "--samples", SAMPLES) for c in ("workspace", "all", "compare")],
     *[(f"paper {c}", "--seed", SEED) for c in ("workspace", "all")],
     *[(f"paper {c}", "--workers", WORKERS) for c in ("workspace", "all", "compare")],
@@ -162,13 +162,13 @@ def no_work(monkeypatch, tmp_path):
 
     for target in ("ancf.cli.warm_up", "ancf.dynamics.cli.warm_up",           # fk, ik, locked / modes, simulate
                    "validation.paper.workspace", "validation.paper.run_all", "validation.paper.stiffness_vs_tension",
-                   "validation.dynamic_studies.dynamic_loading", "validation.studies.convergence.element_convergence",
-                   "validation.studies.loads.locked_drift", "validation.studies.loads.hold_payload",
-                   "validation.studies.comparison.compare", "validation.runner.run_tasks",
-                   "validation.identify_cli._identify_fem", "validation.identify_cli._identify_measured",
-                   "validation.fem_sweep.run_cases", "validation.calibrate.calibrate",
-                   "validation.identify_dynamics.fit_free_decay", "fem_reference.model.BellowsModel",
-                   "validation.control_cli.compile_loop_kernels", "hardware.build.build_rig"):
+                   "validation.paper.dynamic.dynamic_loading", "validation.paper.convergence.element_convergence",
+                   "validation.paper.loads.locked_drift", "validation.paper.loads.hold_payload",
+                   "validation.paper.comparison.compare", "validation.infra.runner.run_tasks",
+                   "validation.commands.identify._identify_fem", "validation.commands.identify._identify_measured",
+                   "validation.reference.fem_sweep.run_cases", "validation.identification.calibrate.calibrate",
+                   "validation.identification.damping.fit_free_decay", "fem_reference.model.BellowsModel",
+                   "validation.commands.control.compile_loop_kernels", "hardware.build.build_rig"):
         monkeypatch.setattr(target, work)
 
 

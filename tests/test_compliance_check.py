@@ -1,6 +1,6 @@
 """The compliance-accuracy study: exact forms agree with finite differences of the nonlinear solvers."""
 
-from validation.compliance_check import compare, summary
+from validation.checks.compliance_check import compare, summary
 
 
 def test_exact_forms_match_nonlinear_solvers(paper_model):

@@ -102,7 +102,7 @@ CASES = list(_cases())
 def run_bellows(cmd: str, cwd: pathlib.Path, timeout: float = 900) -> subprocess.CompletedProcess:
     argv = shlex.split(shortened(cmd))
     assert argv[0] == "bellows"
-    return subprocess.run([sys.executable, "-m", "validation.cli", *argv[1:]], cwd=cwd, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "validation.commands.main", *argv[1:]], cwd=cwd, capture_output=True,
                           text=True, timeout=timeout, env=_env(cwd))
 
 
@@ -208,7 +208,7 @@ def test_fem_sweep_commands_parse(cmd):
     """The FEM-sweep commands of the docs name real options and values (their full runs are ``slow``)."""
     from typer.testing import CliRunner
 
-    from validation.cli import app
+    from validation.commands.main import app
     argv = shlex.split(cmd)[1:]
     res = CliRunner().invoke(app, [*argv, "--help"])
     assert res.exit_code == 0, res.output

@@ -13,7 +13,7 @@ from ancf import Model, presets
 
 
 def run(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "validation.cli", *args], cwd=cwd, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "validation.commands.main", *args], cwd=cwd, capture_output=True,
                           text=True, timeout=300)
 
 

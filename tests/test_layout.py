@@ -130,3 +130,75 @@ def test_modules_of_a_package_import_each_other_in_no_cycle(package):
     graph = {name: _sibling_imports(p, set(files)) for name, p in files.items()}
     assert sum(map(len, graph.values())) >= len(graph) // 2, "the import scan found (almost) no imports"
     assert _find_cycle(graph) == [], f"{package} modules import each other in a cycle"
+
+
+# inside validation/: subpackages named by their jobs, each importing only the ones before it in this order
+VALIDATION_LAYERS = ("infra", "reference", "identification", "checks", "report", "paper", "commands")
+
+
+def _validation_imports(path: pathlib.Path, root: pathlib.Path = ROOT) -> set[str]:
+    """Dotted ``validation.…`` modules a module imports (absolute or relative, module level or in functions);
+    ``from validation.x import y`` counts as ``validation.x.y`` (y may be a module)."""
+    import ast
+    here = ["validation", *path.relative_to(root / "validation").parent.parts]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom):
+            base = here[:len(here) - node.level + 1] if node.level else []
+            mod = ".".join(base + ([node.module] if node.module else []))
+            if mod == "validation" or mod.startswith("validation."):
+                found |= {f"{mod}.{a.name}" for a in node.names}
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("validation.")}
+    return found
+
+
+def _layer_violations(layer: str, root: pathlib.Path = ROOT) -> dict:
+    """{file: [layers it imports against the order]} of validation/<layer>/."""
+    allowed = set(VALIDATION_LAYERS[:VALIDATION_LAYERS.index(layer) + 1])
+    bad = {}
+    for p in sorted((root / "validation" / layer).rglob("*.py")):
+        used = {m.split(".")[1] for m in _validation_imports(p, root)}
+        if used - allowed:
+            bad[str(p.relative_to(root))] = sorted(used - allowed)
+    return bad
+
+
+def _layer_cycle(layer: str, root: pathlib.Path = ROOT) -> list:
+    files = {p.stem: p for p in (root / "validation" / layer).glob("*.py") if p.stem != "__init__"}
+    prefix = f"validation.{layer}."
+    graph = {name: {m[len(prefix):].split(".")[0] for m in _validation_imports(p, root) if m.startswith(prefix)}
+             & (set(files) - {name}) for name, p in files.items()}
+    return _find_cycle(graph)
+
+
+def test_validation_has_only_its_named_subpackages():
+    """No module sits loose in validation/ beside the subpackages (its __init__ is the public API)."""
+    loose = sorted(p.name for p in (ROOT / "validation").glob("*.py") if p.name != "__init__.py")
+    assert loose == [], f"modules outside the subpackages: {loose}"
+    subs = {p.name for p in (ROOT / "validation").iterdir() if (p / "__init__.py").exists()}
+    assert subs == set(VALIDATION_LAYERS)
+
+
+@pytest.mark.parametrize("layer", VALIDATION_LAYERS)
+def test_validation_subpackages_import_only_the_layers_before_them(layer):
+    assert _layer_violations(layer) == {}, f"imports against the order {' < '.join(VALIDATION_LAYERS)}"
+
+
+@pytest.mark.parametrize("layer", VALIDATION_LAYERS)
+def test_modules_of_a_validation_subpackage_import_each_other_in_no_cycle(layer):
+    assert _layer_cycle(layer) == [], f"validation.{layer} modules import each other in a cycle"
+
+
+def test_the_validation_scans_catch_upward_imports_and_cycles(tmp_path):
+    """The scans are not blind: relative and absolute, module-level and in-function imports are all seen."""
+    ident = tmp_path / "validation" / "identification"
+    ident.mkdir(parents=True)
+    (ident / "a.py").write_text("def f():\n    from validation.checks.compare import validate\n")
+    (ident / "b.py").write_text("from ..report import figures\nfrom . import c\n")
+    (ident / "c.py").write_text("import validation.identification.b\n")
+    assert _layer_violations("identification", tmp_path) == {
+        "validation/identification/a.py": ["checks"], "validation/identification/b.py": ["report"]}
+    assert _layer_cycle("identification", tmp_path) in (["b", "c", "b"], ["c", "b", "c"])
+    assert _validation_imports(ROOT / "validation" / "commands" / "main.py") >= {
+        "validation.commands.control", "validation.commands.identify", "validation.commands.paper.app"}

@@ -6,7 +6,7 @@ import pytest
 
 from ancf import presets
 from hardware.runlog import read_run_log
-from validation import control_studies as cs
+from validation.paper import control as cs
 
 from test_controller_studies import soft_paper
 

@@ -1,4 +1,4 @@
-"""validation.control_studies: structure, units and the qualitative claims of Table I / Sec. V-E, on
+"""validation.paper.control: structure, units and the qualitative claims of Table I / Sec. V-E, on
 today's paper preset and on a softer reading of it (EA and EI scaled by 0.16)."""
 
 import json
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from ancf import Model, StiffnessLaw, presets
-from validation import control_studies as cs
+from validation.paper import control as cs
 
 CONFIGS = ("upward", "horizontal", "downward")
 

@@ -85,7 +85,7 @@ def test_control_command_keeps_running_at_the_edge_of_the_workspace(model, tmp_p
     exit 2 after seconds; now the run holds to its duration, saturated while it must."""
     tip = model.fk((2.0, 1.0, 0.0), P).tip * 1e3
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
-    r = subprocess.run([sys.executable, "-m", "validation.cli", "control", "--rig", "sim", "--target-mm",
+    r = subprocess.run([sys.executable, "-m", "validation.commands.main", "control", "--rig", "sim", "--target-mm",
                         ",".join(f"{v:.6f}" for v in tip), "--pressure-kpa", "30", "--load-profile", "stochastic",
                         "--duration-s", "3", "--fast", "--json", "--log", "run.h5"], capture_output=True, text=True, timeout=600,
                        env=env, cwd=tmp_path)

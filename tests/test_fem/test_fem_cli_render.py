@@ -25,7 +25,7 @@ def test_cli_solve_json_and_files(tmp_path):
 
 
 def test_cli_rejects_bad_input(capsys):
-    from validation.cli import main
+    from validation.commands.main import main
 
     for args, message in ((["--tensions-n", "1,2"], "expected 3"),
                           (["--preset", "tube", "--tensions-n", "-1,0,0"], "push")):

@@ -64,7 +64,7 @@ def test_the_reduced_paper_model_against_the_fem_modes():
     masses (0.53 kg/m, 18 g cap at 2.5 mm): first bending 2.53 vs 2.53 Hz, axial 19.4 vs 20.0 Hz
     (docs/dynamics.md) — the identified rod is a dynamic model too, within 6 % and 5 %."""
     from ancf import Model, presets
-    from validation.designs import load_design
+    from validation.reference.designs import load_design
     geo, mat = load_design("paper")
     fem = BellowsModel(geo, mat, "coarse")
     md = fem.modes(fem.solve(), 6)
@@ -82,7 +82,7 @@ def test_pressure_stiffens_the_fem_bending_mode_but_not_the_rod():
     60 kPa the FEM's first bending frequency rises (2.53 → 2.91 Hz) while the stretch-only `paper` rod's
     falls (2.53 → 2.28 Hz: it lengthens, EI(λ) does not follow the pressure)."""
     from ancf import Model, presets
-    from validation.designs import load_design
+    from validation.reference.designs import load_design
     geo, mat = load_design("paper")
     fem = BellowsModel(geo, mat, "coarse")
     f_fem, f_rod = [], []
@@ -102,7 +102,7 @@ def test_the_documented_per_pressure_table_is_the_programs_output():
     import pathlib
     import re
     from ancf import Model, presets
-    from validation.designs import load_design
+    from validation.reference.designs import load_design
     text = (pathlib.Path(__file__).parents[2] / "docs" / "dynamics.md").read_text()
     rows = re.findall(r"^\| (\d+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \|$", text, re.M)
     assert len(rows) == 4

@@ -14,7 +14,7 @@ from controller import LACC, run_on_rig
 from hardware import PlantOptions, SimulatedRig, TrackingLost
 from hardware.loads import load_profile
 from hardware.runlog import read_run_log
-from validation.cli import app
+from validation.commands.main import app
 
 runner = CliRunner()
 TARGET_MM = "178,0,-55"          # reachable with margin for the stochastic loads at 60 kPa on the paper preset
@@ -104,7 +104,7 @@ def test_progress_lines_arrive_during_the_run_when_stderr_is_a_pipe():
     import sys
     import time
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
-    proc = subprocess.Popen([sys.executable, "-c", "from validation.cli import main; main()", "control", "--rig", "sim",
+    proc = subprocess.Popen([sys.executable, "-c", "from validation.commands.main import main; main()", "control", "--rig", "sim",
                              "--target-mm", TARGET_MM, "--pressure-kpa", "60", "--duration-s", "3"],
                             cwd=os.getcwd(), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     arrivals = []

@@ -1,4 +1,4 @@
-"""``bellows control`` compiles the loop's kernels before the rig moves (validation.control_cli.compile_loop_kernels):
+"""``bellows control`` compiles the loop's kernels before the rig moves (validation.commands.control.compile_loop_kernels):
 a live run must never stop for the numba compiler — on a fresh install the first saturation would otherwise
 compile the bounded IK mid-run (tens of seconds with the load changing, and a Ctrl-C waiting for it)."""
 
@@ -10,7 +10,7 @@ CHECK = """
     from ancf import Model, presets
     from controller import LACC, VFCC, run_on_rig
     from hardware import SimulatedRig
-    from validation.control_cli import compile_loop_kernels
+    from validation.commands.control import compile_loop_kernels
 
     which = sys.argv[1]
     compile_loop_kernels(controller=which)
@@ -46,7 +46,7 @@ def test_the_warm_up_runs_on_any_actuator_inside_its_limits(which):
     """Its loads scale with the actuator's limits: it completes on four tendons, on an actuator with a tenth of the
     paper's pressure and a fifth of its tension range, and with the free base stretch (another reduced map)."""
     from ancf import presets
-    from validation.control_cli import compile_loop_kernels
+    from validation.commands.control import compile_loop_kernels
     params = {"four_tendon": presets.get("four_tendon"),
               "weak": presets.paper().replace(pressure_max=12e3, tension_max=1.0),
               "free_base_stretch": presets.paper().replace(free_base_stretch=True)}[which]
@@ -58,6 +58,6 @@ def test_the_warm_up_runs_on_any_actuator_inside_its_limits(which):
                                 dict(compliance="magic"), dict(params={"name": "paper"})])
 def test_the_warm_up_refuses_bad_arguments_with_a_typed_error(kw):
     from ancf.errors import InputError
-    from validation.control_cli import compile_loop_kernels
+    from validation.commands.control import compile_loop_kernels
     with pytest.raises(InputError):
         compile_loop_kernels(**kw)

@@ -46,7 +46,7 @@ def test_documented_hardware_command_runs_on_the_fake_bench(doc, words, tmp_path
     from ancf import Model, presets
     from fakes.bench import ModelBench
     from hardware.runlog import read_run_log
-    from validation.cli import main
+    from validation.commands.main import main
 
     args = list(words[1:])
     if "--duration-s" in args:                          # the one documented substitution
@@ -98,7 +98,7 @@ def test_documented_hardware_command_in_csp_keeps_the_step_limit_beside_a_cpu_he
     import threading
     import time
     from fakes.fixtures import hold_the_gil
-    from validation.cli import main
+    from validation.commands.main import main
 
     run = DocumentedCspRun(duration_s=3, extra=["--on-drive-fault", "stop"])
     drive = run.drive

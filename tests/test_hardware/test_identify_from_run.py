@@ -1,4 +1,4 @@
-"""Static states recorded by control runs on the simulated rig feed validation.identify.from_measurements,
+"""Static states recorded by control runs on the simulated rig feed validation.identification.identify.from_measurements,
 which recovers the plant's stiffness law from them."""
 
 import pytest
@@ -10,7 +10,7 @@ from hardware.runlog import RunLog
 
 
 def test_identification_from_a_run_log(tmp_path):
-    from validation.identify import from_measurements
+    from validation.identification.identify import from_measurements
     model = Model(presets.paper_unscaled())
     path = tmp_path / "identification.h5"
     with RunLog(path, n_tendons=3) as log:
@@ -33,7 +33,7 @@ def test_identification_from_a_run_log(tmp_path):
 def test_identification_uses_the_complete_states_of_a_log_with_a_torn_state(tmp_path):
     """A writer killed while recording a static state leaves a torn last row: the identification uses the
     complete states and reports the torn one (it used to refuse the whole log)."""
-    from validation.identify import from_measurements
+    from validation.identification.identify import from_measurements
     model = Model(presets.paper_unscaled())
     path = tmp_path / "torn.h5"
     log = RunLog(path, n_tendons=3)
@@ -53,7 +53,7 @@ def test_identification_uses_the_complete_states_of_a_log_with_a_torn_state(tmp_
 def test_measured_states_need_the_actuator_they_were_measured_on(tmp_path):
     """No default actuator: identifying rig data against the wrong one gives wrong numbers silently."""
     from ancf.errors import InputError
-    from validation.identify import from_measurements
+    from validation.identification.identify import from_measurements
     with pytest.raises(InputError, match="needs base="):
         from_measurements(tmp_path / "never_read.h5")
     with pytest.raises(InputError, match="ActuatorParams"):

@@ -305,7 +305,7 @@ def test_the_checks_agree_with_the_drive_classes():
 
 
 def test_cli_refuses_a_conflicting_rig_file_with_one_error_line(tmp_path, monkeypatch, capsys):
-    from validation.cli import main
+    from validation.commands.main import main
     data = documented_rig()
     data["drives"][2]["node_id"] = 1
     path = tmp_path / "rig.toml"

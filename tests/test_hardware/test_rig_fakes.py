@@ -213,7 +213,7 @@ def test_bellows_control_on_the_fake_hardware(fake_bench, tmp_path):
     from ancf import Model, presets
     from hardware.runlog import read_run_log
     from hardware.static_states import read_static_states
-    from validation.cli import app
+    from validation.commands.main import app
     path, drives, loadcells, valves, nat = fake_bench
     target = Model(presets.paper_unscaled()).fk((2.2, 1.6, 1.6), 60e3).tip
     nat.position = tuple(target)
@@ -232,7 +232,7 @@ def test_bellows_control_on_the_fake_hardware(fake_bench, tmp_path):
     assert all(d.state == "READY TO SWITCH ON" for d in drives)             # disabled after the run (0x06)
     assert all([v for i, v in d.writes if i == e4.CONTROLWORD][-1] == e4.CW_SHUTDOWN for d in drives)
     with pytest.raises(SystemExit):                                         # sim-only options refused
-        from validation.cli import main
+        from validation.commands.main import main
         import sys
         old = sys.argv
         sys.argv = ["bellows", "control", "--rig", str(path), "--target-mm", "170,0,0", "--pressure-kpa", "60",

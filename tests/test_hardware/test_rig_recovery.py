@@ -19,7 +19,7 @@ from fakes.doc_commands import DocumentedCspRun  # noqa: E402
 def test_bellows_control_asks_before_recovering_a_drive_fault(tmp_path, monkeypatch, capsys, quiet_canopen, answer):
     import io
     from hardware.runlog import read_run_log
-    from validation.cli import main
+    from validation.commands.main import main
 
     run = DocumentedCspRun(duration_s=4)
     with run.bench(tmp_path, monkeypatch) as bench:

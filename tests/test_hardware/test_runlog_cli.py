@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from ancf.errors import ConfigError, InputError, OutputExistsError
 from hardware.runlog import RunLog, export_csv, read_run_log
 from hardware.static_states import read_static_states
-from validation.cli import app, main
+from validation.commands.main import app, main
 
 runner = CliRunner()
 def _target_mm() -> str:
@@ -87,7 +87,7 @@ def _wait_rows(path, n, proc, timeout=60.0):
 def _start(tmp_path, log):
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
     # SIGUSR1 makes the child print every thread's stack (how a test that times out shows where it hung)
-    code = "import faulthandler, signal; faulthandler.register(signal.SIGUSR1); from validation.cli import main; main()"
+    code = "import faulthandler, signal; faulthandler.register(signal.SIGUSR1); from validation.commands.main import main; main()"
     return subprocess.Popen([sys.executable, "-c", code, "control", "--target-mm", TARGET_MM, "--pressure-kpa", "60",
                              "--load-profile", "stochastic", "--seed", "1", "--log", str(log)],
                             cwd=os.getcwd(), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

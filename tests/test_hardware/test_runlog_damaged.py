@@ -156,7 +156,7 @@ def test_a_crash_loses_at_most_the_last_unflushed_block(tmp_path, urgent):
 def test_cli_log_show_on_a_truncated_log_is_one_error_line(logs, tmp_path):
     bad = truncate(logs["killed"], tmp_path / "truncated.h5", 0.5)
     try:
-        r = subprocess.run([sys.executable, "-m", "validation.cli", "log", "show", str(bad)], cwd=ROOT,
+        r = subprocess.run([sys.executable, "-m", "validation.commands.main", "log", "show", str(bad)], cwd=ROOT,
                            env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True,
                            timeout=TIMEOUT_S)
     except subprocess.TimeoutExpired:
@@ -274,7 +274,7 @@ def test_log_show_clears_a_killed_writers_flags_so_any_reader_opens_it(tmp_path,
         h5py.File(p, "r").close()
     csv = tmp_path / "killed.csv"
     args = ["log", "show", str(p)] if command == "show" else ["log", "export", str(p), "--csv", str(csv)]
-    r = subprocess.run([sys.executable, "-m", "validation.cli", *args], cwd=ROOT,
+    r = subprocess.run([sys.executable, "-m", "validation.commands.main", *args], cwd=ROOT,
                        env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True, timeout=TIMEOUT_S)
     assert r.returncode == 0 and "cleared the file's open-for-write flags" in r.stderr
     if command == "export":
@@ -283,7 +283,7 @@ def test_log_show_clears_a_killed_writers_flags_so_any_reader_opens_it(tmp_path,
     with h5py.File(p, "r") as f:                       # a plain reader now
         np.testing.assert_allclose(f["samples/iteration"][:], np.arange(12))
     assert lookup3(b"") == 0xDEADBEEF and lookup3(b"Four score and seven years ago") == 0x17770551   # reference values
-    again = subprocess.run([sys.executable, "-m", "validation.cli", "log", "show", str(p)], cwd=ROOT,
+    again = subprocess.run([sys.executable, "-m", "validation.commands.main", "log", "show", str(p)], cwd=ROOT,
                            env={**os.environ, "PYTHONPATH": str(ROOT)}, capture_output=True, text=True,
                            timeout=TIMEOUT_S)
     assert again.returncode == 0 and "cleared" not in again.stderr        # nothing left to do

@@ -132,7 +132,7 @@ def test_control_command_dynamic_options(tmp_path):
     import sys
 
     def run(*args):
-        return subprocess.run([sys.executable, "-m", "validation.cli", "control", "--target-mm", "176,-12,3",
+        return subprocess.run([sys.executable, "-m", "validation.commands.main", "control", "--target-mm", "176,-12,3",
                                "--pressure-kpa", "30", *args], cwd=tmp_path, capture_output=True, text=True,
                               timeout=300)
     ok = run("--rig", "sim", "--dynamics", "--fast", "--max-iterations", "5", "--shaping-damping-ratio", "0.05")

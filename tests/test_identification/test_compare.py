@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from ancf import Model, compliance as cp
-from validation.compare import compare_records
-from validation.experiments import LoadCase
-from validation.fem_sweep import FemRecord
-from validation.forms import position_matrix
+from validation.checks.compare import compare_records
+from validation.reference.experiments import LoadCase
+from validation.reference.fem_sweep import FemRecord
+from validation.identification.forms import position_matrix
 
 from test_fit import BASE
 

@@ -1,4 +1,4 @@
-"""Informative load cases (validation.design_select): greedy D-optimal choice, the training hull, load features,
+"""Informative load cases (validation.identification.design_select): greedy D-optimal choice, the training hull, load features,
 and the informative design of the paper actuator — more information than the default design from fewer training
 cases, bends across the whole pressure range, held-out states inside the hull and an extrapolation set outside."""
 
@@ -9,11 +9,11 @@ import pytest
 
 from ancf import presets
 from ancf.errors import InputError
-from validation.design_select import (d_optimal, informative_design, inside_hull, load_features, sensitivities,
+from validation.identification.design_select import (d_optimal, informative_design, inside_hull, load_features, sensitivities,
                                       spread)
-from validation.experiments import LoadCase, default_design
-from validation.forms import get_form
-from validation.identify import initial_theta
+from validation.reference.experiments import LoadCase, default_design
+from validation.identification.forms import get_form
+from validation.identification.identify import initial_theta
 
 RANGE = dict(tension_max=5.0, pressure_max=100e3, tendon_distance=0.0275, length=0.16)
 

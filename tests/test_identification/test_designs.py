@@ -7,12 +7,12 @@ import pytest
 pytest.importorskip("skfem")
 
 from ancf.errors import ConfigError  # noqa: E402
-from validation.designs import PRESETS, design_to_toml, load_design  # noqa: E402
+from validation.reference.designs import PRESETS, design_to_toml, load_design  # noqa: E402
 
 def _doc_example() -> str:
     """The example design file of the module docstring (the documentation is what is tested)."""
     import textwrap
-    import validation.designs as d
+    import validation.reference.designs as d
     block = d.__doc__.split("::", 1)[1]
     lines = []
     for line in block.splitlines()[1:]:
@@ -65,7 +65,7 @@ def test_unknown_preset_or_suffix_is_a_config_error():
 
 
 def test_operating_limits_from_presets_and_files(tmp_path):
-    from validation.designs import DEFAULT_LIMITS, design_limits
+    from validation.reference.designs import DEFAULT_LIMITS, design_limits
     assert design_limits("paper")["pressure_max"] == pytest.approx(100e3)      # inflation limit point above
     assert design_limits("paper_stiff") == DEFAULT_LIMITS
     p = tmp_path / "d.toml"

@@ -10,10 +10,10 @@ pytest.importorskip("skfem")
 
 from ancf.errors import InputError  # noqa: E402
 from fem_reference import BellowsGeometry, BellowsModel, Material, MeshLevel  # noqa: E402
-from validation.experiments import LoadCase  # noqa: E402
-from validation.fem_error import (ASSUMED_RATE, assess, estimate_fem_error, refined_level,  # noqa: E402
+from validation.reference.experiments import LoadCase  # noqa: E402
+from validation.checks.fem_error import (ASSUMED_RATE, assess, estimate_fem_error, refined_level,  # noqa: E402
                                   richardson, select_cases)
-from validation.fem_sweep import FemSpec  # noqa: E402
+from validation.reference.fem_sweep import FemSpec  # noqa: E402
 
 TINY = MeshLevel(2, 1, 12, 1)
 GEO = BellowsGeometry.straight_tube(0.08, 0.015, 0.004, n_segments=2)
@@ -90,14 +90,14 @@ def test_estimate_matches_a_direct_computation_on_both_meshes(tiny_estimate):
 
 def test_refined_solves_are_cached(tiny_estimate, monkeypatch):
     est, spec, cache = tiny_estimate
-    import validation.fem_sweep as fs
+    import validation.reference.fem_sweep as fs
     monkeypatch.setattr(fs, "solve_task", lambda task: pytest.fail("solved again instead of read from the cache"))
     again = estimate_fem_error(spec, [CASE], workers=1, progress=False, cache_dir=cache, compliance=True)
     assert again.rows[0]["tip_error_m"] == est.rows[0]["tip_error_m"]
 
 
 def test_records_carry_their_state_but_not_into_json(tiny_estimate, tmp_path):
-    from validation.fem_sweep import run_cases, start_solve
+    from validation.reference.fem_sweep import run_cases, start_solve
     _, spec, cache = tiny_estimate
     rec = run_cases(spec, [CASE], workers=1, progress=False, cache_dir=cache)[0]
     assert rec.state is not None and rec.state.U.shape[0] == 3
@@ -125,7 +125,7 @@ def _fake_estimate(tiny_estimate, tip_pct):
 
 def _rec(label, bend):
     """A record whose centreline bends by ``bend`` [m] at the tip."""
-    from validation.fem_sweep import FemRecord
+    from validation.reference.fem_sweep import FemRecord
     s = np.linspace(0, GEO.length, 5)
     line = np.column_stack([s, np.zeros(5), bend * (s / GEO.length) ** 2])
     c = LoadCase((0.0, 0.0, 0.0), 0.0, (0.0, 0.0, 0.0), False, "x", "heldout", label)
@@ -172,16 +172,16 @@ def report_inputs(tiny_estimate):
     from ancf import Model
     from test_report_cli import _states
     from test_fit import BASE
-    from validation import identify
-    from validation.compare import compare_records
-    from validation.experiments import default_design
-    from validation.fem_sweep import FemRecord
+    from validation.identification import identify
+    from validation.checks.compare import compare_records
+    from validation.reference.experiments import default_design
+    from validation.reference.fem_sweep import FemRecord
     design = default_design()
     ident = identify.from_measurements(_states(design), BASE, forms=("paper",), gravity=False)
     other = Model(ident.params.replace(gravity=(0.0, 0.0, 0.0)))
     L = ident.params.length
     s = np.linspace(0.0, L, 9)
-    from validation.forms import position_matrix
+    from validation.identification.forms import position_matrix
     S = position_matrix(ident.params.n_elements, L, s)
     recs = []
     for c in design.heldout:
@@ -203,7 +203,7 @@ def _estimate_for(tiny_estimate, label, tip_pct):
 def test_report_and_json_carry_the_fem_error(report_inputs, tiny_estimate, tip_pct, tmp_path):
     import copy
     import json
-    from validation.report import write_report
+    from validation.report.build import write_report
     ident, val, recs = report_inputs
     val = copy.deepcopy(val)
     worst = select_cases(recs, 1)[0].case.label

@@ -23,8 +23,8 @@ import pytest
 
 from ancf import ActuatorParams
 from hardware.static_states import StaticStates, write_static_states
-from validation import identify
-from validation.experiments import Design, LoadCase
+from validation.identification import identify
+from validation.reference.experiments import Design, LoadCase
 
 pytest.importorskip("skfem")
 
@@ -76,7 +76,7 @@ def test_straight_tube_matches_the_closed_forms(tube_identification):
 
 def test_cached_sweep_is_reused(tube_identification):
     """A re-run with the same cache computes nothing: every FEM case comes from the cache."""
-    from validation.fem_sweep import FemSpec, run_cases
+    from validation.reference.fem_sweep import FemSpec, run_cases
     res, cache, geo, mat = tube_identification
     recs = run_cases(FemSpec(geo, mat, "coarse"), _design().cases, cache_dir=cache, workers=1, progress=False)
     # solve times are stored with each record: a recomputation would not reproduce them
@@ -114,7 +114,7 @@ def test_too_few_solved_training_cases_is_a_typed_error(tube_identification, mon
     """When the FEM fails on most training cases, the identification stops with one typed error naming a
     failed case (it used to build a ConvergenceError without its required fields: a TypeError)."""
     from ancf.errors import ConfigError
-    from validation import fem_sweep
+    from validation.reference import fem_sweep
     _, cache, geo, mat = tube_identification
 
     def failing(spec, cases, **kw):

@@ -10,7 +10,7 @@ import pytest
 pytest.importorskip("skfem")
 
 from fem_reference import BellowsModel, MeshLevel, presets  # noqa: E402
-from validation.fem_sweep import locked_compliance  # noqa: E402
+from validation.reference.fem_sweep import locked_compliance  # noqa: E402
 
 TINY = MeshLevel(2, 1, 12, 1)
 

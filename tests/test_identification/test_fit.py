@@ -7,10 +7,10 @@ import pytest
 from ancf import presets
 from ancf.errors import BellowsError, InputError
 from hardware.static_states import StaticStates, write_static_states
-from validation import identify
-from validation.experiments import default_design
-from validation.fit import Observations, fit, predict
-from validation.forms import FORMS, get_form
+from validation.identification import identify
+from validation.reference.experiments import default_design
+from validation.identification.fit import Observations, fit, predict
+from validation.identification.forms import FORMS, get_form
 
 BASE = presets.paper().replace(line_mass=0.0, tip_mass=0.0, gravity=(0.0, 0.0, 0.0))
 TRUE = {
@@ -45,7 +45,7 @@ def synthetic(form, theta, cases, noise=0.0, seed=0):
 @pytest.mark.parametrize("name", FORMS)
 def test_exact_parameter_jacobian_matches_finite_differences(name):
     """∂(tip, markers)/∂θ = −J H⁻¹ ∂Q/∂θ against central differences of the nonlinear predictions."""
-    from validation.fit import _Evaluator
+    from validation.identification.fit import _Evaluator
     form = get_form(name, fit_distance=(name == "paper"))
     theta = np.array(TRUE[name] + ([0.0275] if form.fits_distance else []), float)
     cases = default_design().training[::3]

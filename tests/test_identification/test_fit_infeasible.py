@@ -1,4 +1,4 @@
-"""Infeasible trial parameters in the fit (validation/fit.py, module docstring): a trial θ whose equilibria
+"""Infeasible trial parameters in the fit (validation/identification/fit.py, module docstring): a trial θ whose equilibria
 cannot be solved is rejected by the optimiser (non-finite residuals → scipy's trf shrinks its trust region),
 the fit finishes and reports it; a failure at the initial θ stays a typed error."""
 
@@ -8,10 +8,10 @@ import scipy.optimize as so
 
 from ancf import Model, presets
 from ancf.errors import CollapsedStateError, ConvergenceError, UnstableEquilibriumError
-from validation import fit as fitmod
-from validation.experiments import default_design
-from validation.fit import Observations, fit, predict
-from validation.forms import get_form
+from validation.identification import fit as fitmod
+from validation.reference.experiments import default_design
+from validation.identification.fit import Observations, fit, predict
+from validation.identification.forms import get_form
 
 BASE = presets.paper().replace(line_mass=0.0, tip_mass=0.0, gravity=(0.0, 0.0, 0.0))
 TRUE = [767.2, 0.0839, 0.02605]          # form "constant": EA, EI, D_eff

@@ -5,10 +5,10 @@ from kernel_signatures import grown, run_fresh
 
 CHECK = """
     from ancf import presets
-    from validation.experiments import default_design
-    from validation.fit import Observations, _Evaluator, predict
-    from validation.forms import get_form
-    from validation.identify import compile_fit_kernels
+    from validation.reference.experiments import default_design
+    from validation.identification.fit import Observations, _Evaluator, predict
+    from validation.identification.forms import get_form
+    from validation.identification.identify import compile_fit_kernels
 
     compile_fit_kernels()
     before = signatures()

@@ -4,9 +4,9 @@ spare degrees of freedom claims nothing, and intervals after freezing a paramete
 import numpy as np
 import pytest
 
-from validation.experiments import default_design
-from validation.fit import fit
-from validation.forms import get_form
+from validation.reference.experiments import default_design
+from validation.identification.fit import fit
+from validation.identification.forms import get_form
 
 from test_fit import BASE, TRUE, synthetic
 
@@ -79,7 +79,7 @@ def test_the_held_value_is_reported_as_held_at_the_first_pass_optimum(tmp_path):
     import json
 
     from hardware.static_states import StaticStates
-    from validation import identify
+    from validation.identification import identify
     form = get_form("paper")
     design = [c for c in default_design().cases if c.pressure == 0.0]
     obs = synthetic(form, np.array(TRUE["paper"]), design, noise=2e-5, seed=4)
@@ -101,7 +101,7 @@ def test_a_form_with_too_few_data_is_not_chosen_over_one_that_identifies_somethi
     chosen over the three-parameter constant form that the same states determine, whatever its held-out
     error."""
     from hardware.static_states import StaticStates
-    from validation import identify
+    from validation.identification import identify
     form = get_form("paper")
     cases = default_design().cases[:6]
     obs = synthetic(form, np.array(TRUE["paper"]), cases, noise=2e-5, seed=4)
@@ -119,7 +119,7 @@ def test_a_form_with_too_few_data_is_not_chosen_over_one_that_identifies_somethi
 def test_one_hypersensitive_state_does_not_hide_the_other_directions():
     """The rank test is on the row-equilibrated Jacobian: scaling one state's rows by 1e5 (a state near a fold
     of the model) leaves every parameter identifiable, while a real null direction is found at any row scaling."""
-    from validation.fit import null_share
+    from validation.identification.fit import null_share
     rng = np.random.default_rng(0)
     J = rng.standard_normal((30, 4))
     assert np.all(null_share(J) < 1e-6)
@@ -143,7 +143,7 @@ def test_a_theta_seen_before_restarts_from_its_own_equilibria(monkeypatch):
     """The fit's result is re-evaluated after other trials: its states must start from that θ's own equilibria
     (near a fold, another θ's equilibrium as the start converged to the saddle branch and the fit died)."""
     import ancf
-    from validation.fit import _Evaluator
+    from validation.identification.fit import _Evaluator
     form = get_form("separate")
     th1 = np.array(TRUE["separate"], float)
     th2 = th1 * np.array([1.3, 1.0, 0.8, 1.0, 1.02])

@@ -1,4 +1,4 @@
-"""The locked-compliance gap decomposition (validation/locked_gap.py): the cap-compliance formulas against
+"""The locked-compliance gap decomposition (validation/checks/locked_gap.py): the cap-compliance formulas against
 hand-derived closed forms of Euler–Bernoulli and Timoshenko cantilevers, the FEM's guided tendon against the
 straight chord (equal on a straight tube, not on a bent one), the matched reduced model against known
 parameters, and (slow) the table in docs/identification.md against the program."""
@@ -12,7 +12,7 @@ import pytest
 
 from ancf import Model, StiffnessLaw, compliance as cp, presets
 from ancf.errors import InputError
-from validation.locked_gap import (format_table, locked_from_cap, matched_rod, measure, ratio_with_shear,
+from validation.checks.locked_gap import (format_table, locked_from_cap, matched_rod, measure, ratio_with_shear,
                                    remove_shear, shear_compliance)
 
 L, EA, EI, GJ, d = 0.16, 120.0, 0.0134, 0.01, 0.0275
@@ -119,7 +119,7 @@ def tiny():
 def test_fem_guided_tendon_is_the_straight_chord_on_a_straight_tube(tiny):
     """Straight (pressure only): the guided path's length gradient equals the chord's to round-off, and the
     locked compliance from the cap compliance alone equals the FEM's; bent (one tendon): they differ."""
-    from validation.locked_gap import fem_decomposition
+    from validation.checks.locked_gap import fem_decomposition
     straight = fem_decomposition(tiny, tiny.solve(tensions=(0.0, 0.0, 0.0), pressure=40e3))
     assert straight["g_deviation"] < 1e-9
     assert straight["ratio_line"] == pytest.approx(straight["ratio"], rel=1e-6)
@@ -174,8 +174,8 @@ def test_rod_with_the_shear_term_adds_what_the_timoshenko_cap_adds(GA):
     exactly what the Timoshenko cap compliance gains over the Euler–Bernoulli one (:func:`locked_from_cap`) in
     both the held and the one-tendon locked compliance, and the first estimate of s₀ from a cap compliance
     (``identify.initial_shear``) is L/GA."""
-    from validation import identify
-    from validation.forms import get_form
+    from validation.identification import identify
+    from validation.identification.forms import get_form
     s = 0.0 if math.isinf(GA) else L / GA
     base = presets.paper().replace(gravity=(0.0, 0.0, 0.0), tip_mass=0.0, tool_offset=0.0, length=L,
                                    stiffness=StiffnessLaw.constant(EA, EI))

@@ -20,10 +20,10 @@ import pytest
 
 from ancf import ActuatorParams
 from hardware.static_states import StaticStates, write_static_states
-from validation import identify
-from validation.experiments import default_design
-from validation.forms import get_form
-from validation.report import build_report, write_report
+from validation.identification import identify
+from validation.reference.experiments import default_design
+from validation.identification.forms import get_form
+from validation.report.build import build_report, write_report
 
 from test_fit import BASE, MARKERS, TRUE, synthetic
 
@@ -103,7 +103,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 def _bellows(*args, cwd):
     # the checkout under test first on the path: an editable install of another checkout must not answer
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
-    return subprocess.run([sys.executable, "-m", "validation.cli", *map(str, args)], cwd=cwd, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "validation.commands.main", *map(str, args)], cwd=cwd, capture_output=True,
                           text=True, timeout=600, env=env)
 
 
@@ -118,7 +118,7 @@ def measured_files(tmp_path_factory):
     t = BASE.tendons[0]
     four = tuple(t.model_copy(update={"angle": float(a)}) for a in np.arange(4) * np.pi / 2)
     (d / "four.toml").write_text(BASE.replace(tendons=four).to_toml())
-    from validation.designs import design_to_toml, load_design
+    from validation.reference.designs import design_to_toml, load_design
     (d / "wide.toml").write_text(design_to_toml(*load_design("paper"), "wide",
                                                 limits={"tension_max": 30.0, "pressure_max": 100e3}))
     return d, states, base

@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 from ancf import Model
-from validation import fem_sweep, identify
-from validation import identify_cli as cli
-from validation.experiments import default_design
-from validation.modes_compare import (MEASURED_NOTE, NO_MASS_NOTE, QUICK_NOTE, compare_modes, report_pressures,
+from validation.reference import fem_sweep
+from validation.identification import identify
+from validation.commands import identify as cli
+from validation.reference.experiments import default_design
+from validation.checks.modes_compare import (MEASURED_NOTE, NO_MASS_NOTE, QUICK_NOTE, compare_modes, report_pressures,
                                       rod_modes)
-from validation.report import build_report
+from validation.report.build import build_report
 
 from test_fit import BASE
 from test_report_cli import _states
@@ -117,7 +118,7 @@ def test_a_massless_actuator_says_so_once():
 def test_quick_report_skips_the_fem_modes_and_the_full_one_asks_for_them(result, monkeypatch, tmp_path):
     """--quick never calls the FEM modes; the full report asks for 0, 50, 100 % of the design's largest
     pressure with the tendons slack, through the cache folder, and shows what it gets."""
-    from validation.designs import load_design
+    from validation.reference.designs import load_design
     geo, mat = load_design("paper")
     fem = ("paper", geo, mat, {"tension_max": 5.0, "pressure_max": 100e3})
     calls = []
@@ -206,7 +207,7 @@ def test_the_documented_report_modes_are_the_programs_output(tmp_path_factory):
     seconds with the FEM cache of a report run in $BELLOWS_FEM_CACHE)."""
     import os
     import pathlib
-    from validation.forms import FORMS
+    from validation.identification.forms import FORMS
     text = (pathlib.Path(__file__).parents[2] / "docs" / "identification.md").read_text()
     rows = re.findall(r"^\| (\d+) \| ([\d.]+) \| ([\d.]+) \| ([+−-][\d.]+) \| ([\d.]+) \| ([\d.]+) \| ([+−-][\d.]+) \|$",
                       text, re.M)

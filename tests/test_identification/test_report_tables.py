@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from fem_reference import presets as fem_presets
-from validation import identify
-from validation.compare import ValidationResult
-from validation.experiments import default_design
-from validation.forms import FORMS, MEANINGS, REPORTED, get_form
-from validation.report import build_report, param_rows
+from validation.identification import identify
+from validation.checks.compare import ValidationResult
+from validation.reference.experiments import default_design
+from validation.identification.forms import FORMS, MEANINGS, REPORTED, get_form
+from validation.report.build import build_report, param_rows
 
 from test_fit import BASE
 from test_report_cli import _states
@@ -124,7 +124,7 @@ def test_a_straight_tube_is_described_as_a_tube(separate_result):
 def test_the_ratio_table_shows_fem_and_model_per_state(separate_result):
     """Section 3b: one row per state with the FEM's and the reduced model's locked/held ratio and their
     difference, from ValidationResult.ratio_per_state."""
-    from validation.compare import ratio_row
+    from validation.checks.compare import ratio_row
     res = separate_result
     val = _validation(res.params)
     val.rows[0]["locked_active_fem"], val.rows[0]["locked_active_ancf"] = [0], [0, 1]
@@ -143,7 +143,7 @@ def test_shear_diagnostic_names_the_chosen_forms_term():
     """The report's shear sentences say whether the chosen reduced model carries a series shear compliance
     (ancf.shear) and, if so, its s at 0 and 100 kPa."""
     from ancf import presets
-    from validation.report import _shear_note
+    from validation.report.build import _shear_note
     assert "has no shear compliance" in _shear_note(presets.paper())
     text = _shear_note(presets.paper().replace(shear_compliance=(0.5e-3, 3.3e-3)))
     assert "s = 0.50 / 3.80 mm/N at 0 / 100 kPa" in text

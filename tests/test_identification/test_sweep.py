@@ -6,9 +6,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from validation import fem_sweep
-from validation.experiments import LoadCase, default_design
-from validation.runner import RunInterrupted
+from validation.reference import fem_sweep
+from validation.reference.experiments import LoadCase, default_design
+from validation.infra.runner import RunInterrupted
 
 loads = st.lists(st.tuples(st.floats(0, 5), st.floats(0, 5), st.floats(0, 5), st.floats(0, 120e3)),
                  min_size=1, max_size=30)
@@ -74,7 +74,7 @@ def test_interrupted_sweep_says_what_is_kept(monkeypatch, tmp_path):
         raise RunInterrupted("stopped", completed={0: [None] * len(tasks[0]["cases"])}, total=len(tasks))
 
     monkeypatch.setattr(fem_sweep, "run_tasks", interrupted)
-    from validation.designs import load_design
+    from validation.reference.designs import load_design
     spec = fem_sweep.FemSpec(*load_design("paper"), "coarse")
     monkeypatch.setattr(fem_sweep.FemSpec, "key", lambda self: {"mesh": "coarse"})
     with pytest.raises(RunInterrupted, match=rf"of 6 FEM cases were finished; they are cached in {tmp_path}") as exc:
@@ -87,7 +87,7 @@ def test_interrupted_sweep_says_what_is_kept(monkeypatch, tmp_path):
 def test_bad_run_options_fail_before_any_fem_work():
     """An unknown mesh level or a worker count of 0 is rejected when the run is set up, not in a worker."""
     from ancf.errors import ConfigError, InputError
-    from validation.identify import from_fem
+    from validation.identification.identify import from_fem
     with pytest.raises(ConfigError, match="mesh level"):
         fem_sweep.FemSpec(None, None, "bogus")
     with pytest.raises(InputError, match="workers"):

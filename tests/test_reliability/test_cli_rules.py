@@ -1,4 +1,4 @@
-"""The command line's rules, each tested through the real entry point ``validation.cli.main``:
+"""The command line's rules, each tested through the real entry point ``validation.commands.main.main``:
 
 * a given option is used or rejected, never silently replaced (``--mu-mpa 0``);
 * outputs are validated before any work, and existing results are not overwritten without ``--force``;
@@ -11,7 +11,7 @@ import json
 import pytest
 
 from ancf import cli as ancf_cli
-from validation.cli import main
+from validation.commands.main import main
 
 
 def run(capsys, *args):
@@ -124,7 +124,7 @@ def test_ctrl_c_is_one_line_with_status_130(capsys, monkeypatch):
 
 
 def test_an_interrupted_run_error_is_reported_like_every_product_error(capsys, monkeypatch, tmp_path):
-    from validation.runner import RunInterrupted
+    from validation.infra.runner import RunInterrupted
 
     def stopped(*a, **k):
         raise RunInterrupted("interrupted", completed={0: 1, 1: 2, 2: 3}, total=10, saved_to="x.h5")

@@ -7,7 +7,7 @@ The commands check their outputs before any work, so every case runs in well und
 
 import pytest
 
-from validation.cli import main
+from validation.commands.main import main
 
 
 def _must_not_run(*a, **k):
@@ -32,8 +32,8 @@ CASES = {
     "fem solve --out": (["fem", "solve", "--out", "{d}"], "result.json", "fem_reference.model:BellowsModel"),
     "fem solve --png": (["fem", "solve", "--out", "{d}", "--png"], "result.png", "fem_reference.model:BellowsModel"),
     "paper workspace": (["paper", "workspace", "--samples", "10", "--out", "{d}"], "workspace.png",
-                        "validation.studies.workspace:run_tasks"),
-    "paper stiffness": (["paper", "stiffness", "--out", "{d}"], "stiffness.json", "validation.studies.stiffness:Model"),
+                        "validation.paper.workspace_volume:run_tasks"),
+    "paper stiffness": (["paper", "stiffness", "--out", "{d}"], "stiffness.json", "validation.paper.stiffness:Model"),
     "paper table1": (["paper", "table1", "--out", "{d}"], "table1.json", "validation.paper:_call_study"),
     "paper table1 figure": (["paper", "table1", "--out", "{d}"], "table1.png", "validation.paper:_call_study"),
     "paper ablation": (["paper", "ablation", "--out", "{d}"], "compliance_ablation.png",
@@ -44,15 +44,15 @@ CASES = {
                           "validation.paper:_call_study"),
     "paper all": (["paper", "all", "--samples", "10", "--out", "{d}"], "table1.png", "validation.paper:workspace"),
     "paper compare": (["paper", "compare", "--presets", "paper", "--out", "{d}"], "compare.png",
-                      "validation.studies.comparison:run_preset"),
-    "identify": (["identify", "--design", "straight_tube", "--out", "{d}"], "fit.json", "validation.identify:from_fem"),
+                      "validation.paper.comparison:run_preset"),
+    "identify": (["identify", "--design", "straight_tube", "--out", "{d}"], "fit.json", "validation.identification.identify:from_fem"),
     "validate": (["validate", "--params", "paper", "--design", "straight_tube", "--out", "{d}"], "validation.json",
-                 "validation.compare:validate"),
-    "report": (["report", "--design", "straight_tube", "--out", "{d}"], "report.html", "validation.identify:from_fem"),
+                 "validation.checks.compare:validate"),
+    "report": (["report", "--design", "straight_tube", "--out", "{d}"], "report.html", "validation.identification.identify:from_fem"),
     "report figures": (["report", "--design", "straight_tube", "--out", "{d}"], "figures",
-                       "validation.identify:from_fem"),
+                       "validation.identification.identify:from_fem"),
     "calibrate": (["calibrate", "--target-ea-n", "700", "--out", "{d}/c.toml"], "c.toml",
-                  "validation.calibrate:calibrate"),
+                  "validation.identification.calibrate:calibrate"),
     "control --log": (["control", "--target-mm", "150,0,20", "--pressure-kpa", "30", "--log", "{d}/run.h5"], "run.h5",
                       "hardware.build:build_rig"),
     "log export --csv": (["log", "export", "{d}/no_such_run.h5", "--csv", "{d}/s.csv"], "s.csv",
@@ -60,7 +60,7 @@ CASES = {
     "modes": (["modes", "--out", "{d}"], "modes.png", "ancf.dynamics.cli:warm_up"),
     "simulate": (["simulate", "--tensions-n", "1,0,0", "--out", "{d}"], "simulation.csv", "ancf.dynamics.cli:warm_up"),
     "paper dynamic": (["paper", "dynamic", "--out", "{d}"], "dynamic_loading.json",
-                      "validation.dynamic_studies:dynamic_loading"),
+                      "validation.paper.dynamic:dynamic_loading"),
 }
 
 
@@ -87,7 +87,7 @@ def test_every_output_writing_command_is_covered():
     """A command that gains an output option must join CASES: every command with --force (or --out) is listed."""
     import typer
 
-    from validation.cli import app
+    from validation.commands.main import app
 
     def walk(cmd, prefix=()):
         if hasattr(cmd, "commands"):        # a group (typer may vendor its own click)

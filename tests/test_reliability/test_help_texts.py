@@ -14,12 +14,12 @@ from ancf.compliance import METHODS
 from ancf.cli import LOCKED_METHODS
 from fem_reference.mesh import MESH_LEVELS
 from fem_reference.model import LINEAR_SOLVERS
-from validation.control_cli import CONTROLLERS
+from validation.commands.control import CONTROLLERS
 from hardware.loads import PROFILES
-from validation.calibrate import GEOMETRY_PARAMETERS, MATERIAL_PARAMETERS
-from validation.cli import main
-from validation.designs import PRESETS as DESIGNS
-from validation.forms import FORMS
+from validation.identification.calibrate import GEOMETRY_PARAMETERS, MATERIAL_PARAMETERS
+from validation.commands.main import main
+from validation.reference.designs import PRESETS as DESIGNS
+from validation.identification.forms import FORMS
 from cli_commands import commands  # noqa: E402
 
 

@@ -10,7 +10,7 @@ import pytest
 
 from ancf import Model, presets
 from ancf.textfmt import number, one_of, vector
-from validation.cli import main
+from validation.commands.main import main
 
 #: a numpy/list repr of numbers: "[ 1.7", "[2.", "[-0.3", "np.float64(", "array("
 REPR = re.compile(r"\[\s*[-+]?(\d|\.\d)|np\.float\d*\(|array\(")
@@ -80,7 +80,7 @@ def test_demo_notes_print_no_repr(capsys, tmp_path):
 
 
 def test_control_status_and_header_print_no_repr(capsys):
-    from validation.control_cli import _status_printer
+    from validation.commands.control import _status_printer
     buf = io.StringIO()
     _status_printer(buf, every_s=0.0)({"t": 1.0, "iteration": 2, "error_m": 1e-4, "mode": "lacc",
                                        "estimate_N": np.array([0.1, -0.2, 0.3]), "pressure_Pa": 30e3})
@@ -95,7 +95,7 @@ def test_control_status_and_header_print_no_repr(capsys):
 
 
 def test_compare_figure_title_prints_no_repr(monkeypatch, tmp_path):
-    from validation.studies import plots
+    from validation.paper import plots
     titles = []
 
     def capture(fig, out, stem):

@@ -75,7 +75,7 @@ def test_limit_messages_in_command_line_terms(api, cli):
 
 
 def test_pressure_limit_message_from_the_command(tmp_path):
-    res = subprocess.run([sys.executable, "-m", "validation.cli", "fk", "--pressure-kpa", "300"],
+    res = subprocess.run([sys.executable, "-m", "validation.commands.main", "fk", "--pressure-kpa", "300"],
                          capture_output=True, text=True, cwd=tmp_path)
     assert res.returncode == 2
     assert res.stderr.strip().endswith("kPa (use --no-limits to analyse it anyway)"), res.stderr

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from validation.studies import comparison, plots
-from validation.studies.criteria import ratio_band, within
+from validation.paper import comparison, plots
+from validation.paper.criteria import ratio_band, within
 
 JUDGED = [k for k, h in comparison.HEADLINES.items() if (h[3] is not None or h[4] is not None) and h[1]]
 

@@ -1,6 +1,6 @@
 """The number tables of README.md and docs/paper-readings.md cannot drift from the program.
 
-* the generated blocks equal what ``validation.doc_tables`` makes of the committed docs/data/ (a hand edit
+* the generated blocks equal what ``validation.paper.doc_tables`` makes of the committed docs/data/ (a hand edit
   fails);
 * the committed data is what the program computes today: every deterministic number of
   ``bellows paper compare`` except the workspace and the loading study (reading facts, stiffness ratios,
@@ -20,10 +20,10 @@ import shutil
 import pytest
 
 from ancf.export import to_jsonable
-from validation import doc_tables as dt
+from validation.paper import doc_tables as dt
 from validation import paper
-from validation.studies import comparison, states
-from validation.studies.common import resolve_params
+from validation.paper import comparison, states
+from validation.paper.common import resolve_params
 
 ROOT = dt.ROOT
 
@@ -44,7 +44,7 @@ def test_generated_blocks_equal_the_generator_output():
     new = dt.generate(ROOT)
     assert set(new) == {"README.md", "docs/paper-readings.md"}
     for f, text in new.items():
-        assert (ROOT / f).read_text() == text, f"{f}: generated tables out of date; run python -m validation.doc_tables"
+        assert (ROOT / f).read_text() == text, f"{f}: generated tables out of date; run python -m validation.paper.doc_tables"
 
 
 @pytest.fixture()
@@ -148,7 +148,7 @@ def test_committed_compare_numbers_are_current(data, recomputed):
         bad = {k: (new["numbers"].get(k), e["numbers"].get(k)) for k in keys
                if not _close(k, new["numbers"].get(k), e["numbers"].get(k))}
         assert not bad, f"{e['preset']}: (today, committed) differ: {bad}; re-run bellows paper compare and " \
-                        "python -m validation.doc_tables extract"
+                        "python -m validation.paper.doc_tables extract"
         assert {k: new["verdicts"][k] for k in keys if k in new["verdicts"]} == \
                {k: e["verdicts"][k] for k in keys if k in e["verdicts"]}
         k_new, k_old = new["details"]["stiffness_N_per_m"], e["details"]["stiffness_N_per_m"]
@@ -188,7 +188,7 @@ def test_committed_tracking_numbers_are_current(data):
 @pytest.mark.slow
 def test_committed_workspace_numbers_are_current(data):
     """The workspace with the committed seeds and sample count gives the committed gains (deterministic)."""
-    from validation.studies.workspace import workspace
+    from validation.paper.workspace_volume import workspace
     compare, _ = data
     n = compare["settings"]["samples_per_mode_per_seed"]
     for e in compare["presets"]:

@@ -1,4 +1,4 @@
-"""The quasi-static-vs-dynamic loading study (validation.dynamic_studies): on a slow loop (the paper's:
+"""The quasi-static-vs-dynamic loading study (validation.paper.dynamic): on a slow loop (the paper's:
 5 mm/s motors, 100 ms settle) the dynamic plant changes LACC's error little; on a fast loop (50 mm/s,
 20 ms settle) quasi-static LACC corrects on the ringing of the locked first mode and does worse than on the
 static plant — the measurement docs/dynamics.md reports.  Also the dynamic plant's uncontrolled motion is
@@ -9,7 +9,7 @@ import math
 import pytest
 
 from ancf.errors import InputError
-from validation.dynamic_studies import dynamic_loading
+from validation.paper.dynamic import dynamic_loading
 
 
 @pytest.fixture(scope="module")

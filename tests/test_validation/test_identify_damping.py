@@ -1,4 +1,4 @@
-"""Damping from a free decay (validation.identify_dynamics, `bellows identify-damping`): the fit recovers the
+"""Damping from a free decay (validation.identification.damping, `bellows identify-damping`): the fit recovers the
 model's modal damping ratio and frequency from simulated decays, its 95 % intervals cover the truth about 95 %
 of the time on noisy records, it reads `bellows simulate` CSVs and run logs, and refuses what is not a
 decay."""
@@ -13,7 +13,7 @@ import pytest
 from ancf import Model, presets
 from ancf.dynamics import rayleigh_about
 from ancf.errors import InputError
-from validation.identify_dynamics import fit_free_decay, read_decay
+from validation.identification.damping import fit_free_decay, read_decay
 
 P = 30e3
 
@@ -88,7 +88,7 @@ def test_a_run_log_is_read(tmp_path, decay):
 
 
 def run(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "validation.cli", *args], cwd=cwd, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "validation.commands.main", *args], cwd=cwd, capture_output=True,
                           text=True, timeout=300)
 
 

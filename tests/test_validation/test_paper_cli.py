@@ -1,4 +1,4 @@
-"""``bellows paper ...`` (validation.paper_cli.app) and the controller-study wrappers of validation.paper."""
+"""``bellows paper ...`` (validation.commands.paper.app) and the controller-study wrappers of validation.paper."""
 
 import json
 import sys
@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from ancf import Model, presets
 from validation import paper
-from validation.paper_cli import app
+from validation.commands.paper import app
 
 runner = CliRunner()
 
@@ -54,8 +54,8 @@ def _no_control_studies(monkeypatch):
     import importlib.util
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
-                        lambda name, *a: None if name == "validation.control_studies" else real(name, *a))
-    monkeypatch.delitem(sys.modules, "validation.control_studies", raising=False)
+                        lambda name, *a: None if name == "validation.paper.control" else real(name, *a))
+    monkeypatch.delitem(sys.modules, "validation.paper.control", raising=False)
 
 
 @pytest.mark.parametrize("cmd", ["table1", "ablation", "loading"])
@@ -63,7 +63,7 @@ def test_missing_control_studies_give_a_clear_message(cmd, tmp_path, monkeypatch
     _no_control_studies(monkeypatch)
     res = runner.invoke(app, [cmd, "--out", str(tmp_path)])
     assert res.exit_code == 2
-    assert "control_studies" in res.output and "Traceback" not in res.output
+    assert "paper/control.py" in res.output and "Traceback" not in res.output
     with pytest.raises(paper.StudyUnavailableError):
         paper.CONTROL_STUDIES[cmd]()
 
@@ -79,13 +79,13 @@ def test_wrappers_forward_to_control_studies(tmp_path, monkeypatch):
         calls["loading"] = kw
         return {"rms_error_m": 1e-4}
 
-    fake = types.ModuleType("validation.control_studies")
+    fake = types.ModuleType("validation.paper.control")
     fake.table1, fake.loading = table1, loading
-    monkeypatch.setitem(sys.modules, "validation.control_studies", fake)
+    monkeypatch.setitem(sys.modules, "validation.paper.control", fake)
     import importlib.util
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
-                        lambda name, *a: object() if name == "validation.control_studies" else real(name, *a))
+                        lambda name, *a: object() if name == "validation.paper.control" else real(name, *a))
     assert paper.table1() == table1()
     assert calls["table1"] == (None, 5)
     paper.table1(iterations=3, out=tmp_path)
@@ -142,7 +142,7 @@ def test_tracking_command_reports_rmse_per_trajectory(tmp_path):
     import json
     import subprocess
     import sys
-    r = subprocess.run([sys.executable, "-m", "validation.cli", "paper", "tracking", "--out", str(tmp_path)],
+    r = subprocess.run([sys.executable, "-m", "validation.commands.main", "paper", "tracking", "--out", str(tmp_path)],
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     data = json.loads((tmp_path / "trajectories.json").read_text())

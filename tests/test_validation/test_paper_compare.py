@@ -7,10 +7,10 @@ import pytest
 from typer.testing import CliRunner
 
 from ancf import StiffnessLaw, presets
-from validation.paper_cli import app
-from validation.studies import comparison
-from validation.studies.convergence import element_convergence
-from validation.studies.loads import hold_payload, locked_drift
+from validation.commands.paper import app
+from validation.paper import comparison
+from validation.paper.convergence import element_convergence
+from validation.paper.loads import hold_payload, locked_drift
 
 runner = CliRunner()
 

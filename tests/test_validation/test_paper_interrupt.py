@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ancf import Model, presets
-from validation.studies.workspace import read_samples
+from validation.paper.workspace_volume import read_samples
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -24,7 +24,7 @@ def _default_sigint():
 
 def test_sigint_keeps_finished_samples(tmp_path):
     env = dict(os.environ, PYTHONPATH=ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    cmd = [sys.executable, "-m", "validation.cli", "paper", "workspace", "--samples", "20000", "--workers", "2",
+    cmd = [sys.executable, "-m", "validation.commands.main", "paper", "workspace", "--samples", "20000", "--workers", "2",
            "--chunk-size", "10", "--no-progress", "--preset", "paper_unscaled", "--out", str(tmp_path)]
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True,

@@ -4,7 +4,7 @@ import pytest
 
 pytest.importorskip("skfem")
 
-from validation.studies.plausibility import fem_equivalent_rods, reading_targets  # noqa: E402
+from validation.paper.plausibility import fem_equivalent_rods, reading_targets  # noqa: E402
 
 
 @pytest.mark.slow

@@ -5,8 +5,8 @@ import pytest
 
 from ancf import Model, StiffnessLaw, presets
 from ancf.errors import ConfigError
-from validation.studies import states
-from validation.studies.workspace import sampling_error, workspace
+from validation.paper import states
+from validation.paper.workspace_volume import sampling_error, workspace
 
 LAM = np.linspace(0.5, 1.5, 11)
 

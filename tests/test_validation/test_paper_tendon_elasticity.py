@@ -7,8 +7,8 @@ import pytest
 from ancf import ActuatorParams, Model, StiffnessLaw, presets
 from ancf import compliance as cp
 from ancf.errors import ConfigError
-from validation import compliance_check
-from validation.studies.stiffness import ratio_closed_form, series_stiffness_for_ratio, stiffness_vs_tension
+from validation.checks import compliance_check
+from validation.paper.stiffness import ratio_closed_form, series_stiffness_for_ratio, stiffness_vs_tension
 
 EA, EI, L, D = 767.2, 0.0839, 0.16, 0.0275
 

@@ -11,7 +11,7 @@ import time
 import pytest
 
 from ancf.errors import BellowsError, InputError
-from validation.runner import ResultCache, RunInterrupted, run_tasks, task_key
+from validation.infra.runner import ResultCache, RunInterrupted, run_tasks, task_key
 
 import _runner_tasks as T
 
@@ -85,7 +85,7 @@ def test_ctrl_c_stops_workers_promptly_and_keeps_finished_results(tmp_path):
         import json, sys
         sys.path.insert(0, {str(os.path.dirname(__file__))!r})
         import _runner_tasks as T
-        from validation.runner import run_tasks, RunInterrupted
+        from validation.infra.runner import run_tasks, RunInterrupted
         tasks = [{{"x": k, "sleep": 0.2 if k < 4 else 30.0}} for k in range(12)]
         try:
             run_tasks(T.slow, tasks, workers=2, progress=False)
@@ -139,7 +139,7 @@ def test_plain_progress_lines_while_running_not_only_at_the_end():
     """Where stdout is not a terminal, progress is plain lines as the run goes (throttled by the clock)."""
     import io
 
-    from validation.runner import PlainProgress
+    from validation.infra.runner import PlainProgress
     now = [0.0]
     out = io.StringIO()
     with PlainProgress(stream=out, every_s=10.0, clock=lambda: now[0]) as bar:
@@ -161,7 +161,7 @@ def test_run_tasks_prints_plain_progress_to_stderr_when_piped(tmp_path):
         import sys
         sys.path.insert(0, %r)
         import _runner_tasks as T
-        from validation.runner import run_tasks
+        from validation.infra.runner import run_tasks
         out = run_tasks(T.square, [{"x": k} for k in range(3)], workers=1, progress=True, description="squares")
         print("results", [r["y"] for r in out.results])
     """ % os.path.dirname(__file__))
@@ -173,7 +173,7 @@ def test_run_tasks_prints_plain_progress_to_stderr_when_piped(tmp_path):
 
 def test_source_fingerprint_follows_computing_code_only(tmp_path, monkeypatch):
     """Editing a presentation module keeps cached results; editing computing code (or an extra module) does not."""
-    from validation.runner import source_fingerprint
+    from validation.infra.runner import source_fingerprint
     pkg = tmp_path / "fpkg_demo"
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
@@ -197,7 +197,7 @@ def test_source_fingerprint_follows_computing_code_only(tmp_path, monkeypatch):
 def test_a_dying_worker_is_a_typed_error_that_keeps_finished_results(tmp_path):
     """A worker killed mid-task (segfault, OOM killer) ends the run with WorkerDied, not BrokenProcessPool; the
     results finished before are kept (and cached), so a re-run computes only the rest."""
-    from validation.runner import WorkerDied
+    from validation.infra.runner import WorkerDied
     tasks = [{"x": k, "bad": 3} for k in range(4)]
     cache = ResultCache(tmp_path / "cache", version="t")
     with pytest.raises(WorkerDied) as info:
@@ -213,7 +213,7 @@ def test_fem_cache_version_covers_every_module_that_computes_a_cached_result(mon
     """Cached FEM records hold numbers computed in validation/ too (the sweep worker, rod measures, locked
     compliance, the load cases, the modes per pressure): each of those modules must be hashed into the cache
     version, or an edit to them would serve stale results."""
-    import validation.fem_sweep as fs
+    import validation.reference.fem_sweep as fs
     seen = {}
     monkeypatch.setattr(fs, "source_fingerprint",
                         lambda pkg, exclude=(), files=(): seen.update(pkg=pkg, files=set(files)) or "x")
@@ -227,7 +227,7 @@ def test_fem_cache_version_covers_every_module_that_computes_a_cached_result(mon
 def test_run_beside_runs_the_function_in_another_process_while_the_work_forks_its_own():
     import threading
 
-    from validation.runner import run_beside
+    from validation.infra.runner import run_beside
     before = set(threading.enumerate())
 
     def work():      # no thread of run_beside's in this process (run_tasks forks when there is none)
@@ -242,7 +242,7 @@ def test_run_beside_runs_the_function_in_another_process_while_the_work_forks_it
 
 def test_run_beside_raises_the_childs_error_as_itself_and_stops_the_child_on_a_failing_work():
     from ancf.errors import ConvergenceError
-    from validation.runner import WorkerDied, run_beside
+    from validation.infra.runner import WorkerDied, run_beside
     with pytest.raises(ConvergenceError) as info:
         run_beside(T.raise_convergence, {"x": 7}, lambda: None)
     assert info.value.iterations == 7
@@ -260,7 +260,7 @@ def test_in_background_runs_at_low_priority_and_stops_with_the_block(tmp_path):
     """The child runs the function at niceness + 19 while the block runs and is gone once the block ends
     (finished or not: here it would sleep for a minute)."""
     import functools
-    from validation.runner import in_background
+    from validation.infra.runner import in_background
     out = tmp_path / "nice.txt"
     with in_background(functools.partial(T.write_niceness_then_sleep, out)) as child:
         t0 = time.monotonic()
@@ -289,7 +289,7 @@ def test_every_child_runs_one_thread_per_pool_even_when_forked_from_a_multithrea
 
     from threadpoolctl import threadpool_limits
 
-    from validation.runner import in_background, run_beside
+    from validation.infra.runner import in_background, run_beside
     with threadpool_limits(2):
         parent = T.thread_pools()["pools"]
         if not parent or max(parent.values()) < 2:

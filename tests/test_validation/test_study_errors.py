@@ -5,7 +5,7 @@ import pytest
 
 from ancf import presets
 from ancf.errors import ConfigError
-from validation.studies import comparison, states
+from validation.paper import comparison, states
 
 
 def test_a_typed_failure_is_reported_and_a_bug_propagates():

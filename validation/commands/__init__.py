@@ -1,0 +1,13 @@
+"""The ``bellows`` command line: the one entry point and the subcommands that live in :mod:`validation`.
+
+============ ====================================================================================
+module       job
+============ ====================================================================================
+``main``     the ``bellows`` app: every package's subcommands, the one-line error contract
+``identify`` ``bellows identify | validate | report | calibrate | damping``
+``paper``    ``bellows paper ...``: the paper's studies
+``control``  ``bellows control``: a controller on a rig (above both :mod:`controller` and :mod:`hardware`)
+============ ====================================================================================
+
+The top of :mod:`validation`: nothing in it imports these modules.
+"""

@@ -1,0 +1,17 @@
+"""Identification of the reduced model's parameters (k(λ), D_a, D_eff, …) from the FEM or from rig data.
+
+================== ===============================================================================
+module             job
+================== ===============================================================================
+``forms``          the model forms (which parameters, which laws) and their parameter vectors
+``fit``            the weighted least-squares fit, its intervals and identifiability
+``identify``       the protocol: from the FEM (:func:`~validation.identification.identify.from_fem`) or
+                   from measured static states (``from_measurements``), form selection, results
+``design_select``  informative training cases by D-optimality
+``cap_compliance`` the locked compliance from the cap compliance; the shear term
+``calibrate``      an FEM design fitted to target rod values
+``damping``        damping (and a mass check) from a free decay of the tip
+================== ===============================================================================
+
+Imports :mod:`validation.infra` and :mod:`validation.reference` only (inside :mod:`validation`).
+"""

@@ -1,0 +1,598 @@
+r"""The fit: least squares of the reduced model's equilibria against observed static states.
+
+Given observed states i (loads T_i, p_i, F_i; tip position and optionally marker positions along the
+body, each with its standard deviation σ) and a model form θ ↦ ActuatorParams (:mod:`validation.identification.forms`),
+minimise
+
+    Σ_i ‖(p̂_i(θ) − p_i) / σ_i‖²,   p̂_i(θ) = tip / markers of the equilibrium FK(T_i, p_i, F_i; θ),
+
+with :func:`scipy.optimize.least_squares` (trust-region reflective, bounds from the form) and the exact
+Jacobian ∂p̂/∂θ = −J_p H⁻¹ ∂Q/∂θ at each equilibrium (:mod:`validation.identification.forms`).  Each FK warm-starts from
+the state's previous equilibrium.
+
+Uncertainty (reported for every parameter):
+
+* covariance  Cov(θ) = s² (JᵀJ)⁻¹ with J the σ-weighted Jacobian at the optimum, and s² = RSS/(n − k) when
+  the data carry no stated uncertainties (``absolute_sigma=False``: FEM data, whose misfit is model error),
+  or s² = 1 when they do (``absolute_sigma=True``: measured data with known σ);
+* 95 % confidence intervals θ ± t₀.₉₇₅(n − k) √Cov_jj (normal quantile with absolute σ); derived values
+  (``a``, ``b``, ``EA``, ``EI``, ``D_a``, ``D_eff``) by the delta method through their closed-form maps;
+* the correlation matrix of θ.
+
+Identifiability: a parameter is *not identifiable* when the data do not determine it — (1) it has a share
+> 1 % in a direction of the column-scaled, row-equilibrated Jacobian whose singular value is below 1e-7 of the
+largest (:func:`null_share`)
+(rank deficiency; e.g. D_eff without any pressure state), or (2) its 95 % CI is wider than its value
+(|half-width| > |value|; not for the signed parameters ``SIGNED``, for which 0 is a meaningful value).  The
+columns of (1) are scaled by a fixed typical size of each parameter
+(:meth:`~validation.identification.forms.ModelForm.typical_scale`: its starting value, or for a signed slope the size of the
+stiffness it is a slope of), never by the fitted value, so the verdict is a property of the data: a slope
+whose true value is 0 is as identifiable as one of 1e-6 or 1000.  Such a parameter is held at its *first-pass optimum* (recorded in
+``FitResult.held`` / ``held_at`` and in fit.json and the actuator file), the others are refitted without it,
+and it is reported as not identifiable, never as a number.  The intervals of the others
+(``FitResult.intervals`` says which):
+
+* held by rule (2): *marginal* — their block of the first-pass covariance, which includes the held
+  parameter's uncertainty (the conditional covariance given the held value is narrower and undercovers
+  when they are correlated with it);
+* held by rule (1): *conditional on the held value* — the data carry no information along the held
+  direction, so no interval can include it; a parameter with a share > 1 % in that direction is itself
+  held.
+
+The refit after holding parameters starts from the first pass's equilibria (warm starts), not cold: a state
+reached only along the first pass's path stays reachable.
+
+Too few data.  With fewer states than the free parameters + ``MIN_SPARE_STATES`` or fewer residual degrees
+of freedom than ``MIN_DOF`` (weighted residuals − free parameters) a fit is an interpolation: its residuals
+say nothing about its error and its intervals are meaningless (two states can be matched exactly by a wrong
+D_eff).  Then every parameter and derived value is reported as not identifiable, with that reason in
+``FitResult.reasons``, and no interval is given.
+
+Infeasible trial parameters.  A trial θ of the optimiser for which some state has no verified equilibrium
+(:class:`~ancf.errors.ConvergenceError`, :class:`~ancf.errors.UnstableEquilibriumError`,
+:class:`~ancf.errors.CollapsedStateError`, or parameters the model refuses: ``InputError``/``ConfigError``)
+is *infeasible*: the residual function answers it with non-finite residuals, which scipy's trust-region
+reflective method rejects, shrinking the trust region to a quarter of the step (scipy/optimize/_lsq/trf.py:
+``if not np.all(np.isfinite(f_new)): Delta = 0.25 * step_h_norm; continue``).  The warm starts are only
+updated from a θ whose states all solved.  At the initial θ the same failure is an error (scipy needs finite
+residuals there): the fit cannot start, and the error — the first failure's type — names every state without an
+equilibrium there, each with its own failure, and the starting parameters (attributes ``failed_states``,
+``parameters``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional, Sequence
+
+import numpy as np
+import scipy.optimize as so
+import scipy.stats as st
+
+from ancf import ActuatorParams, Model
+from ancf.errors import (
+    CollapsedStateError,
+    ConfigError,
+    ConvergenceError,
+    InputError,
+    UnstableEquilibriumError,
+)
+from ancf.shear import offset as shear_offset
+
+from validation.identification.forms import ModelForm, distance_column, position_matrix
+
+__all__ = ["Observations", "FitResult", "fit", "predict"]
+
+RANK_TOL = 1e-7
+NULL_SHARE = 0.01
+#: A fit claims nothing (every parameter not identifiable) with fewer states than free parameters + this …
+MIN_SPARE_STATES = 1
+#: … or with fewer residual degrees of freedom (weighted residuals − free parameters) than this.
+MIN_DOF = 5
+#: Weighted residual returned for a trial step whose equilibria cannot be solved: non-finite, so scipy's trf
+#: rejects the step and shrinks its trust region (module docstring).
+REJECTED_RESIDUAL = np.inf
+#: equilibria of this many recent feasible θ's are kept by the fit's evaluator (restarts of a θ seen before)
+STATES_KEPT = 64
+#: Failures of a trial θ that make it infeasible (the step is rejected) rather than end the fit.
+INFEASIBLE = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError, InputError, ConfigError)
+#: Failures of one state's FK that a cold start from the straight reference may avoid.
+_RETRY = (ConvergenceError, UnstableEquilibriumError, CollapsedStateError)
+#: Newton iterations an FK of a fit may take (the warm start's and the last load step's; ancf's default is 60).
+#: Measured on the default design's quick fits: the FKs that did not converge were trial θ past a fold of the
+#: model, whose last load step drifted for all 60 iterations, in a cascade of shrinking load steps — 68 % of
+#: the fits' Newton iterations; 99 % of the warm starts that converged took ≤ 5 iterations, the rest falls back
+#: to load stepping (the same equilibria: the fitted θ agree to 6 digits with 60, 25 and 15).  Fits of the quick
+#: report: 27 s at 60, 20 s at 25, 17 s at 15.
+FIT_FK_MAX_ITER = 15
+#: Signed parameters (slopes, intercepts) for which zero is a meaningful value: rule (2) of the module
+#: docstring (CI wider than the value) does not apply to them.
+SIGNED = frozenset({"a", "b", "beta", "sA", "sI", "pI1", "pI2", "pA1", "s0", "s1"})
+
+
+@dataclass
+class Observations:
+    """Observed static states (SI).  N states, m tendons, k markers.
+
+    tensions (N, m) [N]; pressure (N,) [Pa]; tip_force (N, 3) [N]; gravity (N,) bool; tip (N, 3) [m];
+    tip_std (N, 3) [m] or None; markers (N, k, 3) [m] or None with marker_s (k,) [m] their undeformed arc
+    lengths and markers_std; labels (N,).
+    """
+    tensions: np.ndarray
+    pressure: np.ndarray
+    tip_force: np.ndarray
+    gravity: np.ndarray
+    tip: np.ndarray
+    tip_std: Optional[np.ndarray] = None
+    markers: Optional[np.ndarray] = None
+    marker_s: Optional[np.ndarray] = None
+    markers_std: Optional[np.ndarray] = None
+    labels: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.tensions = np.atleast_2d(np.asarray(self.tensions, float))
+        N = self.tensions.shape[0]
+        self.pressure = np.asarray(self.pressure, float).reshape(N)
+        self.tip_force = np.asarray(self.tip_force, float).reshape(N, 3)
+        self.gravity = np.asarray(self.gravity, bool).reshape(N)
+        self.tip = np.asarray(self.tip, float).reshape(N, 3)
+        for name in ("tensions", "pressure", "tip_force", "tip"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise InputError(f"observations: {name} must be finite (NaN/inf found)")
+        if self.markers is not None:
+            self.markers = np.asarray(self.markers, float)
+            self.marker_s = np.asarray(self.marker_s, float)
+            if self.markers.shape != (N, self.marker_s.size, 3):
+                raise InputError(f"observations: markers must have shape (N, k, 3), got {self.markers.shape}")
+        if not self.labels:
+            self.labels = [f"state {i}" for i in range(N)]
+
+    @property
+    def n(self) -> int:
+        return self.tensions.shape[0]
+
+    @property
+    def has_sigma(self) -> bool:
+        return self.tip_std is not None
+
+    def subset(self, idx) -> "Observations":
+        idx = np.arange(self.n)[idx]
+        pick = lambda a: None if a is None else a[idx]      # noqa: E731
+        return Observations(self.tensions[idx], self.pressure[idx], self.tip_force[idx], self.gravity[idx],
+                            self.tip[idx], pick(self.tip_std), pick(self.markers), self.marker_s,
+                            pick(self.markers_std), [self.labels[i] for i in idx])
+
+    def weights(self) -> np.ndarray:
+        """1/σ for every residual entry, stacked per state as [tip (3), markers (3k)]."""
+        k = 0 if self.markers is None else self.marker_s.size
+        w = np.ones((self.n, 3 + 3 * k))
+        if self.tip_std is not None:
+            sd = np.broadcast_to(self.tip_std, (self.n, 3))
+            if np.any(sd <= 0):
+                raise InputError("observations: tip_std must be > 0")
+            w[:, :3] = 1.0 / sd
+        if k and self.markers_std is not None:
+            sd = np.broadcast_to(self.markers_std, (self.n, k, 3)).reshape(self.n, 3 * k)
+            if np.any(sd <= 0):
+                raise InputError("observations: markers_std must be > 0")
+            w[:, 3:] = 1.0 / sd
+        elif k and self.tip_std is not None:
+            w[:, 3:] = w[:, :1]
+        return w
+
+
+@dataclass
+class FitResult:
+    """Outcome of :func:`fit` for one model form (SI; see the module docstring).
+
+    theta (n,), names, units; cov (n, n) with NaN rows for parameters that are not identifiable;
+    ci95 {name: (lo, hi)}; identifiable {name: bool}; correlation (n, n); values / values_ci95 /
+    values_identifiable: the same for the derived, reported values; residuals (N, 3 + 3k) [m]
+    (prediction − observation); params: the ActuatorParams at θ; rms_tip [m]; rss (weighted);
+    dof; s2 (variance scale used); singular_values (of the column-scaled Jacobian); nfev; rejected: trial
+    parameter vectors answered as infeasible (module docstring), summed over the refit; reasons: {name: why
+    it is not identifiable} for the parameters and values that are not; held: {name: value} of the parameters
+    held in the fit, held_at: {name: "first-pass optimum" | "value given to the fit"}; intervals: what the
+    intervals are ("full", "marginal …", "conditional on the held value(s) of …", "none: too few data …").
+    """
+    form: ModelForm
+    theta: np.ndarray
+    cov: np.ndarray
+    ci95: dict
+    identifiable: dict
+    correlation: np.ndarray
+    values: dict
+    values_ci95: dict
+    values_identifiable: dict
+    residuals: np.ndarray
+    params: ActuatorParams
+    rms_tip: float
+    rss: float
+    dof: int
+    s2: float
+    singular_values: np.ndarray
+    nfev: int
+    message: str = ""
+    rejected: int = 0
+    reasons: dict = field(default_factory=dict)
+    held: dict = field(default_factory=dict)
+    held_at: dict = field(default_factory=dict)
+    intervals: str = "full"
+
+    @property
+    def names(self) -> tuple:
+        return self.form.names
+
+    def tip_errors(self) -> np.ndarray:
+        """‖tip prediction − observation‖ per state [m]."""
+        return np.linalg.norm(self.residuals[:, :3], axis=1)
+
+
+class _Evaluator:
+    """FK of every observed state at θ, with warm starts, and the exact sensitivities."""
+
+    def __init__(self, form: ModelForm, obs: Observations, base: ActuatorParams):
+        self.form, self.obs, self.base = form, obs, base
+        self.q: list = [None] * obs.n
+        self._cache_theta = None
+        self._cache = None
+        self.nfev = 0
+        self.rejected = 0          # trial θ answered as infeasible
+        # the equilibria of the last feasible θ's (θ bytes → states): a θ evaluated again — the optimiser's
+        # result after other trials — restarts from its own states, not from the last trial's (near a fold of
+        # the model a warm start from another θ's equilibrium can converge to the saddle branch: measured on
+        # T = 5/0/0 N at 0 kPa, the pressure_ei fit's optimum)
+        self._states: dict = {}
+
+    def _models(self, theta):
+        params = self.form.to_params(theta, self.base)
+        m_g = Model(params)
+        m_0 = m_g if not np.any(params.gravity) else Model(params.replace(gravity=(0.0, 0.0, 0.0)))
+        return params, m_g, m_0
+
+    def evaluate(self, theta, jacobian: bool = True, all_failures: bool = False):
+        """(params, predictions (N, 3 + 3k), ∂predictions/∂θ (N, 3 + 3k, n) or None) at θ.  A state without a
+        verified equilibrium raises its typed error (``all_failures``: after trying every state, naming all
+        that failed — the start of a fit, :func:`_start_failure`)."""
+        theta = np.asarray(theta, float)
+        if self._cache_theta is not None and np.array_equal(theta, self._cache_theta) and \
+                (not jacobian or self._cache[2] is not None):
+            return self._cache
+        self.nfev += 1
+        obs, form = self.obs, self.form
+        try:
+            params, m_g, m_0 = self._models(theta)
+        except (InputError, ConfigError) as exc:
+            raise type(exc)(f"the model refuses the {form.name} parameters ({_parameter_text(form, theta)}): "
+                            f"{exc}") from None
+        k = 0 if obs.markers is None else obs.marker_s.size
+        S = None if k == 0 else position_matrix(params.n_elements, params.length, obs.marker_s)
+        pred = np.zeros((obs.n, 3 + 3 * k))
+        J = np.zeros((obs.n, 3 + 3 * k, form.n)) if jacobian else None
+        own = self._states.get(theta.tobytes())
+        if own is not None:
+            self.q = list(own)
+        q_new = list(self.q)          # committed only when every state solved (warm starts of a feasible θ)
+        failures = []
+        for i in range(obs.n):
+            model = m_g if obs.gravity[i] else m_0
+            T, p, F = obs.tensions[i], obs.pressure[i], obs.tip_force[i]
+            eq = None
+            for q0 in ((self.q[i], None) if self.q[i] is not None else (None,)):
+                try:
+                    eq = model.fk(T, p, F, q0=q0, check_limits=False, max_iter=FIT_FK_MAX_ITER)
+                    break
+                except _RETRY as exc:
+                    err = exc
+                    if isinstance(exc, ConvergenceError):
+                        # the failed FK already stepped the load up from the straight reference (ancf Model.fk):
+                        # a cold retry would repeat that stepping exactly (measured: a third of the fits' time)
+                        break
+            if eq is None:
+                failures.append((obs.labels[i], err))
+                if all_failures:
+                    continue
+                raise _retyped(err, f"FK of state '{obs.labels[i]}' failed for {form.name} parameters "
+                                    f"{_parameter_text(form, theta)}: {err}") from None
+            q_new[i] = eq.q
+            pred[i, :3] = eq.tip
+            if k:
+                pred[i, 3:] = S @ eq.q
+            if jacobian:
+                ev = model.evaluate(eq.q, T, p, F)
+                H = model.reduce_mat(ev.K)
+                dQ = form.dQ_dtheta(model, eq.q, p, theta)
+                if form.fits_distance:
+                    dQ[:, -1] = distance_column(model, eq.q, T, p, F)
+                dz = -np.linalg.solve(H, model.reduce_vec(dQ.T).T)          # (nz, n)
+                Jp = model.reduce_vec(model.tool_jacobian(eq.q, p, F))      # (3, nz): p_end + shear offset
+                J[i, :3] = Jp @ dz
+                if form.shear is not None:        # ∂x/∂s = P⊥F_tot times ∂s/∂θ (validation.identification.forms docstring)
+                    PF = shear_offset(eq.q[-3:], 1.0, model.total_tip_load(F))
+                    J[i, :3] += np.outer(PF, form.shear_columns(theta, p))
+                if k:
+                    J[i, 3:] = model.reduce_vec(S) @ dz
+        if failures:
+            raise _start_failure(form, theta, failures, obs.n)
+        self.q = q_new
+        self._states[theta.tobytes()] = list(q_new)
+        if len(self._states) > STATES_KEPT:
+            self._states.pop(next(iter(self._states)))
+        self._cache_theta, self._cache = theta.copy(), (params, pred, J)
+        return self._cache
+
+
+def _parameter_text(form: ModelForm, theta) -> str:
+    """'EA = 767.2 N, EI = 0.0839 N m^2, …': a form's parameters with their SI units."""
+    return ", ".join(f"{nm} = {float(v):.6g} {u}".rstrip(" -") for nm, v, u in zip(form.names, theta, form.units))
+
+
+def _retyped(err: Exception, message: str) -> Exception:
+    """``err``'s type (ConvergenceError, UnstableEquilibriumError, CollapsedStateError) with ``message``."""
+    if isinstance(err, ConvergenceError):
+        return ConvergenceError(message, solver="fit", iterations=err.iterations, residual_norm=err.residual_norm,
+                                tolerance=err.tolerance, history=err.history)
+    if isinstance(err, UnstableEquilibriumError):
+        return UnstableEquilibriumError(message, solver="fit", min_eigenvalue=err.min_eigenvalue)
+    return CollapsedStateError(message, solver="fit", stretch=getattr(err, "stretch", float("nan")))
+
+
+def _start_failure(form: ModelForm, theta, failures: list, n_states: int) -> Exception:
+    """The typed error of a fit that cannot start: every state without an equilibrium at the starting θ, with
+    its own failure, and the parameters (the type is the first failure's; ``failed_states`` [(label, text)]
+    and ``parameters`` {name: value [SI]} as attributes)."""
+    listed = "; ".join(f"'{label}' ({type(e).__name__}: {e})" for label, e in failures)
+    exc = _retyped(failures[0][1],
+                   f"the fit of form {form.name} cannot start: {len(failures)} of {n_states} states have no "
+                   f"verified equilibrium at the starting parameters ({_parameter_text(form, theta)}): {listed}. "
+                   "Start closer to the data (other starting values) or leave these states out")
+    exc.failed_states = [(label, f"{type(e).__name__}: {e}") for label, e in failures]
+    exc.parameters = {nm: float(v) for nm, v in zip(form.names, theta)}
+    return exc
+
+
+def _observed(obs: Observations) -> np.ndarray:
+    k = 0 if obs.markers is None else obs.marker_s.size
+    out = np.zeros((obs.n, 3 + 3 * k))
+    out[:, :3] = obs.tip
+    if k:
+        out[:, 3:] = obs.markers.reshape(obs.n, 3 * k)
+    return out
+
+
+def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, absolute_sigma: Optional[bool] = None,
+        fixed: Sequence[str] = (), max_nfev: int = 200, scale=None, _refit: bool = True,
+        _marginal: Optional[np.ndarray] = None, _warm: Optional[list] = None) -> FitResult:
+    """Fit ``form`` to ``obs`` from ``theta0`` (everything else from ``base``); see the module docstring.
+
+    ``absolute_sigma`` (default: whether ``obs`` states uncertainties) — treat σ as known.
+    ``fixed`` — parameter names held at ``theta0``.
+    ``scale`` — typical size of each parameter (default :meth:`ModelForm.typical_scale` of ``theta0``): the
+    column scaling of the identifiability test and the optimiser's step scale.
+    Raises :class:`~ancf.errors.InputError` on inconsistent inputs, :class:`~ancf.errors.ConvergenceError`
+    when an equilibrium cannot be solved along the way."""
+    theta0 = np.asarray(theta0, float)
+    if theta0.shape != (form.n,) or not np.all(np.isfinite(theta0)):
+        raise InputError(f"initial parameters for form {form.name} must be {form.n} finite values, got {theta0}")
+    if obs.tensions.shape[1] != base.n_tendons:
+        raise InputError(f"observations have {obs.tensions.shape[1]} tensions per state; the actuator has "
+                         f"{base.n_tendons} tendons")
+    unknown = set(fixed) - set(form.names)
+    if unknown:
+        raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)} of form {form.name}")
+    absolute = obs.has_sigma if absolute_sigma is None else bool(absolute_sigma)
+    lo, hi = np.array(form.lower, float), np.array(form.upper, float)
+    typical = form.typical_scale(theta0) if scale is None else np.asarray(scale, float)
+    if typical.shape != (form.n,) or not np.all(np.isfinite(typical) & (typical > 0)):
+        raise InputError(f"typical sizes of the parameters of form {form.name} must be {form.n} positive values, "
+                         f"got {typical}")
+    theta0 = np.clip(theta0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
+    free = np.array([nm not in fixed for nm in form.names])
+    w = obs.weights().ravel()
+    y = _observed(obs).ravel()
+    ev = _Evaluator(form, obs, base)
+    if _warm is not None:           # the refit: from the first pass's equilibria (a cold start may not reach them)
+        ev.q = list(_warm)
+    if free.sum() > w.size:
+        raise InputError(f"form {form.name}: {free.sum()} free parameters but only {w.size} observations")
+
+    def full(x):
+        th = theta0.copy()
+        th[free] = x
+        return th
+
+    first = [True]
+
+    def fun(x):
+        # an infeasible trial θ (module docstring) is answered with non-finite residuals: trf rejects the
+        # step and shrinks the trust region; at the initial θ the failure is re-raised with its type
+        try:
+            _, pred, _ = ev.evaluate(full(x), jacobian=False, all_failures=first[0])
+        except INFEASIBLE:
+            if first[0]:
+                raise
+            ev.rejected += 1
+            return np.full(y.size, REJECTED_RESIDUAL)
+        first[0] = False
+        return (pred.ravel() - y) * w
+
+    def jac(x):
+        _, _, J = ev.evaluate(full(x), jacobian=True)
+        return J.reshape(-1, form.n)[:, free] * w[:, None]
+
+    x0 = theta0[free].copy()
+    signed_free = np.array([nm in SIGNED for nm in np.array(form.names)[free]])
+    if signed_free.any() and not signed_free.all():
+        # continuation: the magnitudes first with the signed slopes held at their start, then everything —
+        # from a start far off (a slope of 0, a stiffness several times too small) a joint first step can
+        # fall into a distant local minimum with a huge slope
+        keep = ~signed_free
+
+        def fun0(x):
+            xx = x0.copy()
+            xx[keep] = x
+            return fun(xx)
+
+        def jac0(x):
+            xx = x0.copy()
+            xx[keep] = x
+            return jac(xx)[:, keep]
+
+        pre = so.least_squares(fun0, x0[keep], jac=jac0, bounds=(lo[free][keep], hi[free][keep]), method="trf",
+                               x_scale=typical[free][keep], xtol=1e-10, ftol=1e-10, gtol=1e-10, max_nfev=max_nfev)
+        x0[keep] = pre.x
+    res = so.least_squares(fun, x0, jac=jac, bounds=(lo[free], hi[free]), method="trf",
+                           x_scale=typical[free], xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=max_nfev)
+    theta = full(res.x)
+    params, pred, J3 = ev.evaluate(theta, jacobian=True)
+    r = pred - _observed(obs)
+    Jw = J3.reshape(-1, form.n) * w[:, None]
+    rw = r.ravel() * w
+    rss = float(rw @ rw)
+    n_obs = rw.size
+    n_free = int(free.sum())
+    short = []
+    if obs.n < n_free + MIN_SPARE_STATES:
+        short.append(f"{obs.n} state(s) for {n_free} free parameter(s) (at least {n_free + MIN_SPARE_STATES} "
+                     f"needed: free parameters + {MIN_SPARE_STATES})")
+    if n_obs - n_free < MIN_DOF:
+        short.append(f"{n_obs - n_free} residual degree(s) of freedom ({n_obs} residuals − {n_free} free "
+                     f"parameters; at least {MIN_DOF} needed)")
+    if short:       # no spare degrees of freedom: a CI from such a fit is meaningless, claim nothing
+        why = "too few data: " + "; ".join(short)
+        nan2 = (float("nan"), float("nan"))
+        names = form.names
+        keys = list(form.derived(theta))
+        return FitResult(form, theta, np.full((form.n, form.n), np.nan), {nm: nan2 for nm in names},
+                         {nm: False for nm in names}, np.full((form.n, form.n), np.nan), {k: None for k in keys},
+                         {k: nan2 for k in keys}, {k: False for k in keys}, r, params,
+                         float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, n_obs - n_free, float("nan"),
+                         np.zeros(0), ev.nfev, str(res.message), ev.rejected,
+                         reasons={nm: why for nm in names} | {k: why for k in keys},
+                         intervals="none: " + why)
+    # identifiability 1: rank of the Jacobian over the free parameters, columns scaled by the parameters'
+    # fixed typical sizes (not by their values: a signed parameter near 0 would look undetermined)
+    idx_free = np.flatnonzero(free)
+    share, sv = null_share(Jw[:, idx_free] * typical[idx_free], singular_values=True)
+    ident = np.zeros(form.n, bool)
+    ident[idx_free] = share <= NULL_SHARE
+    k_id = int(ident.sum())
+    dof = max(n_obs - k_id, 1)
+    s2 = 1.0 if absolute else rss / dof
+    cov = np.full((form.n, form.n), np.nan)
+    if k_id:
+        ii = np.flatnonzero(ident)
+        A = Jw[:, ii]
+        try:
+            cov_id = s2 * np.linalg.inv(A.T @ A)
+        except np.linalg.LinAlgError:
+            cov_id = s2 * np.linalg.pinv(A.T @ A)
+        cov[np.ix_(ii, ii)] = cov_id
+        if _marginal is not None:
+            # after holding parameters whose interval was wider than their value: the others' covariance is
+            # their marginal block of the first pass (the held parameter's uncertainty included), not the
+            # narrower covariance conditional on the held value
+            blk = np.asarray(_marginal)[np.ix_(ii, ii)]
+            if np.all(np.isfinite(blk)):
+                cov[np.ix_(ii, ii)] = blk
+    q = st.norm.ppf(0.975) if absolute else st.t.ppf(0.975, dof)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    # identifiability 2: CI wider than the value
+    signed = np.array([nm in SIGNED for nm in form.names])
+    wide = ident & ~signed & (q * sd > np.abs(theta))
+    if _refit and (wide.any() or (~ident & free).any()):
+        newly = [nm for nm, bad in zip(form.names, (~ident | wide) & free) if bad]
+        why = {nm: ("the data do not determine it (a direction of the scaled Jacobian with singular value "
+                    f"< {RANK_TOL:g} × the largest)" if not ident[j] else
+                    "its 95 % confidence interval is wider than its value")
+               for j, nm in enumerate(form.names) if nm in newly}
+        out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
+                  max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov, _warm=ev.q)
+        out.rejected += ev.rejected
+        for nm in newly:
+            out.identifiable[nm] = False
+            out.ci95[nm] = (float("nan"), float("nan"))
+            out.reasons.setdefault(nm, why[nm])
+            out.held[nm] = float(out.theta[form.names.index(nm)])
+            out.held_at[nm] = "first-pass optimum"
+        rank_held = [nm for nm in newly if not ident[form.names.index(nm)]]
+        out.intervals = ("conditional on the held value(s) of " + ", ".join(rank_held)) if rank_held else \
+            "marginal (first-pass covariance; the held parameters' uncertainty included)"
+        out.values_identifiable, out.values_ci95 = _derived_identifiability(form, out.theta, out.cov,
+                                                                            out.identifiable, q)
+        out.values = {k: (v if out.values_identifiable[k] else None) for k, v in form.derived(out.theta).items()}
+        return out
+    ident_map = {nm: bool(ident[j]) and not wide[j] for j, nm in enumerate(form.names)}
+    ci = {nm: ((float(theta[j] - q * sd[j]), float(theta[j] + q * sd[j])) if ident_map[nm]
+               else (float("nan"), float("nan"))) for j, nm in enumerate(form.names)}
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(sd, sd)
+    vid, vci = _derived_identifiability(form, theta, cov, ident_map, q)
+    values = {k: (v if vid[k] else None) for k, v in form.derived(theta).items()}
+    return FitResult(form, theta, cov, ci, ident_map, corr, values, vci, vid, r, params,
+                     float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, dof, s2, sv, ev.nfev,
+                     str(res.message), ev.rejected,
+                     held={nm: float(theta[form.names.index(nm)]) for nm in fixed},
+                     held_at={nm: "value given to the fit" for nm in fixed},
+                     intervals=("conditional on the held value(s) of " + ", ".join(fixed)) if fixed else "full")
+
+
+def null_share(Js: np.ndarray, singular_values: bool = False):
+    """Share (n,) of each column in the numerically rank-deficient directions of ``Js`` (N, n): the squared
+    components of the right singular vectors whose singular value is below :data:`RANK_TOL` × the largest (and
+    of the directions the rows do not reach when N < n); with ``singular_values`` also those singular values.
+
+    The rows are equilibrated first (each divided by its norm; zero rows stay zero).  A left scaling by a
+    non-singular diagonal does not change the null space, but it stops one hypersensitive state (a state near a
+    fold of the reduced model, whose tip moves 10⁴× more per parameter than the others' — measured) from pushing
+    every other direction below the relative threshold: without it the verdict flipped between FEM data sets that
+    differ by 1e-9."""
+    Js = np.asarray(Js, float)
+    n = Js.shape[1]
+    rn = np.linalg.norm(Js, axis=1)
+    Jr = Js / np.where(rn > 0, rn, 1.0)[:, None]
+    # the full V only when rows are fewer than columns (then U is small); never an N × N U for many rows
+    _, sv, Vt = np.linalg.svd(Jr, full_matrices=Jr.shape[0] < n)
+    k = sv.size
+    tiny = np.zeros(n, bool)
+    tiny[:k] = sv < RANK_TOL * (sv[0] if k and sv[0] > 0 else 1.0)
+    tiny[k:] = True                           # fewer rows than columns: the directions no row reaches
+    share = np.sum(Vt[tiny] ** 2, axis=0)
+    return (share, sv) if singular_values else share
+
+
+def _derived_identifiability(form, theta, cov, ident: dict, q: float):
+    keys, D = form.derived_jacobian(theta)
+    vals = form.derived(theta)
+    bad = np.array([not ident[nm] for nm in form.names])
+    out_id, out_ci = {}, {}
+    for i, k in enumerate(keys):
+        depends_on_bad = np.any(np.abs(D[i, bad]) > 1e-12 * (np.abs(D[i]).max() + 1e-300)) if bad.any() else False
+        if depends_on_bad or not math.isfinite(vals[k]):
+            out_id[k], out_ci[k] = False, (float("nan"), float("nan"))
+            continue
+        g = D[i, ~bad]
+        c = cov[np.ix_(~bad, ~bad)]
+        sd = math.sqrt(max(float(g @ c @ g), 0.0))
+        half = q * sd
+        out_id[k] = bool(np.isfinite(half)) and (k in SIGNED or half <= abs(vals[k]))
+        out_ci[k] = (vals[k] - half, vals[k] + half) if out_id[k] else (float("nan"), float("nan"))
+    return out_id, out_ci
+
+
+def predict(params: ActuatorParams, obs: Observations) -> np.ndarray:
+    """Predictions (N, 3 + 3k) [m] of the reduced model with ``params`` for the states of ``obs`` (tip, then
+    markers), FK cold from the straight reference.  A state whose FK fails raises."""
+    m_g = Model(params)
+    m_0 = Model(params.replace(gravity=(0.0, 0.0, 0.0))) if np.any(params.gravity) else m_g
+    k = 0 if obs.markers is None else obs.marker_s.size
+    S = None if k == 0 else position_matrix(params.n_elements, params.length, obs.marker_s)
+    out = np.zeros((obs.n, 3 + 3 * k))
+    for i in range(obs.n):
+        model = m_g if obs.gravity[i] else m_0
+        eq = model.fk(obs.tensions[i], obs.pressure[i], obs.tip_force[i], check_limits=False)
+        out[i, :3] = eq.tip
+        if k:
+            out[i, 3:] = S @ eq.q
+    return out

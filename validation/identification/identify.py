@@ -1,0 +1,550 @@
+r"""Identify the reduced model's parameters (k(λ), D_a, D_eff, …) from the FEM or from rig data.
+
+Protocol (``docs/identification.md``):
+
+1. **Virtual experiments** on the FEM of the design (:mod:`validation.reference.experiments`: a list of load cases —
+   equal tensions, pressure steps, combined pressure and tension, single-tendon bending, small lateral tip
+   forces — in training and held-out roles), run in parallel and cached (:mod:`validation.reference.fem_sweep`).
+   From rig data: the measured static states (:mod:`hardware.static_states`) take their place.
+2. **First estimate** from closed forms: the equivalent rod of the unloaded FEM (condensed cap tangent:
+   EA = L/C_uF, EI = L/C_θM, D_a = √(8 EI/EA), D_eff from the blocked pressure force); from rig data, the
+   base actuator's values.
+3. **Fit** of every candidate model form (:mod:`validation.identification.forms`) with the reduced model in the loop
+   (:mod:`validation.identification.fit`): its tip positions and centreline points (markers at L/4, L/2, 3L/4) are matched
+   to the training states; 95 % CIs, correlations and residuals per state; non-identifiable parameters
+   reported as such.
+4. **Model selection** on held-out states: each form predicts the held-out states it was not fitted to; the
+   form with the smallest held-out RMS error wins, except that a simpler form (fewer parameters) is preferred
+   when its held-out error is within 10 % of the best — evidence, not a default, sets the form.  A form that
+   had too few states for its parameters (:data:`validation.identification.fit.MIN_SPARE_STATES`, ``MIN_DOF``) identified
+   nothing and is chosen only when every form did.
+
+``from_fem(geometry, material, …)`` and ``from_measurements(path, base=…)`` return an
+:class:`IdentificationResult`: ``values`` / ``ci95`` / ``identifiable`` (keys ``a``, ``b``, ``EA``, ``EI``,
+``D_a``, ``D_eff`` and, for the area forms, ``beta``), ``params`` (an :class:`ancf.ActuatorParams` ready
+to use), ``to_toml(path)`` (loads unchanged with ``ActuatorParams.from_toml``) and ``save(path)`` (the fit data
+as JSON: load cases, the FEM results used, every form's fit, versions and git revision).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional, Sequence
+
+import numpy as np
+
+from ancf import ActuatorParams, presets
+from ancf.errors import BellowsError, ConfigError, ConvergenceError, InputError
+from ancf.export import to_jsonable
+from ancf.outputs import atomic_write_text, prepare_output_file
+
+from validation.reference.experiments import EXTRAPOLATION
+from validation.reference.experiments import Design, default_design
+from validation.identification.fit import FitResult, Observations, fit, predict
+from validation.identification.forms import FORMS, REPORTED, get_form
+from validation.infra.provenance import provenance
+
+__all__ = ["IdentificationResult", "from_fem", "from_measurements", "identify", "fem_base_params",
+           "observations_from_records", "observations_from_states", "MARKER_FRACTIONS", "PARSIMONY"]
+
+#: Markers used in the fit: centreline points at these fractions of the length.
+MARKER_FRACTIONS = (0.25, 0.5, 0.75)
+#: A simpler form wins when its held-out error is within this factor of the best form's.
+PARSIMONY = 1.10
+
+
+# ---------------------------------------------------------------------------------------------- data
+def observations_from_records(records, marker_s: Optional[Sequence[float]] = None) -> Observations:
+    """Observations (tips and centreline markers) from FEM records (:class:`validation.reference.fem_sweep.FemRecord`)."""
+    recs = list(records)
+    bad = [r.case.label for r in recs if not r.ok]
+    if bad:
+        raise InputError(f"FEM solves failed for {len(bad)} load case(s): {bad[:3]}; fix or drop them first")
+    ms = None if marker_s is None else np.asarray(marker_s, float)
+    return Observations(
+        tensions=np.array([r.case.tensions for r in recs]), pressure=np.array([r.case.pressure for r in recs]),
+        tip_force=np.array([r.case.tip_force for r in recs]), gravity=np.array([r.case.gravity for r in recs]),
+        tip=np.array([r.tip_position for r in recs]),
+        markers=None if ms is None else np.array([r.centreline_at(ms) for r in recs]), marker_s=ms,
+        labels=[r.case.label for r in recs])
+
+
+def observations_from_states(states, gravity: bool = True) -> Observations:
+    """Observations from measured static states (:class:`hardware.static_states.StaticStates`).  A state
+    whose tip load is unknown (NaN) is an error for the fit: say which."""
+    F = np.zeros((states.n_states, 3)) if states.tip_force is None else states.tip_force
+    unknown = np.flatnonzero(np.any(np.isnan(F), axis=1))
+    if unknown.size:
+        raise InputError(f"static states {unknown[:5].tolist()} have an unknown tip load (NaN); the fit needs "
+                         "the load of every state: drop them or state the load")
+    labels = states.label or [f"state {i}" for i in range(states.n_states)]
+    return Observations(states.tensions, states.pressure, F, np.full(states.n_states, bool(gravity)),
+                        states.tip_position, states.tip_position_std, states.markers, states.marker_arclength,
+                        states.markers_std, list(labels))
+
+
+def describe_geometry(geometry) -> str:
+    """What the FEM design is, in words: ``"straight tube"`` (zero convolution depth) or ``"8-convolution
+    bellows"``."""
+    if getattr(geometry, "is_straight", False):
+        return "straight tube"
+    return f"{geometry.n_convolutions}-convolution bellows"
+
+
+def compile_fit_kernels() -> None:
+    """Compile (first run) or load (later runs) every numba kernel of the ANCF model that the fits and the
+    report use (:func:`ancf.cli.warm_up`, the same warm-up as ``bellows demo``'s).  :func:`from_fem` runs it in a
+    background process while the FEM sweep leaves a core idle, so that the first run of a fresh install does
+    not wait for the compiler (≈ 25 s of one core: docs/identification.md §Measured)."""
+    from ancf.cli import warm_up
+    warm_up()
+
+
+def fem_base_params(geometry, material, *, n_elements: int = 6, tension_max: float = 5.0,
+                    pressure_max: float = 120e3, rod: Optional[dict] = None, name: str = "identified") -> ActuatorParams:
+    """Reduced-model parameters for the FEM design: its length, tendon routing and tip offset, the wall's line
+    mass and the cap as tip mass (known from the geometry and material, not fitted), and the stiffness of the
+    closed-form equivalent rod ``rod`` (``EA``, ``EI``, ``D_a``, ``D_eff``) as the starting point."""
+    from ancf import StiffnessLaw
+    from ancf.params import Tendon
+    g = geometry
+    EA = rod["EA"] if rod else 700.0
+    EI = rod["EI"] if rod else 0.08
+    D_eff = rod["D_eff"] if rod and rod.get("D_eff", 0) > 1e-4 else 0.02
+    mass = (rod or {}).get("wall_mass_kg", g.wall_volume() * material.density)
+    return ActuatorParams(
+        name=name, description=f"identified from the FEM of a {describe_geometry(g)}",
+        length=g.length, n_elements=n_elements, stiffness=StiffnessLaw.constant(EA=EA, EI=EI), D_eff=D_eff,
+        tendons=tuple(Tendon(distance=g.tendon_radius, angle=a) for a in g.tendon_angles),
+        line_mass=mass / g.length, tip_mass=g.cap_mass, tool_offset=g.tip_offset, tension_max=tension_max,
+        pressure_max=pressure_max)
+
+
+def initial_shear(rod: Optional[dict], base: ActuatorParams) -> float:
+    """First estimate of the shear tip compliance s₀ [m/N] at 0 kPa: the FEM's rotation-free lateral compliance
+    from its unloaded cap compliance (``rod["cap_compliance"]``, :func:`validation.identification.cap_compliance.shear_compliance`:
+    c_δF − (4/3) c_θF c_δM / c_θM, docs/identification.md §4b), mean of the two lateral directions, at least 0;
+    without the FEM the base actuator's s(0)."""
+    C6 = None if not rod else rod.get("cap_compliance")
+    if C6 is None:
+        return float(base.shear_compliance[0]) if base.shear_compliance else 0.0
+    from validation.identification.cap_compliance import shear_compliance
+    s = 0.5 * (shear_compliance(C6, (0.0, 0.0, 1.0)) + shear_compliance(C6, (0.0, 1.0, 0.0)))
+    return max(float(s), 0.0) if math.isfinite(s) else 0.0
+
+
+def initial_theta(form, rod: Optional[dict], base: ActuatorParams) -> np.ndarray:
+    """Starting point of ``form``: the closed-form rod values (FEM) or the base actuator's law."""
+    if rod:
+        EA, EI, D_eff = rod["EA"], rod["EI"], max(rod.get("D_eff", 0.0), 1e-3)
+    else:
+        EA, EI, D_eff = float(base.stiffness.EA(1.0)), float(base.stiffness.EI(1.0)), base.D_eff
+    D_a = math.sqrt(8 * EI / EA)
+    name = form.name.split("+")[0]
+    th = {"paper": [EA, 0.0, D_a, D_eff], "paper_area": [EA, 0.0, D_a, D_eff, 0.0],
+          "separate": [EA, 0.0, EI, 0.0, D_eff], "separate_area": [EA, 0.0, EI, 0.0, D_eff, 0.0],
+          "quadratic": [EA, 0.0, 0.0, EI, 0.0, D_eff],
+          "constant": [EA, EI, D_eff], "pressure_ei": [EA, 0.0, EI, 0.0, 0.0, 0.0, D_eff],
+          "pressure_ei_ea": [EA, 0.0, EI, 0.0, 0.0, 0.0, 0.0, D_eff],
+          "pressure_ei_shear": [EA, 0.0, EI, 0.0, 0.0, 0.0, D_eff, initial_shear(rod, base), 0.0]}[name]
+    if form.fits_distance:
+        th.append(float(np.mean(base.tendon_distances)))
+    return np.array(th, float)
+
+
+# ---------------------------------------------------------------------------------------------- result
+@dataclass
+class IdentificationResult:
+    """Identified parameters of the reduced model, with their uncertainty and the evidence behind them.
+
+    values / ci95 / identifiable : the reported values of the chosen form (``a``, ``b`` [N], ``EA`` [N],
+        ``EI`` [N m²], ``D_a``, ``D_eff`` [m], ``beta`` [-]); a value that is not identifiable is ``None``
+    params : ActuatorParams of the chosen form (a non-identifiable parameter is held at the first-pass
+        optimum — ``fit.held`` — and marked with that value in the TOML file)
+    form : name of the chosen form; fits : {form: FitResult}; comparison : rows per form with the training
+        and held-out errors [m]; heldout_errors : per held-out state [m] for the chosen form
+    source : "fem" or "measurements"; design, records (FEM), rod (closed-form first estimate); provenance
+    """
+    form: str
+    fits: dict
+    comparison: list
+    params: ActuatorParams
+    source: str
+    train: Observations
+    heldout: Optional[Observations] = None
+    design: Optional[Design] = None
+    records: list = field(default_factory=list)
+    rod: Optional[dict] = None
+    provenance: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+    #: the report's Dynamics section (:func:`validation.checks.modes_compare.compare_modes`), None if not computed
+    modes: Optional[dict] = None
+    #: what :func:`from_fem`'s ``after_sweep`` returned (run beside the fits), None without one
+    after_sweep: Any = field(default=None, repr=False)
+
+    @property
+    def fit(self) -> FitResult:
+        return self.fits[self.form]
+
+    @property
+    def values(self) -> dict:
+        return dict(self.fit.values)
+
+    @property
+    def ci95(self) -> dict:
+        return dict(self.fit.values_ci95)
+
+    @property
+    def identifiable(self) -> dict:
+        return dict(self.fit.values_identifiable)
+
+    @property
+    def not_identifiable(self) -> list:
+        return [k for k, ok in self.identifiable.items() if not ok]
+
+    @property
+    def heldout_errors(self) -> Optional[np.ndarray]:
+        row = next(r for r in self.comparison if r["form"] == self.form)
+        return None if row.get("heldout_tip_errors_m") is None else np.asarray(row["heldout_tip_errors_m"])
+
+    # -------------------------------------------------------------------- output
+    def to_toml(self, path=None, *, force: bool = False) -> str:
+        """The identified actuator as TOML (``ActuatorParams.from_toml`` reads it unchanged); written to
+        ``path`` if given (not overwritten without ``force``).  Returns the text."""
+        lines = [f"# Identified by bellows ({self.source}), form '{self.form}': {self.fit.form.description}",
+                 f"# git revision {self.provenance.get('git_revision', 'unknown')}, "
+                 f"created {self.provenance.get('created', '')}"]
+        f = self.fit
+        held = ", ".join(f"{nm} held at the first-pass optimum {v:.6g} {dict(zip(f.names, f.form.units))[nm]}"
+                         if f.held_at.get(nm) == "first-pass optimum" else
+                         f"{nm} held at the given value {v:.6g} {dict(zip(f.names, f.form.units))[nm]}"
+                         for nm, v in f.held.items())
+        for k, v in self.values.items():
+            lo, hi = self.ci95.get(k, (float('nan'), float('nan')))
+            unit = REPORTED.get(k, "")
+            if v is not None:
+                lines.append(f"#   {k:6s} = {v:.6g} {unit}  (95 % CI {lo:.6g} .. {hi:.6g})")
+            elif held:
+                lines.append(f"#   {k:6s} NOT IDENTIFIABLE from these data: the value below follows from {held}")
+            else:
+                lines.append(f"#   {k:6s} NOT IDENTIFIABLE from these data ({f.reasons.get(k, 'see fit.json')}): "
+                             "the value below is the fit's optimum, not determined by the data")
+        for nm in f.names:                         # pressure coefficients (dimensionless, per power of p/100 kPa)
+            if nm in ("pI1", "pI2", "pA1"):
+                lo, hi = f.ci95.get(nm, (float("nan"), float("nan")))
+                v = float(f.theta[f.names.index(nm)])
+                lines.append(f"#   {nm:6s} = {v:.6g} per (p/100 kPa)^{2 if nm == 'pI2' else 1}"
+                             + (f"  (95 % CI {lo:.6g} .. {hi:.6g})" if f.identifiable.get(nm) else
+                                "  NOT IDENTIFIABLE from these data"))
+        if held:
+            lines.append(f"# held: {held}; the intervals above are {f.intervals}")
+        text = "\n".join(lines) + "\n" + self.params.to_toml()
+        if path is not None:
+            p = prepare_output_file(path, force=force, suffixes=(".toml",))
+            atomic_write_text(p, text)
+        return text
+
+    def to_dict(self) -> dict:
+        fits = {}
+        for name, f in self.fits.items():
+            fits[name] = {"parameters": dict(zip(f.names, f.theta.tolist())), "units": dict(zip(f.names, f.form.units)),
+                          "ci95": f.ci95, "identifiable": f.identifiable, "correlation": f.correlation,
+                          "values": f.values, "values_ci95": f.values_ci95,
+                          "values_identifiable": f.values_identifiable, "rms_tip_m": f.rms_tip, "dof": f.dof,
+                          "variance_scale": f.s2, "singular_values": f.singular_values, "nfev": f.nfev,
+                          "rejected_trials": f.rejected, "not_identifiable_reasons": f.reasons,
+                          "held": {nm: {"value": v, "unit": dict(zip(f.names, f.form.units))[nm],
+                                        "held_at": f.held_at.get(nm, "")} for nm, v in f.held.items()},
+                          "intervals": f.intervals,
+                          "residuals_m": f.residuals, "description": f.form.description}
+        return to_jsonable({
+            "source": self.source, "form": self.form, "values": self.values, "ci95": self.ci95,
+            "identifiable": self.identifiable, "units": REPORTED, "comparison": self.comparison, "fits": fits,
+            "training_labels": self.train.labels,
+            "heldout_labels": None if self.heldout is None else self.heldout.labels,
+            "design": None if self.design is None else self.design.to_dict(),
+            "fem_records": [r.to_dict() for r in self.records], "rod_estimate": self.rod,
+            "actuator_toml": self.params.to_toml(), "provenance": self.provenance, "meta": self.meta}
+            | ({} if self.modes is None else {"modes": self.modes}))
+
+    def save(self, path, *, force: bool = False) -> pathlib.Path:
+        """Write the fit data as JSON (see :meth:`to_dict`)."""
+        p = prepare_output_file(path, force=force, suffixes=(".json",))
+        return atomic_write_text(p, json.dumps(self.to_dict(), indent=1))
+
+    def summary_rows(self) -> list[dict]:
+        rows = []
+        for k, v in self.values.items():
+            lo, hi = self.ci95[k]
+            rows.append({"parameter": k, "unit": REPORTED.get(k, ""), "value": v, "ci95_low": lo, "ci95_high": hi,
+                         "identifiable": self.identifiable[k]})
+        return rows
+
+
+# ---------------------------------------------------------------------------------------------- fit all forms
+#: rounds of refits between nested forms (each: every form from its richest nested form's optimum and from a
+#: better richer form's optimum restricted; stops early when no fit improves)
+NESTED_ROUNDS = 3
+
+
+def starting_points(form, theta0, fitted: dict) -> list:
+    """Starts of a fit of ``form``: its own ``theta0`` and, when a form already fitted has parameters that are a
+    subset of this one's (nested forms: ``separate`` ⊂ ``pressure_ei`` ⊂ ``pressure_ei_shear``), the optimum of
+    the richest such fit with this form's extra parameters at ``theta0`` — the richer form is then at least as good on the
+    training states as the one it extends (from ``theta0`` alone it landed in a worse local minimum: measured
+    16.4 vs 11.6 mm training RMS for pressure_ei_shear vs pressure_ei)."""
+    starts = [np.asarray(theta0, float)]
+    names = list(form.names)
+    nested = [f for f in fitted.values() if f.form.name != form.name and set(f.form.names) < set(names)]
+    if nested:
+        f = max(nested, key=lambda g: g.form.n)          # the richest form this one extends
+        th = starts[0].copy()
+        for nm, v in zip(f.form.names, f.theta):
+            th[names.index(nm)] = v
+        if not np.array_equal(th, starts[0]):
+            starts.append(th)
+    return starts
+
+
+def restricted_starts(form, fitted: dict) -> list:
+    """Starts of a refit of ``form`` from the optimum of every richer fitted form that contains it (its extra
+    parameters — pressure coefficients, shear compliance — are zero in this form), restricted to this form's
+    parameters; only where that fit is better than this form's own (a nested form can only fit worse, so the
+    richer optimum restricted is a start near a better basin: measured, pressure_ei from 11.6 to 0.7 mm training
+    RMS — its own start, with the pressure coefficients at their lower bound 0, stayed at that bound)."""
+    own = fitted.get(form.name)
+    names = list(form.names)
+    out = []
+    for f in fitted.values():
+        if f.form.name == form.name or not set(names) < set(f.form.names):
+            continue
+        if own is not None and f.rss >= own.rss:
+            continue
+        sup = list(f.form.names)
+        out.append(np.array([f.theta[sup.index(nm)] for nm in names], float))
+    return out
+
+
+def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Observations] = None,
+             forms: Sequence[str] = FORMS, rod: Optional[dict] = None, fit_distance: bool = False,
+             absolute_sigma: Optional[bool] = None, source: str = "data", progress=None) -> IdentificationResult:
+    """Fit every form in ``forms`` to ``train``, compare them on ``heldout`` (or on the training error when
+    there is no held-out set) and return the chosen form's result (see the module docstring).  Each form is
+    fitted from its own start, from the optimum of the richest nested form fitted before it
+    (:func:`starting_points`) and from the optimum of a better-fitting richer form restricted to its parameters
+    (:func:`restricted_starts`); the fit with the smallest weighted residual is kept."""
+    if not forms:
+        raise InputError("identify: no model form given")
+    fits, rows, failures, errors = {}, [], {}, {}
+    all_forms = [get_form(name, fit_distance) for name in forms]
+
+    tried: dict = {}
+
+    def attempt(form, start) -> bool:
+        seen = tried.setdefault(form.name, set())
+        key = np.asarray(start, float).tobytes()
+        if key in seen:
+            return False
+        seen.add(key)
+        try:
+            g = fit(form, train, base, start, absolute_sigma=absolute_sigma)
+        except BellowsError as exc:
+            errors.setdefault(form.name, exc)
+            return False
+        if form.name not in fits or g.rss < fits[form.name].rss * (1 - 1e-9):
+            fits[form.name] = g
+            return True
+        return False
+
+    for form in all_forms:
+        attempt(form, initial_theta(form, rod, base))
+    for _ in range(NESTED_ROUNDS):    # up from the richest nested form, down from a better richer one, until stable
+        improved = False
+        for form in all_forms:
+            for start in (starting_points(form, initial_theta(form, rod, base), fits)[1:]
+                          + restricted_starts(form, fits)):
+                improved |= attempt(form, start)
+        if not improved:
+            break
+    for form in all_forms:
+        if form.name not in fits:
+            err = errors.get(form.name)
+            failures[form.name] = f"{type(err).__name__}: {err}"
+            rows.append({"form": form.name, "n_params": form.n, "failed": failures[form.name]})
+            continue
+        f = fits[form.name]
+        row = {"form": form.name, "n_params": form.n, "description": form.description,
+               "train_rms_tip_m": f.rms_tip, "train_max_tip_m": float(f.tip_errors().max()),
+               "not_identifiable": [k for k, ok in f.values_identifiable.items() if not ok]}
+        if f.intervals.startswith("none"):          # too few data for this form: it identified nothing
+            row["too_few_data"] = f.intervals[len("none: "):]
+        if heldout is not None:
+            try:
+                pred = predict(f.params, heldout)
+                e = np.linalg.norm(pred[:, :3] - heldout.tip, axis=1)
+                row.update(heldout_rms_tip_m=float(np.sqrt(np.mean(e ** 2))), heldout_max_tip_m=float(e.max()),
+                           heldout_tip_errors_m=e.tolist())
+                if heldout.markers is not None:
+                    k = heldout.marker_s.size
+                    em = np.linalg.norm((pred[:, 3:] - heldout.markers.reshape(heldout.n, 3 * k))
+                                        .reshape(heldout.n, k, 3), axis=2)
+                    row["heldout_rms_marker_m"] = float(np.sqrt(np.mean(em ** 2)))
+            except BellowsError as exc:
+                row["heldout_failed"] = f"{type(exc).__name__}: {exc}"
+        rows.append(row)
+        if progress is not None:
+            progress(form.name, row)
+    if not fits:
+        raise ConfigError(f"no model form could be fitted: {failures}")
+    key = "heldout_rms_tip_m" if heldout is not None else "train_rms_tip_m"
+    ok = [r for r in rows if key in r]
+    if not ok:
+        raise ConfigError(f"no fitted form could predict the held-out states: "
+                          f"{[r.get('heldout_failed') for r in rows]}")
+    # a form that had too few data for its parameters identified nothing: it is chosen only if every form did
+    ok = [r for r in ok if "too_few_data" not in r] or ok
+    best = min(r[key] for r in ok)
+    # parsimony: the simplest form within PARSIMONY × the best error
+    chosen = min((r for r in ok if r[key] <= PARSIMONY * best + 1e-15), key=lambda r: (r["n_params"], r[key]))
+    for r in rows:
+        r["chosen"] = r is chosen
+    return IdentificationResult(chosen["form"], fits, rows, fits[chosen["form"]].params, source, train, heldout,
+                                rod=rod, provenance=provenance())
+
+
+def _finalise_params(res: IdentificationResult, base: ActuatorParams) -> None:
+    """Give the chosen parameters the base actuator's name, masses, damping and limits (the fit ran without
+    gravity where the data had none; static states say nothing about mass or damping)."""
+    keep = dict(line_mass=base.line_mass, tip_mass=base.tip_mass, gravity=base.gravity,
+                rayleigh_alpha=base.rayleigh_alpha, rayleigh_beta=base.rayleigh_beta, axial_damping=base.axial_damping)
+    res.params = res.fit.params.replace(**keep)
+    for f in res.fits.values():
+        f.params = f.params.replace(**keep)
+
+
+# ---------------------------------------------------------------------------------------------- from the FEM
+def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, scheduler=None, cache_dir=None, *,
+             design: Optional[Design] = None, forms: Sequence[str] = FORMS, n_elements: int = 6,
+             tension_max: float = 5.0, pressure_max: float = 120e3, fit_distance: bool = False,
+             progress: bool = True, compliance: bool = True, cases: str = "default",
+             after_sweep: Optional[Callable[[list], Any]] = None) -> IdentificationResult:
+    """Identify the reduced model from virtual experiments on the FEM of ``geometry`` and ``material``.
+
+    mesh : FEM mesh level ("coarse" for minutes, "reference" for the full report); workers / scheduler :
+    parallel FEM solves (local processes, or a dask scheduler address); cache_dir : on-disk cache of the FEM
+    results (re-runs compute only what changed; an interrupted sweep resumes); design : the load cases
+    (default: :func:`validation.reference.experiments.default_design` for this actuator's range); forms : model forms
+    to compare; compliance : also compute the FEM tip compliances of the held-out states (used by
+    :mod:`validation.checks.compare`); cases : without ``design``, ``"default"`` (that design) or ``"informative"``
+    (:func:`validation.identification.design_select.informative_design` for the form with the most parameters, at its start
+    from the closed-form rod estimate).  Held-out states of the experiment ``"extrapolation"`` are compared but
+    do not choose the form.  after_sweep : ``after_sweep(records)`` is run here while the forms are fitted in
+    a worker process (:func:`validation.infra.runner.run_beside`; e.g. the FEM's refined solves of
+    :func:`validation.checks.fem_error.estimate_for_heldout`, which use the other cores); its result is
+    ``res.after_sweep``.
+    """
+    from validation.reference.fem_sweep import FemSpec, check_cases, run_cases, run_rod
+    from validation.infra.runner import check_workers, in_background
+    check_workers(workers)
+    spec = FemSpec(geometry, material, mesh)
+    if cases not in ("default", "informative"):
+        raise InputError(f"cases must be 'default' or 'informative', got {cases!r}")
+    if design is None and cases == "default":
+        design = default_design(tension_max=tension_max, pressure_max=pressure_max,
+                                tendon_distance=geometry.tendon_radius, length=geometry.length,
+                                n_tendons=len(geometry.tendon_angles))
+    if design is not None:
+        if not design.training:
+            raise InputError("the design has no training cases")
+        check_cases(spec, design.cases)                  # before the first FEM solve
+    # the fits' kernels compile beside the FEM (its own kernels compile in run_rod, on the other core) at the same
+    # priority: at nice 19 the sweep's two workers starved the compiler, it was stopped unfinished when the sweep
+    # ended and the fits compiled again on the critical path (docs/identification.md §Measured)
+    with in_background(compile_fit_kernels, nice=0):
+        rod = run_rod(spec, cache_dir=cache_dir)
+        base = fem_base_params(geometry, material, n_elements=n_elements, tension_max=tension_max,
+                               pressure_max=pressure_max, rod=rod)
+        if design is None:
+            from validation.identification.design_select import informative_design
+            richest = max((get_form(f, fit_distance) for f in forms), key=lambda fm: fm.n)
+            b0 = base.replace(gravity=(0.0, 0.0, 0.0))
+            design = informative_design(richest, b0, initial_theta(richest, rod, b0), tension_max=tension_max,
+                                        pressure_max=pressure_max, tendon_distance=geometry.tendon_radius,
+                                        length=geometry.length, n_tendons=len(geometry.tendon_angles),
+                                        tendon_angles=geometry.tendon_angles).design
+            check_cases(spec, design.cases)
+        records = run_cases(spec, design.cases, compliance=(lambda c: c.role == "heldout") if compliance else False,
+                            workers=workers, scheduler=scheduler, cache_dir=cache_dir, progress=progress)
+    marker_s = [f * geometry.length for f in MARKER_FRACTIONS]
+    failed = [{"label": r.case.label, "role": r.case.role, "error": r.error} for r in records if not r.ok]
+    tr = [r for r in records if r.case.role == "train" and r.ok]
+    ho = [r for r in records if r.case.role == "heldout" and r.ok and r.case.experiment != EXTRAPOLATION]
+    if len(tr) < max(4, len(design.training) // 2):
+        # a ConfigError (the design cannot be identified on this FEM): ConvergenceError needs a residual history
+        raise ConfigError(f"the FEM failed on {len(design.training) - len(tr)} of {len(design.training)} "
+                          f"training cases (e.g. {failed[0]['label']}: {failed[0]['error']}); too few remain "
+                          "to identify the model — lower the design's loads or refine the mesh")
+    train = observations_from_records(tr, marker_s)
+    heldout = observations_from_records(ho, marker_s) if ho else None
+    fit_base = base.replace(gravity=(0.0, 0.0, 0.0)) if not np.any(train.gravity) else base
+    fit_kw = dict(train=train, base=fit_base, heldout=heldout, forms=forms, rod=rod, fit_distance=fit_distance,
+                  absolute_sigma=False, source="fem")
+    if after_sweep is None:
+        res = identify(**fit_kw)
+    else:
+        from validation.infra.runner import run_beside
+        res, side = run_beside(identify, fit_kw, lambda: after_sweep(records))
+        res.after_sweep = side
+    _finalise_params(res, base)
+    res.design, res.records = design, records
+    res.meta = {"mesh": str(mesh), "design": describe_geometry(geometry), "geometry": to_jsonable(vars(geometry)),
+                "material": to_jsonable(vars(material)),
+                "marker_s_m": marker_s, "failed_cases": failed}
+    return res
+
+
+# ---------------------------------------------------------------------------------------------- from rig data
+def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Sequence[str] = FORMS,
+                      heldout_fraction: float = 0.25, seed: int = 0, fit_distance: bool = False,
+                      gravity: bool = True, absolute_sigma: Optional[bool] = None) -> IdentificationResult:
+    """Identify the reduced model from measured static states (HDF5 run log / static-states file or CSV;
+    ``docs/data-formats.md``).
+
+    base : the actuator the states were measured on (length, tendon routing, masses, limits; required — there
+    is no default, a wrong actuator gives wrong numbers), whose stiffness is the starting point; heldout_fraction : share of the states held out (random, seeded)
+    to choose the model form (0: choose on the training error); gravity : the states were measured under
+    gravity (the actuator's weight from ``base`` acts).  States with labels starting with ``heldout`` are
+    held out deterministically instead.
+    """
+    from hardware.static_states import StaticStates, read_static_states
+    if base is None:
+        raise InputError("from_measurements needs base=: the actuator the states were measured on (ActuatorParams, "
+                         "e.g. ancf.presets.get('actuator.toml')); there is no default")
+    if not isinstance(base, ActuatorParams):
+        raise InputError(f"base must be ActuatorParams, got {type(base).__name__}")
+    states = path if isinstance(path, StaticStates) else read_static_states(path)
+    if states.n_tendons != base.n_tendons:
+        raise InputError(f"the states have {states.n_tendons} tensions per state; the base actuator has "
+                         f"{base.n_tendons} tendons")
+    if not (0.0 <= heldout_fraction < 1.0):
+        raise InputError(f"heldout_fraction must be in [0, 1), got {heldout_fraction}")
+    obs = observations_from_states(states, gravity=gravity)
+    labels = obs.labels
+    ho = np.array([str(lb).startswith("heldout") for lb in labels])
+    if not ho.any() and heldout_fraction > 0:
+        rng = np.random.default_rng(seed)
+        n_ho = int(round(heldout_fraction * obs.n))
+        ho[rng.choice(obs.n, size=n_ho, replace=False)] = True
+    train, heldout = obs.subset(~ho), (obs.subset(ho) if ho.any() else None)
+    fit_base = base if gravity else base.replace(gravity=(0.0, 0.0, 0.0))
+    res = identify(train, fit_base, heldout=heldout, forms=forms, fit_distance=fit_distance,
+                   absolute_sigma=absolute_sigma, source="measurements")
+    _finalise_params(res, base)
+    res.meta = {"path": str(path) if not isinstance(path, StaticStates) else "<StaticStates>",
+                "n_states": obs.n, "n_heldout": int(ho.sum()), "seed": seed}
+    if states.meta.get("torn_rows"):              # a state the writer did not finish: not used, reported
+        res.meta["torn_rows"] = list(states.meta["torn_rows"])
+    return res
