@@ -17,7 +17,7 @@ assembly of eq. (1)               :mod:`ancf.assembly`
 FK, IK (2), locked FK (3)–(6)     :mod:`ancf.model`, :mod:`ancf.solvers`
 ================================  ====================================================
 
-The package attributes are loaded lazily (PEP 562): ``import ancf.errors`` costs only that module (no
+``ancf.__version__`` is the installed distribution's version.  The package attributes are loaded lazily (PEP 562): ``import ancf.errors`` costs only that module (no
 numba, no scipy), so every other package can use the one exception tree without loading the model.
 """
 
@@ -44,7 +44,20 @@ __all__ = ["ActuatorParams", "Tendon", "StiffnessLaw", "Model", "Equilibrium", "
            "CollapsedStateError"]
 
 
+def distribution_version() -> str:
+    """The installed ``bellows`` distribution's version (its metadata, the one ``pip`` reports), or
+    ``"0+unknown"`` for a source tree that was never installed (no metadata to read)."""
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        return version("bellows")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
 def __getattr__(name: str):
+    if name == "__version__":                   # read on first use: importlib.metadata is not free
+        globals()[name] = value = distribution_version()
+        return value
     try:
         module, attr = _LAZY[name]
     except KeyError:
@@ -56,4 +69,4 @@ def __getattr__(name: str):
 
 
 def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+    return sorted(set(globals()) | set(_LAZY) | {"__version__"})

@@ -1,4 +1,5 @@
-"""Saving equilibria: VTU (centreline and tendon polylines, via meshio), PNG (matplotlib), JSON."""
+"""Saving equilibria: VTU (centreline and tendon polylines with the mechanics for ParaView, via meshio:
+:mod:`ancf.paraview`), PNG (matplotlib), JSON."""
 
 from __future__ import annotations
 
@@ -16,26 +17,12 @@ def equilibrium_polylines(model, eq, per_element: int = 10):
 
 
 def save_vtu(path, model, eq, per_element: int = 10) -> pathlib.Path:
-    """Write the centreline and tendons of ``eq`` as VTK polylines (cell data ``curve``: 0 = centreline,
-    i = tendon i; point data ``tension_N``)."""
-    import meshio
-
-    c, tendons = equilibrium_polylines(model, eq, per_element)
-    pts = [c] + [t for t in tendons]
-    points = np.vstack(pts)
-    cells, offs = [], 0
-    for p in pts:
-        cells.append(np.arange(offs, offs + len(p))[None, :])
-        offs += len(p)
-    curve = np.concatenate([[0], np.arange(1, len(tendons) + 1)])
-    tension = np.concatenate([np.zeros(len(c))] + [np.full(len(t), eq.tensions[i]) for i, t in enumerate(tendons)])
-    mesh = meshio.Mesh(points, [("line", np.column_stack([cl[0][:-1], cl[0][1:]])) for cl in cells],
-                       point_data={"tension_N": tension},
-                       cell_data={"curve": [np.full(len(cl[0]) - 1, curve[i]) for i, cl in enumerate(cells)]})
-    path = pathlib.Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    meshio.write(path, mesh)
-    return path
+    """Write the centreline and tendons of ``eq`` as VTK polylines for ParaView (cell data ``curve``: 0 =
+    centreline, i = tendon i; point data ``radius_m``, ``stretch``, ``curvature_per_m``,
+    ``bending_stiffness_Nm2``, ``bending_moment_Nm``, ``axial_force_N``, ``tension_N``,
+    ``undeformed_arc_length_m``: :mod:`ancf.paraview`)."""
+    from .paraview import save_rod_vtu
+    return save_rod_vtu(path, model, eq.q, eq.tensions, eq.pressure, per_element)
 
 
 def save_png(path, model, cases: Sequence[tuple[str, object]], title: str = "") -> pathlib.Path:

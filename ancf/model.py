@@ -53,8 +53,8 @@ from .params import ActuatorParams
 from . import compiled_bounded as _cb
 from . import compiled_solvers as _cs
 from . import shear as _shear
-from .solvers import SolveInfo, minimize_newton, solve_root
-from .textfmt import vector
+from .solvers import SolveInfo, solve_root
+from .textfmt import number, vector
 
 
 @dataclass
@@ -129,6 +129,37 @@ class Equilibrium:
             out[k] = v.tolist() if isinstance(v, np.ndarray) else v
         return out
 
+    # ----------------------------------------------------------------------------- display
+    def _display_rows(self) -> list[tuple[str, str]]:
+        """(quantity, value with unit) of the state, in display units (mm, N, kPa)."""
+        rows = [("tip", vector(self.tip, "mm", 1e3, 3)), ("tensions", vector(self.tensions, "N", 1.0, 3)),
+                ("pressure", number(self.pressure, "kPa", 1e-3, 2)),
+                ("tip force", vector(self.tip_force, "N", 1.0, 3)),
+                ("tendon lengths", vector(self.tendon_lengths, "mm", 1e3, 3))]
+        if self.slack is not None:
+            rows.append(("slack", vector(self.slack, "mm", 1e3, 3)))
+        if self.active is not None:
+            rows.append(("taut tendons", ", ".join(str(int(i) + 1) for i in self.active) or "none"))
+        rows += [("stable", str(bool(self.stable))), ("converged", str(bool(self.converged))),
+                 ("solver", str(self.solver)), ("iterations", str(self.iterations)),
+                 ("residual", f"{self.residual_norm:.3g} N")]
+        if self.limit_violations:
+            rows.append(("outside the limits", "; ".join(self.limit_violations)))
+        return rows
+
+    def __repr__(self) -> str:
+        """One line: tip [mm], tensions [N], pressure [kPa], slack [mm] (locked FK), stable, converged, solver —
+        never the coordinate vector q (``eq.q``)."""
+        slack = "" if self.slack is None else f", slack={vector(self.slack, None, 1e3, 3)} mm"
+        limits = f", outside the limits: {len(self.limit_violations)}" if self.limit_violations else ""
+        return (f"Equilibrium(tip={vector(self.tip, 'mm', 1e3, 3)}, tensions={vector(self.tensions, 'N', 1.0, 3)}, "
+                f"pressure={number(self.pressure, 'kPa', 1e-3, 2)}{slack}, stable={bool(self.stable)}, "
+                f"converged={bool(self.converged)}, solver={self.solver!r}{limits})")
+
+    def _repr_html_(self) -> str:
+        from .htmlrepr import table
+        return table("Equilibrium", self._display_rows(), header=("quantity", "value"))
+
 
 class Model:
     """ANCF model of one actuator.  ``Model(params)``; all methods take and return SI units."""
@@ -188,6 +219,12 @@ class Model:
         # series rotation-free tip compliance s(p) [m/N] (ancf.shear); none: every output as without it
         self._shear = tuple(p.shear_compliance)
         self._has_shear = any(c != 0.0 for c in self._shear)
+
+    def __repr__(self) -> str:
+        """One line: the actuator's name, elements, length [mm], tendons, pressure range [kPa]."""
+        p = self.params
+        return (f"Model({p.name!r}, {self.n} elements, L={number(p.length, 'mm', 1e3, 1)}, {self.m} tendons, "
+                f"tensions ≤ {number(p.tension_max, 'N', 1.0, 2)}, pressure ≤ {number(p.pressure_max, 'kPa', 1e-3, 1)})")
 
     # ----------------------------------------------------------------------------- coordinate maps
     def to_free(self, q: np.ndarray) -> np.ndarray:
@@ -781,8 +818,7 @@ class Model:
                 ds /= 3
                 if ds < 1e-5:
                     raise ConvergenceError(
-                        f"load stepping stalled at load factor {s:.4f} of (T = {vector(T, 'N', 1.0, 4)}, "
-                        f"p = {pr / 1e3:g} kPa, F = {vector(F, 'N', 1.0, 4)}); the direct Newton solve ended at residual {first.residual_norm:.3e}",
+                        self._stall_message(z, s, T, pr, F, math.isinf(exc.residual_norm), first.residual_norm),
                         solver="fk", iterations=total_it, residual_norm=exc.residual_norm, tolerance=tol,
                         history=hist + exc.history) from None
                 continue
@@ -791,6 +827,22 @@ class Model:
             hist += info.history
             ds = min(ds * (2.0 if info.iterations <= 6 else 1.2), 1.0)
         return z, SolveInfo(total_it, hist[-1], hist, info.matrix)
+
+    def _stall_message(self, z, s: float, T, pr: float, F, collapsed: bool, direct_residual: float) -> str:
+        """What a stalled load stepping means: the equilibrium path of ``s`` × (T [N], p [Pa], F [N], weight)
+        ends at the load factor ``s`` of the last converged state ``z`` (a limit point, past which no nearby
+        equilibrium exists, or the edge of the model's admissible states when ``collapsed``), i.e. the load asked is
+        beyond what the actuator carries in this configuration.  States the load factor, the loads reached and that state's tip [mm]."""
+        tip = self.tip(self._to_full(z))
+        step = ("the next load step leaves the model's admissible states: a section collapses, turns back "
+                "past ≈172° or a tendon path folds" if collapsed else
+                "no equilibrium a load step further: a limit point, where the equilibrium loses stability")
+        return (f"the load is beyond what the actuator can carry in this configuration: the equilibrium path ends "
+                f"at {100 * s:.2f} % of the asked load ({step}). "
+                f"Asked: T = {vector(T, 'N', 1.0, 4)}, p = {pr / 1e3:g} kPa, F = {vector(F, 'N', 1.0, 4)}; "
+                f"last converged state at load factor {s:.4f}: T = {vector(s * np.asarray(T), 'N', 1.0, 4)}, "
+                f"p = {s * pr / 1e3:g} kPa, F = {vector(s * np.asarray(F), 'N', 1.0, 4)}, weight × {s:.4f}, "
+                f"tip at {vector(tip, 'mm', 1e3, 2)}; the direct Newton solve ended at residual {direct_residual:.3e}")
 
     def droop(self, pressure: float = 0.0) -> Equilibrium:
         """Gravity-only equilibrium (T = 0, no tip force) at ``pressure`` [Pa] — the stored warm start of

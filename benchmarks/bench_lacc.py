@@ -185,7 +185,7 @@ def rig_cycle(repeats: int = 50) -> dict:
     """One cycle of ``controller.run_on_rig`` on the simulated rig (health check + measurement + LACC step +
     command + the plant's locked FK), with and without the SWMR run log, and one log append alone."""
     import tempfile
-    from controller import run_on_rig
+    from controller import RunOptions, run_on_rig
     from hardware import PlantOptions, SimulatedRig
     from hardware.loads import load_profile
     from hardware.runlog import RunLog, loop_timing, read_run_log
@@ -199,8 +199,9 @@ def rig_cycle(repeats: int = 50) -> dict:
                 rig = SimulatedRig(m, load=load_profile("stochastic", period=0.5, seed=1),
                                    options=PlantOptions(noise_std=5e-5, length_rate=5e-3))
                 stamps = []
-                run_on_rig(LACC(m, P, tolerance=1e-4), rig, target, log=log, duration=repeats * 0.1,
-                           idle_period=0.1, sim_compute_time=0.0, status=lambda s: stamps.append(time.perf_counter()))
+                run_on_rig(LACC(m, P, tolerance=1e-4), rig, target,
+                           RunOptions(log=log, duration=repeats * 0.1, idle_period=0.1, sim_compute_time=0.0,
+                                      status=lambda s: stamps.append(time.perf_counter())))
                 cycles[key] += list(np.diff(stamps))
         for key, v in cycles.items():
             out[key] = statistics.median(v) * 1e3

@@ -16,10 +16,10 @@ All quantities SI (m, N, Pa, s).  Typical use::
 
     from ancf import Model, presets
     from hardware import SimulatedRig
-    from controller import LACC, run_on_rig
+    from controller import LACC, RunOptions, run_on_rig
     m = Model(presets.paper())
     rig = SimulatedRig(m, load=(0, 0, -0.49), seed=0)          # 50 g the controller does not know
-    res = run_on_rig(LACC(m, 60e3), rig, target, log="run.h5", max_iterations=20)
+    res = run_on_rig(LACC(m, 60e3), rig, target, RunOptions(log="run.h5", max_iterations=20))
 """
 
 from .errors import ControllerError, NotConvergedError
@@ -28,13 +28,13 @@ from .lacc import LACC, COMPLIANCE_METHODS
 from .vfcc import VFCC
 from .plant import Plant
 from .loop import EpisodeResult, TimedResult, run_iterations, run_timed
-from .run import RunResult, run_on_rig
+from .run import RunOptions, RunResult, run_on_rig
 from .feedforward import OpenLoopResult, run_open_loop
 from .shaping import zv_shaper
 
 __all__ = ["ControllerError", "NotConvergedError", "Controller", "StepReport", "LACC", "COMPLIANCE_METHODS",
            "VFCC", "Plant", "PlantOptions", "SimulatedPlant", "EpisodeResult", "TimedResult", "run_iterations",
-           "run_timed", "RunResult", "run_on_rig", "OpenLoopResult", "run_open_loop", "zv_shaper"]
+           "run_timed", "RunOptions", "RunResult", "run_on_rig", "OpenLoopResult", "run_open_loop", "zv_shaper"]
 
 
 def __getattr__(name):

@@ -20,19 +20,34 @@ When the error first drops below the controller's tolerance the equilibrium is r
 (measured tensions, pressure, tip) in the log's ``/static_states``.  Without ``duration`` the run ends
 at convergence (or after ``max_iterations`` corrections); with ``duration`` [s] it holds the target until
 the rig clock has advanced that long (``math.inf``: until Ctrl-C), re-measuring every ``idle_period``.
+A run's options are one checked object, :class:`RunOptions`: ``run_on_rig(controller, rig, target,
+RunOptions(log="run.h5", duration=30.0))``.
 
 A target the actuator cannot reach under the current load does not end the run: the controller commands the
 nearest reachable state and reports the step ``saturated`` (status line, the log's ``saturated`` column,
 the summary's ``reach`` saturation time) until the load lets it track again.
 
+The steps of a run (:class:`_Run`): check what can be checked without moving (limits, first IK) → open the
+log → open the rig → passes of the loop (sample → hold or correct; a new pass only after a recovered drive
+fault) → the end (:func:`_finish`: the summary, the log closed, the rig closed if the run opened it).
+
 Faults: any :class:`~ancf.errors.BellowsError` during the run (hardware fault, limit, infeasible IK) makes
 the rig safe (:meth:`hardware.Rig.safe_stop`: drives hold — quick stop after a drive fault — pressure held
 or vented), writes the reason to the log, closes it and re-raises the error with ``.log_path`` and the
-partial ``.result`` attached.  Ctrl-C (and SIGTERM) does the same and raises :class:`hardware.errors.RunAborted`,
-also when its first KeyboardInterrupt is lost in a finaliser and when the process inherited SIGINT ignored
-(the loop checks a latch every cycle: :mod:`controller.interrupt`).
+partial ``.result`` attached.
 
-This module imports :mod:`hardware` only inside :func:`run_on_rig` (for the run log and RunAborted).
+Ending by Ctrl-C: the loop checks a latch every cycle (:mod:`controller.interrupt`), so a Ctrl-C stops it also
+when its first KeyboardInterrupt is lost in a finaliser and when the process inherited SIGINT ignored; one that a
+compiled kernel turned into another error (numba: a SystemError whose cause is the KeyboardInterrupt) is still a
+Ctrl-C (:func:`_from_interrupt`).  The rig is made safe first (drives hold where they are, pressure held or vented).  By default (``on_ctrl_c="abort"``) the log
+is then closed as ``interrupted`` and :class:`hardware.errors.RunAborted` is raised with ``.log_path`` and the
+partial ``.result``.  With ``on_ctrl_c="end"`` (``bellows control``, whose open-ended run ends by Ctrl-C) a Ctrl-C
+after the run started is its normal end: the result, summary and log are those of a run whose duration ended
+then (status ``held``, reason "ended by Ctrl-C"; an iteration run: ``not converged``).  SIGTERM (with its
+default action) always aborts like Ctrl-C with ``on_ctrl_c="abort"``.
+
+This module, like :mod:`controller.summary`, imports :mod:`hardware` only inside the functions that need it
+(the run log, the rig's errors), so that ``import controller`` does not load the rig layer.
 """
 
 from __future__ import annotations
@@ -56,8 +71,9 @@ from .summary import RunSummary, summarise
 @dataclass
 class RunResult:
     """Outcome of :func:`run_on_rig` (SI).  ``status``: converged | not converged | held (duration runs) |
-    fault | interrupted; ``errors``: measured ‖p_m − p_d‖ per sample [m]; ``true_errors``: the same from
-    the simulated truth (empty on hardware); ``times``: the samples' rig time [s]; ``saturation``: per
+    fault | interrupted; ``reason``: why (a run that Ctrl-C ended, :attr:`RunOptions.on_ctrl_c` "end": "ended by
+    Ctrl-C"); ``errors``: measured ‖p_m − p_d‖ per sample [m]; ``true_errors``: the same from the simulated truth
+    (empty on hardware); ``times``: the samples' rig time [s]; ``saturation``: per
     sample, what was at a limit; ``reach_gaps``: per sample, how far the controller's IK target was out of
     reach [m] (0 when it was not saturated); ``summary``: the whole-run :class:`~controller.summary.RunSummary`
     (settled error per load period, saturation time, faults; also written to the run log);
@@ -111,227 +127,412 @@ def _describe_controller(ctrl: Controller) -> dict:
 #: shortest wait between measurements [s] (10 kHz; shorter ones vanish in the rig clock's round-off)
 MIN_IDLE_PERIOD = 1e-4
 
+#: what a Ctrl-C does to a run (:attr:`RunOptions.on_ctrl_c`)
+CTRL_C_ACTIONS = ("abort", "end")
 
-def run_on_rig(controller: Controller, rig, target, *, log: Union[str, pathlib.Path, None, object] = None,
-               force: bool = False, max_iterations: Optional[int] = 20, duration: Optional[float] = None,
-               idle_period: float = 0.1, initial_load=(0.0, 0.0, 0.0), sim_compute_time="measured",
-               average_frames: int = 1, record_static: bool = True, applied_load=None,
-               status: Optional[Callable[[dict], None]] = None,
-               run_info: Optional[dict] = None, shaper: Optional[tuple] = None,
-               recover: Optional[Callable[[BellowsError], bool]] = None) -> RunResult:
-    """Run ``controller`` on ``rig`` towards ``target`` (3,) [m]; see the module docstring.
+
+def _is_int(x) -> bool:
+    return not isinstance(x, bool) and isinstance(x, (int, np.integer))
+
+
+@dataclass(frozen=True, eq=False)
+class RunOptions:
+    """How :func:`run_on_rig` runs (SI; checked at construction: a value out of range raises
+    :class:`~ancf.errors.InputError` before anything moves).  ``dataclasses.replace`` checks again.
 
     log : path of the run log (``.h5``; refused if it exists unless ``force``), an open
-        :class:`hardware.runlog.RunLog`, or None
-    max_iterations : corrections before an iteration run stops (None: no limit — needs ``duration``)
-    duration : rig-clock seconds to hold the target (``math.inf``: until Ctrl-C); None: stop at convergence
-    idle_period : wait between measurements while within tolerance [s]; 0 (iteration runs) or ≥
+        :class:`hardware.runlog.RunLog` (a run log may hold several runs: the caller closes it), or None
+    force : overwrite an existing run log
+    max_iterations : corrections before an iteration run stops, an integer ≥ 0 (None: no limit — needs
+        ``duration``)
+    duration : rig-clock time to hold the target [s], ≥ 0 (``math.inf``: until Ctrl-C); None: stop at
+        convergence
+    idle_period : wait between measurements while within tolerance [s]; 0 (iteration runs only) or ≥
         :data:`MIN_IDLE_PERIOD`
+    initial_load : the load the first IK assumes, (3,) [N]
     sim_compute_time : on a simulated rig, how long a controller step takes on the rig clock: "measured"
-        (its wall-clock compute time), a fixed time [s], or 0
-    average_frames : tracker frames averaged per measurement (distinct frames; noise / √n)
+        (its wall-clock compute time), a fixed time [s] ≥ 0, or 0
+    average_frames : tracker frames averaged per measurement, an integer ≥ 1 (distinct frames; noise / √n)
+    record_static : record the first equilibrium within tolerance of each hold as a static state in the log
     applied_load : the tip load the experiment applies, if it is known (calibrated weights; zero): (3,) [N]
         or a callable of the rig time t [s]; it becomes the static states' ``tip_force`` (None: unknown, NaN).
         The controller never sees it.
     status : called with a dict after every sample (for a status line)
-    shaper : (A₁, delay [s]) of :func:`controller.shaping.zv_shaper`: every correction is sent as A₁ of the
-        move, then the whole move ``delay`` later — a plant with inertia is left without ringing at the mode
-        the shaper was made for (docs/dynamics.md); None: moves as commanded
+    run_info : extra JSON-friendly entries for the run log's ``run`` attribute
+    shaper : (A₁ ∈ (0, 1], delay [s] ≥ 0) of :func:`controller.shaping.zv_shaper`: every correction is sent as
+        A₁ of the move, then the whole move ``delay`` later — a plant with inertia is left without ringing at
+        the mode the shaper was made for (docs/dynamics.md); None: moves as commanded
     recover : after a drive fault has stopped the rig (drives quick-stopped, pressure held or vented), called
         with the fault: True resets the faulted drives and enables them where they stand
         (:meth:`hardware.Rig.recover`), then the run goes on from a new IK with the current load estimate; False
         ends the run on the fault.  Only for a person's decision (``bellows control`` asks); None (default):
         every drive fault ends the run
+    on_ctrl_c : "abort" (default): Ctrl-C makes the rig safe, closes the log as ``interrupted`` and raises
+        :class:`hardware.errors.RunAborted`; "end": a Ctrl-C after the run has started is the run's normal
+        end — the rig is made safe the same way, and the run ends as its duration would have (status
+        ``held``; an iteration run ``not converged``) with its summary and its log closed, reason "ended by
+        Ctrl-C".  SIGTERM always aborts.
     """
-    if not isinstance(controller, Controller):
-        raise InputError(f"run_on_rig needs a Controller, got {type(controller).__name__}")
-    pd = check_finite("target", target, (3,))
-    if max_iterations is not None:
-        if isinstance(max_iterations, bool) or not isinstance(max_iterations, (int, np.integer)) or max_iterations < 0:
-            raise InputError(f"max_iterations must be an integer >= 0 or None, got {max_iterations!r}")
-    if duration is not None:
-        duration = number("duration [s]", duration, allow_inf=True)
-    elif max_iterations is None:
+    log: Union[str, pathlib.Path, None, object] = None
+    force: bool = False
+    max_iterations: Optional[int] = 20
+    duration: Optional[float] = None
+    idle_period: float = 0.1
+    initial_load: object = (0.0, 0.0, 0.0)
+    sim_compute_time: Union[str, float] = "measured"
+    average_frames: int = 1
+    record_static: bool = True
+    applied_load: object = None
+    status: Optional[Callable[[dict], None]] = None
+    run_info: Optional[dict] = None
+    shaper: Optional[tuple] = None
+    recover: Optional[Callable[[BellowsError], bool]] = None
+    on_ctrl_c: str = "abort"
+
+    def __post_init__(self) -> None:
+        for name, value in {**_checked_ends(self), **_checked_timing(self), **_checked_loads(self),
+                            **_checked_hooks(self)}.items():
+            object.__setattr__(self, name, value)
+
+
+def _checked_ends(o: RunOptions) -> dict:
+    """When the run ends: ``max_iterations``, ``duration`` [s], ``idle_period`` [s], ``on_ctrl_c``."""
+    if o.max_iterations is not None and (not _is_int(o.max_iterations) or o.max_iterations < 0):
+        raise InputError(f"max_iterations must be an integer >= 0 or None, got {o.max_iterations!r}")
+    duration = None if o.duration is None else number("duration [s]", o.duration, allow_inf=True)
+    if duration is None and o.max_iterations is None:
         raise InputError("give max_iterations or a duration (a run without either never ends)")
-    idle_period = number("idle_period [s]", idle_period)
+    idle_period = number("idle_period [s]", o.idle_period)
     if idle_period == 0 and duration is not None:
         raise InputError("idle_period must be > 0 s when holding for a duration")
     if 0 < idle_period < MIN_IDLE_PERIOD:
         # a smaller wait is lost in the rig clock's round-off (t + 1e-300 == t): the run would never end
         raise InputError(f"idle_period must be 0 or at least {MIN_IDLE_PERIOD:g} s, got {idle_period:g} s")
-    if sim_compute_time != "measured":
-        sim_compute_time = number("sim_compute_time [s] (or 'measured')", sim_compute_time)
-    if isinstance(average_frames, bool) or not isinstance(average_frames, (int, np.integer)) or average_frames < 1:
-        raise InputError(f"average_frames must be an integer >= 1, got {average_frames!r}")
-    if applied_load is not None and not callable(applied_load):
-        applied_load = check_finite("applied_load [N]", applied_load, (3,))
+    if o.on_ctrl_c not in CTRL_C_ACTIONS:
+        raise InputError(f"on_ctrl_c must be one of {', '.join(CTRL_C_ACTIONS)}, got {o.on_ctrl_c!r}")
+    return {"duration": duration, "idle_period": idle_period}
+
+
+def _checked_timing(o: RunOptions) -> dict:
+    """``sim_compute_time`` [s], ``average_frames``, ``shaper`` (A₁, delay [s])."""
+    sim = o.sim_compute_time
+    if not (isinstance(sim, str) and sim == "measured"):
+        sim = number("sim_compute_time [s] (or 'measured')", sim)
+    if not _is_int(o.average_frames) or o.average_frames < 1:
+        raise InputError(f"average_frames must be an integer >= 1, got {o.average_frames!r}")
+    shaper = o.shaper
     if shaper is not None:
         if not (isinstance(shaper, tuple) and len(shaper) == 2):
             raise InputError(f"shaper must be (A1, delay [s]) from controller.zv_shaper, got {shaper!r}")
-        a1, delay = number("shaper A1", shaper[0]), number("shaper delay [s]", shaper[1])
-        if not 0 < a1 <= 1:
-            raise InputError(f"shaper A1 must be in (0, 1], got {a1:g}")
-    if recover is not None and not callable(recover):
-        raise InputError(f"recover must be a callable (fault -> bool) or None, got {type(recover).__name__}")
-    from hardware.errors import DriveFault, HardwareError, RunAborted
-    from hardware.runlog import RunLog
+        shaper = (number("shaper A1", shaper[0]), number("shaper delay [s]", shaper[1]))
+        if not 0 < shaper[0] <= 1:
+            raise InputError(f"shaper A1 must be in (0, 1], got {shaper[0]:g}")
+    return {"sim_compute_time": sim, "average_frames": int(o.average_frames), "shaper": shaper}
 
-    result = RunResult(controller.name, pd)
-    # Everything that can be checked without moving is checked before the run log exists, so that a run
-    # refused up front (pressure beyond the limit, unreachable target, IK lengths beyond the travel, IK
-    # tensions beyond the limit) leaves no log behind to block the next try.
+
+def _checked_loads(o: RunOptions) -> dict:
+    """``initial_load`` (3,) [N], ``applied_load`` (3,) [N] or a callable of t [s]."""
+    initial = check_finite("initial_load [N]", o.initial_load, (3,))
+    initial.setflags(write=False)
+    applied = o.applied_load
+    if applied is not None and not callable(applied):
+        applied = check_finite("applied_load [N]", applied, (3,))
+        applied.setflags(write=False)
+    return {"initial_load": initial, "applied_load": applied}
+
+
+def _checked_hooks(o: RunOptions) -> dict:
+    """``log``, ``force``, ``record_static``, ``status``, ``recover``, ``run_info``."""
+    for name in ("force", "record_static"):
+        if not isinstance(getattr(o, name), (bool, np.bool_)):
+            raise InputError(f"{name} must be True or False, got {getattr(o, name)!r}")
+    log = o.log
+    if not (log is None or isinstance(log, (str, pathlib.Path))
+            or all(hasattr(log, a) for a in ("sample", "event", "static_state", "path"))):
+        raise InputError(f"log must be a path, an open run log (hardware.runlog.RunLog) or None, "
+                         f"got {type(log).__name__}")
+    for name in ("status", "recover"):
+        if getattr(o, name) is not None and not callable(getattr(o, name)):
+            what = "(fault -> bool)" if name == "recover" else "(dict -> None)"
+            raise InputError(f"{name} must be a callable {what} or None, got {type(getattr(o, name)).__name__}")
+    if o.run_info is not None and not isinstance(o.run_info, dict):
+        raise InputError(f"run_info must be a dict or None, got {type(o.run_info).__name__}")
+    return {"force": bool(o.force), "record_static": bool(o.record_static)}
+
+
+def run_on_rig(controller: Controller, rig, target, options: Optional[RunOptions] = None) -> RunResult:
+    """Run ``controller`` on ``rig`` towards ``target`` (3,) [m] as ``options`` say (None: ``RunOptions()``,
+    an iteration run of at most 20 corrections without a log); see the module docstring.
+
+    Everything that can be checked without moving is checked before the run log exists, so that a run refused up
+    front (pressure beyond the limit, unreachable target, IK lengths beyond the travel, IK tensions beyond the
+    limit) leaves no log behind to block the next try."""
+    if not isinstance(controller, Controller):
+        raise InputError(f"run_on_rig needs a Controller, got {type(controller).__name__}")
+    pd = check_finite("target", target, (3,))
+    options = RunOptions() if options is None else options
+    if not isinstance(options, RunOptions):
+        raise InputError(f"run_on_rig's options must be a controller.RunOptions, got {type(options).__name__}")
     limits = getattr(rig, "limits", None)
     if limits is not None:
         limits.check_pressure_command(controller.pressure)
-    lengths = controller.start(pd, initial_load)            # first IK: raises if the target is not reachable
+    lengths = controller.start(pd, options.initial_load)   # first IK: raises if the target is not reachable
     if limits is not None:
         limits.check_lengths(lengths, None, rig.m)
         limits.check_tensions(controller.state.tensions, what="expected")
-    own_log = isinstance(log, (str, pathlib.Path))
-    runlog = None
-    if own_log:
-        info = {"target_m": pd, "pressure_Pa": controller.pressure, "max_iterations": max_iterations,
-                "duration_s": duration, "idle_period_s": idle_period, **(run_info or {})}
-        runlog = RunLog(log, n_tendons=rig.m, force=force, rig=rig.describe(),
-                        controller=_describe_controller(controller), run=info,
-                        actuator_toml=controller.model.params.to_toml())
-    elif log is not None:
-        runlog = log
-    if runlog is not None:
-        result.log_path = runlog.path
-        rig.listeners.append(runlog.event)
-    opened_here = not getattr(rig, "_open", True)
-    simulated = bool(getattr(rig, "simulated", False))
-    t_start = None
-    was_converged = False
-    n_events = len(getattr(rig, "events", ()))
-    latch = CtrlCLatch().__enter__()      # a Ctrl-C lost in a finaliser still stops the loop (controller.interrupt)
-    try:
-        if opened_here:
-            rig.open()
-        t_start = rig.clock.now()
-        k = 0
-        while True:        # one pass; another only after a drive fault a person chose to recover from
+    run = _Run(controller, rig, pd, options)
+    run.open_log()
+    return run.execute(lengths)
+
+
+class _Run:
+    """One run of :func:`run_on_rig`: its state and its steps (open the log, the passes of the loop — sample,
+    correct or idle —, recovery after a drive fault, the end: normal, Ctrl-C, fault)."""
+
+    def __init__(self, controller: Controller, rig, pd: np.ndarray, options: RunOptions) -> None:
+        self.ctrl, self.rig, self.pd, self.opts = controller, rig, pd, options
+        self.result = RunResult(controller.name, pd)
+        self.runlog = None
+        self.own_log = isinstance(options.log, (str, pathlib.Path))
+        self.opened_here = not getattr(rig, "_open", True)
+        self.simulated = bool(getattr(rig, "simulated", False))
+        self.n_events = len(getattr(rig, "events", ()))
+        self.t_start: Optional[float] = None
+        self.was_converged = False
+        self.k = 0                                   # corrections so far (over every pass)
+        self.latch: Optional[CtrlCLatch] = None
+        # loop timing (wall clock): the previous cycle's start, the rig-call time of the previous and this cycle
+        self.prev_start: Optional[float] = None
+        self.prev_io = self.io = float("nan")
+
+    # -------------------------------------------------------------------------------------------- the log
+    def open_log(self) -> None:
+        """Create the run log (a path) or use the open one; it records the rig's events from now on."""
+        o = self.opts
+        if self.own_log:
+            from hardware.runlog import RunLog
+            info = {"target_m": self.pd, "pressure_Pa": self.ctrl.pressure, "max_iterations": o.max_iterations,
+                    "duration_s": o.duration, "idle_period_s": o.idle_period, **(o.run_info or {})}
+            self.runlog = RunLog(o.log, n_tendons=self.rig.m, force=o.force, rig=self.rig.describe(),
+                                 controller=_describe_controller(self.ctrl), run=info,
+                                 actuator_toml=self.ctrl.model.params.to_toml())
+        elif o.log is not None:
+            self.runlog = o.log
+        if self.runlog is not None:
+            self.result.log_path = self.runlog.path
+            self.rig.listeners.append(self.runlog.event)
+
+    # --------------------------------------------------------------------------------------- the whole run
+    def execute(self, lengths: np.ndarray) -> RunResult:
+        """Open the rig, run the loop under the Ctrl-C latch, end the run (normally, by Ctrl-C, by a fault)."""
+        # a Ctrl-C lost in a finaliser still stops the loop (controller.interrupt)
+        self.latch = CtrlCLatch().__enter__()
+        try:
+            if self.opened_here:
+                self.rig.open()
+            self.t_start = self.rig.clock.now()
+            self._passes(lengths)
+        except KeyboardInterrupt:
+            return self._interrupted()
+        except BaseException as exc:
+            if self.latch.requested and _from_interrupt(exc):
+                return self._interrupted()
+            self._fault(exc)
+            raise
+        finally:
+            self.latch.__exit__()
+        self._finish()
+        return self.result
+
+    def _passes(self, lengths: np.ndarray) -> None:
+        """One pass of the loop; another only after a drive fault a person chose to recover from."""
+        from hardware.errors import DriveFault
+        while True:
             try:
-                rig.set_pressure(controller.pressure)
-                rig.command(lengths, expected_tensions=controller.state.tensions)
-                rig.advance(None)
-                prev_start, prev_io, io = None, float("nan"), float("nan")
-                while True:
-                    latch.check()
-                    # loop timing (wall clock): this cycle's start, and the rig-call time of the previous cycle
-                    start = time.perf_counter()
-                    cycle_time = float("nan") if prev_start is None else start - prev_start
-                    prev_start, prev_io, io = start, io, 0.0
-                    readings = rig.check_health()
-                    pm = rig.measure(average_frames) if average_frames > 1 else rig.measure()
-                    io += time.perf_counter() - start
-                    t = rig.clock.now()
-                    truth = rig.true_tip() if simulated else None
-                    rep = controller.step(pm)
-                    if simulated and rep.command is not None and sim_compute_time != 0:
-                        rig.advance(rep.compute_time if sim_compute_time == "measured" else float(sim_compute_time))
-                    row = {"t": t, "iteration": k, "tip": pm, "error": rep.error, "error_norm": rep.error_norm,
-                           "command": rep.command, "position": readings["positions"], "tension": readings["tensions"],
-                           "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time,
-                           "saturated": float(getattr(rep, "saturated", False)), "io_time": prev_io,
-                           "reach_gap": float(getattr(rep, "reach_gap", 0.0)),
-                           "cycle_time": cycle_time}
-                    if simulated:
-                        row["true_tip"], row["true_load"] = truth, rig.load(t)
-                        result.true_errors.append(float(np.linalg.norm(truth - pd)))
-                    if runlog is not None:
-                        runlog.sample(**row)
-                    result.samples += 1
-                    result.errors.append(rep.error_norm)
-                    result.times.append(float(t))
-                    result.saturation.append(_saturated(rig, controller, readings, rep))
-                    result.reach_gaps.append(float(getattr(rep, "reach_gap", 0.0)))
-                    result.estimate = np.asarray(rep.estimate, float).copy()
-                    if status is not None:
-                        status({"t": t - t_start, "iteration": k, "error_m": rep.error_norm, "mode": rep.mode,
-                                "saturated": bool(getattr(rep, "saturated", False)),
-                                "estimate_N": rep.estimate, "pressure_Pa": readings["pressure"],
-                                "tensions_N": readings["tensions"]})
-                    if rep.command is None:
-                        if not was_converged:
-                            rig.event("converged", f"tip error {rep.error_norm * 1e3:.4f} mm < tolerance "
-                                                   f"{controller.tolerance * 1e3:.4f} mm after {k} corrections")
-                            if record_static and runlog is not None and np.all(np.isfinite(readings["tensions"])):
-                                F_known = (None if applied_load is None else
-                                           applied_load(t) if callable(applied_load) else applied_load)
-                                runlog.static_state(time=t, tensions=np.maximum(readings["tensions"], 0.0),
-                                                    pressure=readings["pressure"], tip=pm, tip_force=F_known,
-                                                    label=f"converged after {k} corrections")
-                                result.static_states += 1
-                        was_converged = True
-                        if duration is None:
-                            result.status = "converged"
-                            break
-                        if rig.clock.now() - t_start >= duration:
-                            result.status = "held"
-                            break
-                        t_io = time.perf_counter()
-                        rig.advance(idle_period)
-                        io += time.perf_counter() - t_io
-                        continue
-                    was_converged = False
-                    if duration is None and max_iterations is not None and k >= max_iterations:
-                        result.status = "not converged"
-                        result.reason = (f"tip error {rep.error_norm * 1e3:.4f} mm after {k} corrections "
-                                         f"(tolerance {controller.tolerance * 1e3:.4f} mm)")
-                        break
-                    t_cmd, t_io = rig.clock.now(), time.perf_counter()
-                    if shaper is not None and rig.commanded is not None:
-                        # ZV input shaping: A₁ of the move now, all of it half a damped period later
-                        last = np.asarray(rig.commanded, float)
-                        rig.command(last + a1 * (np.asarray(rep.command, float) - last),
-                                    expected_tensions=controller.state.tensions)
-                        rig.advance(delay)
-                    rig.command(rep.command, expected_tensions=controller.state.tensions)
-                    rig.advance(None)
-                    if rig.clock.now() <= t_cmd:
-                        # nothing to move and no time passed (a simulated rig given the same command again, e.g. while
-                        # saturated): wait like a held target, or the loop would spin at one instant of rig time
-                        rig.advance(idle_period)
-                    io += time.perf_counter() - t_io
-                    k += 1
-                    result.iterations = k
-                    if duration is not None and rig.clock.now() - t_start >= duration:
-                        result.status = "held"
-                        break
-                break
+                self._loop(lengths)
+                return
             except DriveFault as exc:
-                if not _recovered(rig, controller, exc, recover, result):
+                if not _recovered(self.rig, self.ctrl, exc, self.opts.recover, self.result):
                     raise
-                lengths = controller.start(pd, result.estimate if result.estimate is not None else initial_load)
-                was_converged = False
-    except KeyboardInterrupt:
-        by = latch.signal_name or "Ctrl-C"
-        rig.safe_stop(f"interrupted ({by})")
-        result.status, result.reason = "interrupted", by
-        where = f"; log: {result.log_path}" if result.log_path else ""
-        exc = RunAborted(f"run interrupted by {by} after {result.iterations} corrections; rig made safe{where}")
-        exc.log_path, exc.result = result.log_path, result
-        _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
+                estimate = self.result.estimate
+                lengths = self.ctrl.start(self.pd, estimate if estimate is not None else self.opts.initial_load)
+                self.was_converged = False
+
+    def _loop(self, lengths: np.ndarray) -> None:
+        """Send the start state, then sample → hold or correct until the run's end sets ``result.status``."""
+        rig, ctrl = self.rig, self.ctrl
+        rig.set_pressure(ctrl.pressure)
+        rig.command(lengths, expected_tensions=ctrl.state.tensions)
+        rig.advance(None)
+        self.prev_start, self.prev_io, self.io = None, float("nan"), float("nan")
+        while True:
+            self.latch.check()
+            readings, pm, rep, t = self._sample()
+            if rep.command is None:
+                if self._hold(readings, pm, t, rep):
+                    return
+                continue
+            self.was_converged = False
+            if self.opts.duration is None and self.opts.max_iterations is not None \
+                    and self.k >= self.opts.max_iterations:
+                self.result.status = "not converged"
+                self.result.reason = (f"tip error {rep.error_norm * 1e3:.4f} mm after {self.k} corrections "
+                                      f"(tolerance {ctrl.tolerance * 1e3:.4f} mm)")
+                return
+            self._correct(rep)
+            if self._held_long_enough():
+                return
+
+    def _held_long_enough(self) -> bool:
+        if self.opts.duration is not None and self.rig.clock.now() - self.t_start >= self.opts.duration:
+            self.result.status = "held"
+            return True
+        return False
+
+    # ------------------------------------------------------------------------------------- one cycle's steps
+    def _sample(self):
+        """Health check, measurement, controller step, one logged sample.  Returns (readings, p_m (3,) [m],
+        the step report, the rig time t [s])."""
+        rig, o = self.rig, self.opts
+        start = time.perf_counter()
+        cycle_time = float("nan") if self.prev_start is None else start - self.prev_start
+        self.prev_start, self.prev_io, self.io = start, self.io, 0.0
+        readings = rig.check_health()
+        pm = rig.measure(o.average_frames) if o.average_frames > 1 else rig.measure()
+        self.io += time.perf_counter() - start
+        t = rig.clock.now()
+        truth = rig.true_tip() if self.simulated else None
+        rep = self.ctrl.step(pm)
+        if self.simulated and rep.command is not None and o.sim_compute_time != 0:
+            rig.advance(rep.compute_time if o.sim_compute_time == "measured" else float(o.sim_compute_time))
+        row = {"t": t, "iteration": self.k, "tip": pm, "error": rep.error, "error_norm": rep.error_norm,
+               "command": rep.command, "position": readings["positions"], "tension": readings["tensions"],
+               "pressure": readings["pressure"], "estimate": rep.estimate, "compute_time": rep.compute_time,
+               "saturated": float(getattr(rep, "saturated", False)), "io_time": self.prev_io,
+               "reach_gap": float(getattr(rep, "reach_gap", 0.0)), "cycle_time": cycle_time}
+        if self.simulated:
+            row["true_tip"], row["true_load"] = truth, rig.load(t)
+            self.result.true_errors.append(float(np.linalg.norm(truth - self.pd)))
+        self._record(row, readings, rep, t)
+        return readings, pm, rep, t
+
+    def _record(self, row: dict, readings: dict, rep, t: float) -> None:
+        """The sample into the log, the result and the status callback."""
+        res = self.result
+        if self.runlog is not None:
+            self.runlog.sample(**row)
+        res.samples += 1
+        res.errors.append(rep.error_norm)
+        res.times.append(float(t))
+        res.saturation.append(_saturated(self.rig, self.ctrl, readings, rep))
+        res.reach_gaps.append(float(getattr(rep, "reach_gap", 0.0)))
+        res.estimate = np.asarray(rep.estimate, float).copy()
+        if self.opts.status is not None:
+            self.opts.status({"t": t - self.t_start, "iteration": self.k, "error_m": rep.error_norm,
+                              "mode": rep.mode, "saturated": bool(getattr(rep, "saturated", False)),
+                              "estimate_N": rep.estimate, "pressure_Pa": readings["pressure"],
+                              "tensions_N": readings["tensions"]})
+
+    def _hold(self, readings: dict, pm, t: float, rep) -> bool:
+        """Within tolerance: on arrival record the equilibrium; end the run (convergence, or the duration held)
+        or wait ``idle_period`` for the next measurement.  Returns whether the run ended."""
+        o = self.opts
+        if not self.was_converged:
+            self.rig.event("converged", f"tip error {rep.error_norm * 1e3:.4f} mm < tolerance "
+                                        f"{self.ctrl.tolerance * 1e3:.4f} mm after {self.k} corrections")
+            if o.record_static and self.runlog is not None and np.all(np.isfinite(readings["tensions"])):
+                F_known = (None if o.applied_load is None else
+                           o.applied_load(t) if callable(o.applied_load) else o.applied_load)
+                self.runlog.static_state(time=t, tensions=np.maximum(readings["tensions"], 0.0),
+                                         pressure=readings["pressure"], tip=pm, tip_force=F_known,
+                                         label=f"converged after {self.k} corrections")
+                self.result.static_states += 1
+        self.was_converged = True
+        if o.duration is None:
+            self.result.status = "converged"
+            return True
+        if self._held_long_enough():
+            return True
+        t_io = time.perf_counter()
+        self.rig.advance(o.idle_period)
+        self.io += time.perf_counter() - t_io
+        return False
+
+    def _correct(self, rep) -> None:
+        """Send the controller's correction (shaped if asked) and wait until the drives reach it."""
+        rig, o = self.rig, self.opts
+        t_cmd, t_io = rig.clock.now(), time.perf_counter()
+        expected = self.ctrl.state.tensions
+        if o.shaper is not None and rig.commanded is not None:
+            # ZV input shaping: A₁ of the move now, all of it half a damped period later
+            a1, delay = o.shaper
+            last = np.asarray(rig.commanded, float)
+            rig.command(last + a1 * (np.asarray(rep.command, float) - last), expected_tensions=expected)
+            rig.advance(delay)
+        rig.command(rep.command, expected_tensions=expected)
+        rig.advance(None)
+        if rig.clock.now() <= t_cmd:
+            # nothing to move and no time passed (a simulated rig given the same command again, e.g. while
+            # saturated): wait like a held target, or the loop would spin at one instant of rig time
+            rig.advance(o.idle_period)
+        self.io += time.perf_counter() - t_io
+        self.k += 1
+        self.result.iterations = self.k
+
+    # ---------------------------------------------------------------------------------------------- the end
+    def _interrupted(self) -> RunResult:
+        """Ctrl-C or SIGTERM: make the rig safe; end the run normally (``on_ctrl_c="end"``, a Ctrl-C after the
+        start) or close the log as interrupted and raise :class:`hardware.errors.RunAborted`."""
+        from hardware.errors import RunAborted
+        res = self.result
+        by = self.latch.signal_name or "Ctrl-C"
+        if self.opts.on_ctrl_c == "end" and by == "Ctrl-C" and self.t_start is not None:
+            self.rig.safe_stop("run ended by Ctrl-C")
+            if res.status == "running":          # (not when the run had just ended by itself)
+                res.status = "not converged" if self.opts.duration is None else "held"
+                res.reason = "ended by Ctrl-C"
+            self._finish()
+            return res
+        self.rig.safe_stop(f"interrupted ({by})")
+        res.status, res.reason = "interrupted", by
+        where = f"; log: {res.log_path}" if res.log_path else ""
+        exc = RunAborted(f"run interrupted by {by} after {res.iterations} corrections; rig made safe{where}")
+        exc.log_path, exc.result = res.log_path, res
+        self._finish()
         raise exc from None
-    except BellowsError as exc:
-        result.status, result.reason = "fault", f"{type(exc).__name__}: {exc}"
-        rig.safe_stop(f"run stopped: {result.reason}", quick=isinstance(exc, DriveFault))
+
+    def _fault(self, exc: BaseException) -> None:
+        """An error ends the run: rig safe (quick stop after a drive fault), reason logged, log closed; a typed
+        error (:class:`~ancf.errors.BellowsError`) gets ``.log_path`` and the partial ``.result``."""
+        from hardware.errors import DriveFault, HardwareError
+        res = self.result
+        res.status, res.reason = "fault", f"{type(exc).__name__}: {exc}"
+        if not isinstance(exc, BellowsError):
+            self.rig.safe_stop(f"run stopped by an unexpected error: {res.reason}")
+            self._finish()
+            return
+        self.rig.safe_stop(f"run stopped: {res.reason}", quick=isinstance(exc, DriveFault))
         if not isinstance(exc, HardwareError):
-            rig.event("error", result.reason)
-        exc.log_path, exc.result = result.log_path, result
-        _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
-        raise
-    except BaseException as exc:
-        result.status, result.reason = "fault", f"{type(exc).__name__}: {exc}"
-        rig.safe_stop(f"run stopped by an unexpected error: {result.reason}")
-        _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
-        raise
-    finally:
-        latch.__exit__()
-    _finish(rig, runlog, own_log, opened_here, result, t_start, controller, n_events)
-    return result
+            self.rig.event("error", res.reason)
+        exc.log_path, exc.result = res.log_path, res
+        self._finish()
+
+    def _finish(self) -> None:
+        _finish(self.rig, self.runlog, self.own_log, self.opened_here, self.result, self.t_start, self.ctrl,
+                self.n_events)
+
+
+def _from_interrupt(exc: BaseException) -> bool:
+    """Whether ``exc`` was caused by a KeyboardInterrupt: a C extension that a signal handler's exception landed in
+    may turn it into another error (a numba kernel: "SystemError: CPUDispatcher(…) returned a result with an
+    exception set", the KeyboardInterrupt its ``__cause__``)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return False
 
 
 def _recovered(rig, controller: Controller, exc, recover, result: RunResult) -> bool:

@@ -1,7 +1,7 @@
 r"""The summary of a whole control run: settled tip error per load period, saturation time, faults.
 
-A hold run (``run_on_rig(..., duration=...)``) is judged on all of it, not on its last sample (which may
-fall just after a new load was hung on the tip).  Definitions (the ones ``bellows control`` prints and
+A hold run (``run_on_rig(..., RunOptions(duration=...))``) is judged on all of it, not on its last sample
+(which may fall just after a new load was hung on the tip).  Definitions (the ones ``bellows control`` prints and
 the run log stores in ``/summary``):
 
 * **load period** — the time between two changes of the tip load: the change times of the simulated
@@ -42,10 +42,16 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from hardware.runlog import SUMMARY_DEFINITION
 
-# one definition, stored with every run log's summary (controller → hardware is the allowed import direction)
-SETTLED_DEFINITION = SUMMARY_DEFINITION
+def __getattr__(name: str):
+    """``SETTLED_DEFINITION``: the one definition of the summary's terms, stored with every run log's summary
+    (:data:`hardware.runlog.SUMMARY_DEFINITION`; controller → hardware is the allowed import direction).  Read
+    on first use, so that importing :mod:`controller` does not load the rig layer."""
+    if name == "SETTLED_DEFINITION":
+        from hardware.runlog import SUMMARY_DEFINITION
+        return SUMMARY_DEFINITION
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 SATURATION_REASONS = ("tension", "travel", "controller")
 
@@ -143,7 +149,8 @@ class RunSummary:
         return self._over("true_settled_error", np.max)
 
     def to_dict(self) -> dict:
-        return {"definition": SETTLED_DEFINITION, "tolerance_m": self.tolerance,
+        from hardware.runlog import SUMMARY_DEFINITION
+        return {"definition": SUMMARY_DEFINITION, "tolerance_m": self.tolerance,
                 "load_changes_known": self.load_changes_known, "periods": [p.to_dict() for p in self.periods],
                 "periods_judged": len(self.judged), "periods_out_of_reach": len(self.out_of_reach),
                 "periods_within_tolerance": self.periods_within_tolerance,

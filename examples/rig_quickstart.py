@@ -21,7 +21,7 @@ import numpy as np
 
 def main(argv=None, verbose: bool = True) -> dict:
     from ancf import Model, presets
-    from controller import LACC, run_on_rig
+    from controller import LACC, RunOptions, run_on_rig
     from hardware import PlantOptions, RigConfig, SimulatedRig, build_rig
     from hardware.loads import load_profile
     from hardware.runlog import read_run_log
@@ -47,8 +47,9 @@ def main(argv=None, verbose: bool = True) -> dict:
         tmp = tempfile.TemporaryDirectory()
         a.log = pathlib.Path(tmp.name) / "run.h5"
     try:
-        res = run_on_rig(LACC(model, p, tolerance=1e-4), rig, target, log=a.log, force=a.force,
-                         duration=a.seconds, average_frames=4, sim_compute_time=0.05)
+        res = run_on_rig(LACC(model, p, tolerance=1e-4), rig, target,
+                         RunOptions(log=a.log, force=a.force, duration=a.seconds, average_frames=4,
+                                    sim_compute_time=0.05))
         d = read_run_log(a.log)
         out = {"status": res.status, "corrections": res.iterations, "samples": d.rows,
                "static_states": res.static_states, "final_error_mm": res.final_error * 1e3,

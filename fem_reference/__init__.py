@@ -47,6 +47,7 @@ What is modelled (details and derivations in the module docstrings):
 - :mod:`.corotation` — each ring of nodes turned by a finite rotation in a Newton update.
 - :mod:`.transfer` — a solved state carried to a finer mesh of the same bellows (its solve's start).
 - :mod:`.sparse_keys` — the fixed sparsity patterns, from sorted entry keys.
+- :mod:`.fields` — per-element Cauchy stress, von Mises, pressure and principal stretches (the VTU's cell data).
 - :mod:`.render` — headless PNG rendering with pyvista (EGL; see that module for system packages).
 - :mod:`.cli` — ``typer`` app ``app`` with the ``solve`` command.
 """

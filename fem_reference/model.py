@@ -44,7 +44,7 @@ from ancf.errors import (
     check_finite,
 )
 
-from .assembly import ELEMENTS, KERNELS, HexAssembler, check_element, PressureAssembler, gravity_load
+from .assembly import KERNELS, HexAssembler, check_element, PressureAssembler, gravity_load
 from .corotation import ring_rotation_correction
 from .geometry import BellowsGeometry, e_radial
 from .loads.caps import (
@@ -166,6 +166,86 @@ ASYMMETRY_STEP = 0.5
 RING_UPDATE = True
 #: relative residual to which intermediate load steps are converged (the last step: the solve's rtol)
 STEP_RTOL = 1e-2
+
+
+def _check_progress(history: list[float], it: int) -> None:
+    """StepFailed when the residual norms ``history`` [N] of a load step's Newton iterations ``0 … it`` show that
+    it will not converge: diverging (×1e6 its smallest), still above :data:`EARLY_CUT_RATIO` × its start after two
+    iterations, or above its start after :data:`STALL_ITERATIONS`.  The load step is then cut back."""
+    rn = history[-1]
+    if len(history) > 3 and rn > 1e6 * min(history):
+        raise StepFailed("diverging", history, it)
+    if it == 2 and rn > EARLY_CUT_RATIO * history[0]:
+        raise StepFailed(f"not converging (residual ×{rn / history[0]:.0f} its start after 2 iterations)",
+                         history, it)
+    if it >= STALL_ITERATIONS and rn > history[0]:
+        # a converging step is below its starting residual after two or three iterations (measured);
+        # one that is not is crawling (halved steps, residual falling by a few % per iteration): cut
+        # the load step now instead of spending max_iter factorisations on it
+        raise StepFailed(f"not converging (residual above its start after {it} iterations)", history, it)
+
+
+def _check_solve_options(*, max_iter, max_cuts, max_steps, rtol, atol, ltol, time_limit_s) -> None:
+    """InputError naming the first of :meth:`BellowsModel.solve`'s iteration bounds (integers ≥ 1, cuts ≥ 0),
+    tolerances (> 0) and time limit [s] (> 0 or None) that is out of range."""
+    for name, v, lo in (("max_iter", max_iter, 1), ("max_cuts", max_cuts, 0), ("max_steps", max_steps, 1)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
+            raise InputError(f"{name} must be an integer >= {lo}, got {v!r}")
+    for name, v in (("rtol", rtol), ("atol", atol), ("ltol", ltol)):
+        if not float(check_finite(name, v, ())) > 0:
+            raise InputError(f"{name} must be > 0, got {v!r}")
+    if time_limit_s is not None and not float(check_finite("time_limit_s", time_limit_s, ())) > 0:
+        raise InputError(f"time_limit_s must be > 0 s, got {time_limit_s!r}")
+
+
+@dataclass
+class _LoadPath:
+    """Progress of a solve's load parameter λ ∈ [0, 1]: adaptive increments (halved on a failed step, ×1.5 after
+    a step of at most five iterations), and the bounds on increments tried and on time."""
+
+    dlam: float
+    t_start: float       # perf_counter() at the start of the solve [s]
+    tolerance: float     # residual tolerance reported with a ConvergenceError [N]
+    lam: float = 0.0
+    cuts: int = 0        # increments cut back
+    step: int = 0        # increments converged
+    tried: int = 0       # increments tried (converged and cut back)
+
+    def next_increment(self, stats: NewtonStats, max_steps: int, time_limit_s: float | None) -> float:
+        """λ at the end of the next increment; ConvergenceError when more than ``max_steps`` increments were
+        tried or ``time_limit_s`` [s] is exceeded."""
+        self.tried += 1
+        elapsed = time.perf_counter() - self.t_start
+        if self.tried > max_steps or (time_limit_s is not None and elapsed > time_limit_s):
+            why = (f"more than max_steps = {max_steps} load increments" if self.tried > max_steps
+                   else f"more than time_limit_s = {time_limit_s:g} s")
+            last = stats.steps[-1]["residuals"] if stats.steps else []
+            raise ConvergenceError(
+                f"load stepping stopped at λ = {self.lam:.4g} after {why} ({self.step} converged, {self.cuts} cut "
+                f"back, {elapsed:.1f} s): the load is likely beyond what the structure carries; lower it or "
+                f"raise the bound", solver="fem_newton", iterations=stats.n_iterations,
+                residual_norm=last[-1] if last else np.nan, tolerance=self.tolerance, history=last)
+        return min(1.0, self.lam + self.dlam)
+
+    def cut_back(self, e: StepFailed, stats: NewtonStats, lam_t: float, max_cuts: int) -> None:
+        """Record the failed increment to ``lam_t`` and halve the increment; ConvergenceError after more than
+        ``max_cuts`` cut-backs."""
+        stats.failed_steps.append(dict(lam=lam_t, reason=e.reason, residuals=list(e.history)))
+        self.cuts += 1
+        if self.cuts > max_cuts:
+            raise ConvergenceError(
+                f"load step λ {self.lam:.4g} → {lam_t:.4g} failed: {e.reason}; residual [N] per "
+                f"iteration in .history", solver="fem_newton", iterations=e.iterations,
+                residual_norm=e.history[-1] if e.history else np.nan,
+                tolerance=self.tolerance, history=e.history) from None
+        self.dlam *= 0.5
+
+    def advance(self, lam_t: float, iterations: int) -> None:
+        """Accept the converged increment to ``lam_t``; grow the next one if it took ≤ 5 iterations."""
+        self.step += 1
+        self.lam = lam_t
+        if iterations <= 5:
+            self.dlam = min(1.0, self.dlam * 1.5)
 
 
 @dataclass
@@ -519,6 +599,10 @@ class BellowsModel:
     def _newton(self, st: State, lc: LoadCase, stats: NewtonStats, *, rtol: float, atol: float,
                 ltol: float, max_iter: int, growth: float, callback=None, lc_prev: LoadCase | None = None,
                 sym=None):
+        """Equilibrium under the fixed loads ``lc`` from ``st``: Newton on the reduced system (in the symmetric
+        subspace ``sym`` where it applies; bordered by the active locked tendons' length constraints), with the
+        backtracking line search of :meth:`_line_search` and the early cut-back tests of :func:`_check_progress`.
+        Returns ``(state, evaluation, residual norms [N], iterations)``; raises StepFailed."""
         locked = ~np.isnan(lc.locked_lengths)
         history: list[float] = []
         step_norms: list[float] = []
@@ -552,16 +636,7 @@ class BellowsModel:
                 return st, ev, history, it
             if it == max_iter:
                 break
-            if len(history) > 3 and rn > 1e6 * min(history):
-                raise StepFailed("diverging", history, it)
-            if it == 2 and rn > EARLY_CUT_RATIO * history[0]:
-                raise StepFailed(f"not converging (residual ×{rn / history[0]:.0f} its start after 2 iterations)",
-                                 history, it)
-            if it >= STALL_ITERATIONS and rn > history[0]:
-                # a converging step is below its starting residual after two or three iterations (measured);
-                # one that is not is crawling (halved steps, residual falling by a few % per iteration): cut
-                # the load step now instead of spending max_iter factorisations on it
-                raise StepFailed(f"not converging (residual above its start after {it} iterations)", history, it)
+            _check_progress(history, it)
             t0 = time.perf_counter()
             stats.n_factorizations += 1
             if sym is not None and sym.applies(r, tol):  # the step in the invariant subspace (fem_reference.symmetry)
@@ -572,22 +647,29 @@ class BellowsModel:
                                        cres)
             stats.t_linear += time.perf_counter() - t0
             step_norms.append(float(np.linalg.norm(dq)))
-            alpha = 1.0
-            for ls in range(12):
-                trial = self._apply(st, dq, alpha)
-                if active.any():
-                    trial.T[active] = st.T[active] + alpha * dT
-                # the full step is accepted almost always: assemble its tangent right away
-                ev_t = self.evaluate(trial, lc, tangent=(ls == 0), stats=stats)
-                ok = ev_t["jmin"] > 0 and bool(np.all(np.isfinite(ev_t["r"])))
-                if ok and np.linalg.norm(ev_t["r"]) <= growth * max(rn, tol):
-                    break
-                alpha *= 0.5
-            else:
+            st, ev = self._line_search(st, dq, dT, active, lc, stats, bound=growth * max(rn, tol))
+            if st is None:
                 raise StepFailed("line search failed (inverted elements or residual growth)", history, it)
-            st = trial
-            ev = ev_t if ev_t.get("K") is not None else self.evaluate(st, lc, tangent=True, stats=stats)
         raise StepFailed(f"no convergence in {max_iter} iterations", history, max_iter)
+
+    def _line_search(self, st: State, dq: np.ndarray, dT: np.ndarray, active: np.ndarray, lc: LoadCase,
+                     stats: NewtonStats, bound: float):
+        """``(state, evaluation)`` after the Newton step ``α (dq, dT)`` with the largest ``α ∈ {1, ½, …, 2⁻¹¹}``
+        that keeps every element uninverted and the residual norm at most ``bound`` [N]; ``(None, None)`` if none
+        does.  ``dT`` (n_active,) [N] are the increments of the active locked tendons' multipliers."""
+        alpha = 1.0
+        for ls in range(12):
+            trial = self._apply(st, dq, alpha)
+            if active.any():
+                trial.T[active] = st.T[active] + alpha * dT
+            # the full step is accepted almost always: assemble its tangent right away
+            ev_t = self.evaluate(trial, lc, tangent=(ls == 0), stats=stats)
+            ok = ev_t["jmin"] > 0 and bool(np.all(np.isfinite(ev_t["r"])))
+            if ok and np.linalg.norm(ev_t["r"]) <= bound:
+                ev = ev_t if ev_t.get("K") is not None else self.evaluate(trial, lc, tangent=True, stats=stats)
+                return trial, ev
+            alpha *= 0.5
+        return None, None
 
     # ------------------------------------------------------------------ public solve
     def _loadcase(self, tensions, pressure, tip_force, gravity, locked_lengths) -> LoadCase:
@@ -677,22 +759,45 @@ class BellowsModel:
         ancf.errors.LimitError
             A load outside the operating limits (unless ``check_limits=False``).
         """
-        from .results import BellowsResult
-
-        for name, v, lo in (("max_iter", max_iter, 1), ("max_cuts", max_cuts, 0), ("max_steps", max_steps, 1)):
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-                raise InputError(f"{name} must be an integer >= {lo}, got {v!r}")
-        for name, v in (("rtol", rtol), ("atol", atol), ("ltol", ltol)):
-            if not float(check_finite(name, v, ())) > 0:
-                raise InputError(f"{name} must be > 0, got {v!r}")
-        if time_limit_s is not None and not float(check_finite("time_limit_s", time_limit_s, ())) > 0:
-            raise InputError(f"time_limit_s must be > 0 s, got {time_limit_s!r}")
+        _check_solve_options(max_iter=max_iter, max_cuts=max_cuts, max_steps=max_steps, rtol=rtol, atol=atol,
+                             ltol=ltol, time_limit_s=time_limit_s)
         symmetry = check_symmetry_flag(symmetry)
         target = self._loadcase(tensions, pressure, tip_force, gravity, locked_lengths)
         if check_limits:
             self.limits.check(target, self.tendon_lengths(self.zero_state()))
         t_start = time.perf_counter()
         stats = NewtonStats()
+        st, start = self._start(initial, target)
+        locked = ~np.isnan(target.locked_lengths)
+        if n_steps is None:
+            n_steps = self._initial_steps(start, target)
+        path = _LoadPath(dlam=1.0 / max(1, int(n_steps)), t_start=t_start, tolerance=max(atol, rtol))
+        while path.lam < 1.0 - 1e-14:
+            lam_t = path.next_increment(stats, max_steps, time_limit_s)
+            lc, lc_prev = start.lerp(target, lam_t), start.lerp(target, path.lam)
+            # intermediate load steps are only a path to the last one: converged to STEP_RTOL (the next step's
+            # Newton starts from them and corrects what is left), the last one to rtol.  Not with locked tendons:
+            # their slack/taut decisions are taken on each step's state (a loose one made the slack transition
+            # of a locked tendon fail, measured)
+            rt = rtol if (lam_t >= 1.0 - 1e-14 or locked.any()) else max(rtol, STEP_RTOL)
+            try:
+                st, hist, its = self._load_step(st, lc_prev, lc, stats, symmetry, {
+                    "rtol": rt, "atol": atol, "ltol": ltol, "max_iter": max_iter, "growth": growth})
+            except StepFailed as e:
+                path.cut_back(e, stats, lam_t, max_cuts)    # from the same converged st, half the increment
+                continue
+            path.advance(lam_t, its)
+            stats.steps.append(dict(lam=lam_t, iterations=its, residuals=hist,
+                                    step_norms=list(self._last_step_norms)))
+            if progress is not None:
+                progress(dict(lam=lam_t, step=path.step, iterations=its, residuals=hist))
+        return self._finish(st, target, stats, t_start, check_stability)
+
+    def _start(self, initial: BellowsResult | None, target: LoadCase) -> tuple[State, LoadCase]:
+        """Start state and start loads of a solve towards ``target``: the unloaded state, or ``initial``'s
+        equilibrium and loads (warm start).  Locked tendons start at their current length and tension (their
+        target tension is set to it: it is an unknown, ``target`` is updated in place); a locked tendon that is
+        slack and shorter than its target length starts slack."""
         if initial is not None:
             self._own(initial)
             st = initial.state.copy()
@@ -708,73 +813,45 @@ class BellowsModel:
         start.tensions = np.where(locked, st.T, start.tensions)
         target.tensions = np.where(locked, st.T, target.tensions)  # unused for locked tendons
         st.slack = locked & (st.T <= 0) & (target.locked_lengths >= L_now)
-        if n_steps is None:
-            dp = abs(target.pressure - start.pressure)
-            dT = float(np.abs(target.tensions - start.tensions).sum())
-            asym = float(np.ptp(target.tensions - start.tensions)) if self.m else 0.0
-            n_steps = 1 + int(dp / 20e3) + int(dT / 3.0) + int(asym / ASYMMETRY_STEP)
-        lam, dlam, cuts = 0.0, 1.0 / max(1, int(n_steps)), 0
-        step = tried = 0
-        while lam < 1.0 - 1e-14:
-            tried += 1
-            elapsed = time.perf_counter() - t_start
-            if tried > max_steps or (time_limit_s is not None and elapsed > time_limit_s):
-                why = (f"more than max_steps = {max_steps} load increments" if tried > max_steps
-                       else f"more than time_limit_s = {time_limit_s:g} s")
-                last = stats.steps[-1]["residuals"] if stats.steps else []
-                raise ConvergenceError(
-                    f"load stepping stopped at λ = {lam:.4g} after {why} ({step} converged, {cuts} cut back, "
-                    f"{elapsed:.1f} s): the load is likely beyond what the structure carries; lower it or "
-                    f"raise the bound", solver="fem_newton", iterations=stats.n_iterations,
-                    residual_norm=last[-1] if last else np.nan, tolerance=max(atol, rtol), history=last)
-            lam_t = min(1.0, lam + dlam)
-            lc = start.lerp(target, lam_t)
-            lc_prev = start.lerp(target, lam)
-            st_start = st
-            # intermediate load steps are only a path to the last one: converged to STEP_RTOL (the next step's
-            # Newton starts from them and corrects what is left), the last one to rtol.  Not with locked tendons:
-            # their slack/taut decisions are taken on each step's state (a loose one made the slack transition
-            # of a locked tendon fail, measured)
-            rt = rtol if (lam_t >= 1.0 - 1e-14 or locked.any()) else max(rtol, STEP_RTOL)
-            try:
-                for _pass in range(6):  # active-set passes for locked tendons
-                    sym = subspace_for(self, (lc_prev, lc), (st,)) if symmetry else None
-                    stats.symmetry_order = 1 if sym is None else sym.order
-                    st_new, ev, hist, its = self._newton(st, lc, stats, rtol=rt, atol=atol, ltol=ltol,
-                                                         max_iter=max_iter, growth=growth,
-                                                         lc_prev=lc_prev if _pass == 0 else None, sym=sym)
-                    changed = False
-                    for k in np.flatnonzero(locked):
-                        if not st_new.slack[k] and st_new.T[k] < 0:
-                            st_new.slack[k], st_new.T[k], changed = True, 0.0, True
-                        elif st_new.slack[k] and ev["L"][k] > lc.locked_lengths[k] + ltol:
-                            st_new.slack[k], changed = False, True
-                    if not changed:
-                        break
-                    st = st_new
-                else:  # pragma: no cover
-                    raise StepFailed("tendon active set did not settle", hist, its)
-            except StepFailed as e:
-                stats.failed_steps.append(dict(lam=lam_t, reason=e.reason, residuals=list(e.history)))
-                cuts += 1
-                if cuts > max_cuts:
-                    raise ConvergenceError(
-                        f"load step λ {lam:.4g} → {lam_t:.4g} failed: {e.reason}; residual [N] per "
-                        f"iteration in .history", solver="fem_newton", iterations=e.iterations,
-                        residual_norm=e.history[-1] if e.history else np.nan,
-                        tolerance=max(atol, rtol), history=e.history) from None
-                dlam *= 0.5
-                st = st_start
-                continue
+        return st, start
+
+    def _initial_steps(self, start: LoadCase, target: LoadCase) -> int:
+        """Initial number of load increments from ``start`` to ``target``: one, plus one per 20 kPa of pressure,
+        per 3 N of total tension and per :data:`ASYMMETRY_STEP` of tension difference between the tendons."""
+        dp = abs(target.pressure - start.pressure)
+        dT = float(np.abs(target.tensions - start.tensions).sum())
+        asym = float(np.ptp(target.tensions - start.tensions)) if self.m else 0.0
+        return 1 + int(dp / 20e3) + int(dT / 3.0) + int(asym / ASYMMETRY_STEP)
+
+    def _load_step(self, st: State, lc_prev: LoadCase, lc: LoadCase, stats: NewtonStats, symmetry: bool,
+                   newton: dict) -> tuple[State, list[float], int]:
+        """Equilibrium under ``lc`` from the equilibrium ``st`` under ``lc_prev``: ``(state, residuals [N],
+        iterations)`` of :meth:`_newton` (options ``newton``), repeated while the locked tendons' active set
+        changes (a taut cable whose multiplier turns negative goes slack; a slack one stretched beyond its
+        locked length is taut again).  Raises StepFailed."""
+        locked = ~np.isnan(lc.locked_lengths)
+        for _pass in range(6):  # active-set passes for locked tendons
+            sym = subspace_for(self, (lc_prev, lc), (st,)) if symmetry else None
+            stats.symmetry_order = 1 if sym is None else sym.order
+            st_new, ev, hist, its = self._newton(st, lc, stats, **newton, lc_prev=lc_prev if _pass == 0 else None,
+                                                 sym=sym)
+            changed = False
+            for k in np.flatnonzero(locked):
+                if not st_new.slack[k] and st_new.T[k] < 0:
+                    st_new.slack[k], st_new.T[k], changed = True, 0.0, True
+                elif st_new.slack[k] and ev["L"][k] > lc.locked_lengths[k] + newton["ltol"]:
+                    st_new.slack[k], changed = False, True
+            if not changed:
+                return st_new, hist, its
             st = st_new
-            step += 1
-            stats.steps.append(dict(lam=lam_t, iterations=its, residuals=hist,
-                                    step_norms=list(self._last_step_norms)))
-            if progress is not None:
-                progress(dict(lam=lam_t, step=step, iterations=its, residuals=hist))
-            lam = lam_t
-            if its <= 5:
-                dlam = min(1.0, dlam * 1.5)
+        raise StepFailed("tendon active set did not settle", hist, its)  # pragma: no cover
+
+    def _finish(self, st: State, target: LoadCase, stats: NewtonStats, t_start: float,
+                check_stability: bool) -> BellowsResult:
+        """The result at the converged state ``st`` (tensions: the final ones, multipliers of locked tendons);
+        with ``check_stability``, UnstableEquilibriumError unless it is a minimum (:meth:`stability`)."""
+        from .results import BellowsResult
+
         stats.t_total = time.perf_counter() - t_start
         target.tensions = st.T.copy()
         res = BellowsResult(model=self, state=st, loadcase=target, stats=stats,

@@ -105,15 +105,41 @@ class BellowsResult:
         )
 
     def save_vtu(self, path: str | Path) -> Path:
-        """Write the deformed-state fields on the reference mesh (hex27 VTU, via meshio).
+        """Write the deformed state's fields on the reference mesh (hex27 VTU, via meshio) for ParaView.
 
-        Point data: ``displacement`` [m]; open in ParaView with "Warp By Vector".
+        Point data (per node):
+
+        - ``displacement`` (n_nodes, 3) [m]: open with "Warp By Vector";
+        - ``chamber_pressure_Pa`` (n_nodes,): the applied cavity pressure on the nodes of the loaded inner
+          surface, 0 elsewhere.
+
+        Cell data (per element: averages over the deformed element, :func:`fem_reference.fields.cell_fields`):
+        ``cauchy_stress_Pa`` (9 components, row-major: a tensor in ParaView), ``von_mises_Pa``, ``pressure_Pa``
+        (hydrostatic, ``−tr σ / 3``, positive in compression: the mixed element's pressure field),
+        ``principal_stretches`` (3, largest first) and ``volume_ratio``.  ParaView's "Cell Data to Point Data"
+        averages them to the nodes.
         """
         import meshio
         from skfem.io.meshio import to_meshio
 
-        mm = to_meshio(self.model.bmesh.mesh, point_data={"displacement": self.state.U.T.copy()})
+        from .fields import cell_fields
+
+        model = self.model
+        cells = cell_fields(model.asm, self.state.U)
+        cells["cauchy_stress_Pa"] = cells["cauchy_stress_Pa"].reshape(-1, 9)
+        mm = to_meshio(model.bmesh.mesh, point_data={"displacement": self.state.U.T.copy(),
+                                                     "chamber_pressure_Pa": self.chamber_pressure()},
+                       cell_data={k: [np.ascontiguousarray(v)] for k, v in cells.items()})
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         meshio.write(path, mm)
         return path
+
+    def chamber_pressure(self) -> np.ndarray:
+        """Applied cavity pressure [Pa] on each node of the loaded inner surface (every node of its facets), 0 on
+        the others; shape (n_nodes,)."""
+        model = self.model
+        nodes = model.asm.basis.get_dofs(facets=model.bmesh.inner_facets()).flatten()
+        out = np.zeros(model.bmesh.n_nodes)
+        out[nodes] = float(self.loadcase.pressure)
+        return out

@@ -2,12 +2,14 @@
 
 (``bellows control`` itself runs a controller on a rig, so it lives above both packages, in
 :mod:`validation.commands.control`: ``hardware`` never imports ``controller``.)  Handled errors are one ``error:``
-line with exit status 2 (:func:`validation.commands.main.main`); an existing CSV is replaced only with ``--force``.
+line with exit status 2 (:func:`validation.commands.main.main`); an existing CSV or ``.pvd`` is replaced only with
+``--force``.
 """
 
 from __future__ import annotations
 
 import pathlib
+from typing import Optional
 
 import typer
 
@@ -32,11 +34,29 @@ def _recover(path, recover) -> None:
 
 @log_app.command("export")
 def log_export(path: pathlib.Path = typer.Argument(..., help="run log (.h5)"),
-               csv: pathlib.Path = typer.Option(..., "--csv", help="CSV file to write (units in the headers)"),
-               force: bool = typer.Option(False, "--force", help="overwrite an existing CSV file")):
-    """Export the samples of a run log as CSV (one column per component, unit in each header).  A log left by
-    a killed writer has its open-for-write flags cleared first (like 'h5clear -s')."""
+               csv: Optional[pathlib.Path] = typer.Option(None, "--csv", help="CSV file to write (units in the "
+                                                          "headers)"),
+               pvd: Optional[pathlib.Path] = typer.Option(None, "--pvd", help="ParaView collection (.pvd) to write: "
+                                                          "the measured tip's trajectory over time, its frames in "
+                                                          "the folder of the same name beside it"),
+               max_frames: int = typer.Option(200, "--max-frames", min=2, max=100_000, help="most frames of the "
+                                              "--pvd time series (spread evenly over the samples)"),
+               force: bool = typer.Option(False, "--force", help="overwrite existing output files")):
+    """Export the samples of a run log as CSV (one column per component, unit in each header) and/or as a
+    ParaView time series of the tip trajectory (the log holds the measured tip, not the rod's shape).  A
+    log left by a killed writer has its open-for-write flags cleared first (like 'h5clear -s')."""
+    from ancf.errors import InputError
+    from ancf.outputs import prepare_output_file
+    from ancf.paraview import prepare_pvd
     from hardware.runlog import export_csv, recover_crashed_log
+    from hardware.runlog_paraview import export_pvd
+    if csv is None and pvd is None:
+        raise InputError("give --csv FILE.csv and/or --pvd FILE.pvd")
+    if csv is not None:                              # both outputs checked before either is written
+        prepare_output_file(csv, force=force, suffixes=(".csv",))
+    if pvd is not None:
+        prepare_pvd(pvd, force=force)
     _recover(path, recover_crashed_log)
-    out = export_csv(path, csv, force=force)
-    typer.echo(f"wrote {out}")
+    outs = ([export_csv(path, csv, force=force)] if csv is not None else []) + \
+        ([export_pvd(path, pvd, force=force, max_frames=max_frames)] if pvd is not None else [])
+    typer.echo("wrote " + " and ".join(str(o) for o in outs))

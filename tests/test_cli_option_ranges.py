@@ -70,6 +70,7 @@ RANGES = [
     ("simulate", "--dt-ms", ["1e-5"], "--dt-ms", ["--t-end-s", "1000"]),   # 10^11 steps
     ("simulate", "--damping-ratio", RATIO),
     ("simulate", "--rho-inf", RATIO),
+    ("simulate", "--pvd-frames", ["1", "0", "-1", "100001", "99999999999999999999999"]),
     # identification: validation/commands/identify.py
     ("identify-damping", "--start-s", NON_NEGATIVE),
     ("identify-damping", "--end-s", POSITIVE),
@@ -127,6 +128,7 @@ RANGES = [
     # paths the commands read: the line names the path
     ("log show", "path", ["no_such_log.h5"], "no_such_log.h5"),
     ("log export", "path", ["no_such_log.h5"], "no_such_log.h5", ["--csv", "out.csv"]),
+    ("log export", "--max-frames", ["1", "0", "-1", "100001"], "--max-frames", ["run.h5", "--pvd", "out.pvd"]),
     ("identify-damping", "record", ["no_such_decay.csv"], "no_such_decay.csv"),
     ("identify", "--measurements", ["no_such_states.csv"], "--measurements", ["--base", "paper"]),
     ("control", "--rig", ["no_such_rig.toml"], "no_such_rig.toml"),

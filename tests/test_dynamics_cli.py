@@ -65,3 +65,42 @@ def test_bad_options_are_one_error_line(tmp_path, args, text):
     r = run(*args, "--out", "x", cwd=tmp_path) if args[0] == "simulate" else run(*args, cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.count("error:") == 1 and text in r.stderr, r.stderr
     assert "Traceback" not in r.stderr
+
+
+def test_modes_rows_label_kind_by_strain_energy_and_give_the_tip_direction(tmp_path):
+    """modes.json: each row's kind follows the axial share of its strain energy (the bent state's 35.8 Hz mode
+    is axial), the tip's motion is a unit vector named tip_direction (no millimetres), and an actuator
+    without damping is said to be one (stderr warning, damping_source "none")."""
+    r = run("modes", "--tensions-n", "2,0,0", "--pressure-kpa", "30", "--count", "6", "--json", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    rows = data["modes"]
+    assert all("tip_shape_mm" not in row for row in rows)
+    assert all(np.linalg.norm(row["tip_direction"]) == pytest.approx(1.0, abs=1e-12) for row in rows)
+    model = Model(presets.paper())
+    api = model.modes(model.fk((2, 0, 0), 30e3), 6)
+    assert [row["kind"] for row in rows] == list(api.kinds)
+    assert [row["axial_energy_share"] for row in rows] == pytest.approx(api.axial_share, abs=1e-12)
+    axial = [row for row in rows if row["kind"] == "axial"]
+    assert len(axial) == 1 and axial[0]["frequency_Hz"] == pytest.approx(35.8, abs=0.05)
+    assert data["damping_source"] == "none" and "states no damping" in data["damping_warning"]
+    assert "warning:" in r.stderr and "states no damping" in r.stderr and "error:" not in r.stderr
+    table = run("modes", "--tensions-n", "2,0,0", "--pressure-kpa", "30", "--count", "6", cwd=tmp_path)
+    assert "tip direction [-]" in table.stdout and "axial share [-]" in table.stdout
+    given = run("modes", "--count", "2", "--damping-ratio", "0.05", "--json", cwd=tmp_path)
+    assert json.loads(given.stdout)["damping_source"] == "given" and "warning:" not in given.stderr
+
+
+def test_simulate_warns_when_the_actuator_states_no_damping(tmp_path):
+    r = run("simulate", "--tensions-n", "2,0,0", "--pressure-kpa", "30", "--t-end-s", "0.02", "--dt-ms", "5",
+            "--out", "u", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "warning:" in r.stderr and "states no damping" in r.stderr and "UNDAMPED" in r.stdout
+    assert "UndampedWarning" not in r.stderr                          # said once, as a CLI line
+    summary = json.loads((tmp_path / "u" / "simulation.json").read_text())
+    assert summary["damping_source"] == "none" and "will not settle" in summary["damping_warning"]
+    d = run("simulate", "--tensions-n", "2,0,0", "--pressure-kpa", "30", "--t-end-s", "0.02", "--dt-ms", "5",
+            "--damping-ratio", "0.05", "--out", "d", cwd=tmp_path)
+    assert d.returncode == 0 and "warning:" not in d.stderr and "UNDAMPED" not in d.stdout
+    summary = json.loads((tmp_path / "d" / "simulation.json").read_text())
+    assert summary["damping_source"] == "given" and "damping_warning" not in summary

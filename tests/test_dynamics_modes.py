@@ -152,3 +152,75 @@ def test_damping_ratios_of_rayleigh_damping_are_exact():
     assert np.all(m.modes(eq, 2, damping=0.0).damping_ratios == 0)
     with pytest.raises(InputError, match="unknown keys"):
         m.modes(eq, 2, damping={"zeta": 0.1})
+
+
+def _split_by_finite_differences(m, q, phi, amplitude=1e-5):
+    """(U_A, U_B) [J] of a shape: ½ d²/dε² of the model's own axial-only and bending-only energies (the
+    compiled assembly with the other stiffness zero), by a central second difference."""
+    from ancf.assembly import assemble
+    z1, z3 = np.zeros(1), np.zeros(3)
+    common = (m._E, m._d, m._co, m._so, np.zeros(m.m), 0.0, z3, False, 0)
+    eps = amplitude / np.linalg.norm(m.tip_jacobian(q) @ phi)
+
+    def U(x, ea, ei):
+        return assemble(x, m.n, m._N, m._wq, ea, ei, z1, z3, *common)[0]
+
+    return [0.5 * (U(q + eps * phi, *c) - 2 * U(q, *c) + U(q - eps * phi, *c)) / eps ** 2
+            for c in ((m._ea, z1), (z1, m._ei))]
+
+
+def test_straight_rod_modes_are_pure_axial_or_pure_bending():
+    """On a straight, unstressed rod no mode couples stretch and bending: the axial share of the strain energy
+    is 1 exactly at the fixed-free rod's frequencies (2k − 1) √(EA/m') / 4L and 0 at the clamped-free beam's
+    β_k² √(EI/(m' L⁴)) / 2π; the split equals the model's own axial and bending energies' second variation
+    (finite differences of the compiled assembly) and adds up to ω²/2 (mass-normalised shapes)."""
+    EA, mp = 767.2, 0.2
+    m = beam(8, EA=EA, line_mass=mp, free_base_stretch=True)
+    eq = straight(m)
+    r = m.modes(eq, 12)
+    f_ax = np.sqrt(EA / mp) / (4 * L) * np.array([1, 3])
+    f_b = [b ** 2 / (2 * np.pi) * np.sqrt(EI / (mp * L ** 4)) for b in BETA]
+    axial = r.frequencies[np.array(r.kinds) == "axial"]
+    bending = r.frequencies[np.array(r.kinds) == "bending"]
+    assert np.allclose(axial[:2], f_ax, rtol=1e-4) and np.allclose(bending[[0, 2]], f_b, rtol=1e-3)
+    assert np.all((r.axial_share < 1e-9) | (r.axial_share > 1 - 1e-9))
+    from ancf.dynamics.modes import strain_energy_split
+    U = strain_energy_split(m, eq.q, r.shapes, 0.0)
+    assert np.allclose(U.sum(axis=1), r.omega2 / 2, rtol=1e-8)
+    for k in (0, 2, 4):
+        assert np.allclose(U[k], _split_by_finite_differences(m, eq.q, r.shapes[k]), rtol=1e-5,
+                           atol=1e-5 * U[k].sum())      # the FD: O(ε²) axial energy of a lateral shape
+
+
+def test_a_bent_actuators_axial_mode_is_labelled_axial():
+    """At T = (2, 0, 0) N, 30 kPa the actuator is bent ≈ 21° at the tip: its 35.8 Hz mode stretches the body
+    (≈ 96 % of its strain energy axial) and moves the tip along the bent axis (the tip tangent), not along
+    the base axis x — labelled axial; the modes that move the tip across the tangent are bending."""
+    m = Model(presets.paper())
+    eq = m.fk((2, 0, 0), 30e3)
+    r = m.modes(eq, 8)
+    k = int(np.argmin(abs(r.frequencies - 35.8)))
+    assert r.frequencies[k] == pytest.approx(35.8, abs=0.05)
+    assert r.kinds[k] == "axial" and r.axial_share[k] > 0.9
+    tangent = eq.q[-3:] / np.linalg.norm(eq.q[-3:])
+    along = abs(r.tip_directions @ tangent)
+    assert along[k] > 0.99 and abs(r.tip_directions[k][0]) < 0.95   # the old tip-along-x rule missed it
+    for j, kind in enumerate(r.kinds):
+        assert (kind == "axial") == (along[j] > 0.9), (j, kind, along[j])
+    from ancf.dynamics.modes import strain_energy_split
+    U = strain_energy_split(m, eq.q, r.shapes, eq.pressure)            # the split carries the mode's stiffness
+    assert np.allclose(U.sum(axis=1), r.omega2 / 2, rtol=0.1)
+
+
+def test_modes_say_where_their_damping_comes_from():
+    """The paper preset states no damping: its ratios are 0 and the result says "none"; an actuator that
+    states α has ζ_k = α / (2 ω_k) and says "actuator"; a given ratio says "given"."""
+    m = Model(presets.paper())
+    eq = m.fk((2.0, 0.0, 0.0), 30e3)
+    r = m.modes(eq, 3)
+    assert r.damping_source == "none" and np.all(r.damping_ratios == 0)
+    assert m.modes(eq, 3, damping=0.02).damping_source == "given"
+    md = Model(presets.paper().replace(rayleigh_alpha=1.5))
+    rd = md.modes(md.fk((2.0, 0.0, 0.0), 30e3), 3)
+    assert rd.damping_source == "actuator"
+    assert np.allclose(rd.damping_ratios, 1.5 / (2 * 2 * np.pi * rd.frequencies), rtol=1e-9)

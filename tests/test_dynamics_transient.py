@@ -220,7 +220,7 @@ def test_ctrl_c_keeps_the_rows_done(model, bent):
     def stop(t, t_end):
         if t > 0.05:
             raise KeyboardInterrupt
-    sim = model.simulate(1.0, 1e-2, q0=bent.q, tensions=(2, 0, 0), pressure=P30, progress=stop)
+    sim = model.simulate(1.0, 1e-2, q0=bent.q, tensions=(2, 0, 0), pressure=P30, damping=0.0, progress=stop)
     assert sim.interrupted and 5 <= len(sim.t) <= 8 and sim.q.shape == (len(sim.t), model.ndof)
     assert np.allclose(sim.tip[0], bent.tip)
 
@@ -261,3 +261,25 @@ def test_a_motor_gives_way_at_its_holding_force():
     assert np.ptp(sim.energy + sim.dissipated) < 2e-3 * sim.dissipated[-1]
     with pytest.raises(InputError, match="holding_force"):
         m.simulate(0.1, 1e-3, q0=eq.q, tensions=(1, 0, 0), holding_force=2.0)
+
+
+def test_an_undamped_actuator_is_announced_not_taken_silently(model, bent):
+    """The paper preset states no damping: a run without damping= warns (UndampedWarning), says
+    damping_source "none" and dissipates nothing; damping=0.0 (asked for) is silent.  An actuator that states
+    damping has it used: the same run as with its coefficients given, damping_source "actuator"."""
+    import warnings
+    from ancf.dynamics.damping import UndampedWarning
+    q0 = model.fk((0, 0, 0), P30).q
+    with pytest.warns(UndampedWarning, match="states no damping"):
+        sim = model.simulate(0.05, 5e-3, q0=q0, tensions=(2, 0, 0), pressure=P30)
+    assert sim.damping_source == "none" and np.all(sim.dissipated == 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UndampedWarning)
+        assert model.simulate(0.02, 5e-3, q0=q0, tensions=(2, 0, 0), pressure=P30,
+                              damping=0.0).damping_source == "given"
+        damped = Model(presets.paper().replace(rayleigh_alpha=4.0, axial_damping=0.2))
+        own = damped.simulate(0.05, 5e-3, q0=q0, tensions=(2, 0, 0), pressure=P30)
+    given_ = damped.simulate(0.05, 5e-3, q0=q0, tensions=(2, 0, 0), pressure=P30,
+                             damping={"alpha": 4.0, "axial": 0.2})
+    assert own.damping_source == "actuator" and own.damping == {"alpha": 4.0, "beta": 0.0, "axial": 0.2}
+    assert np.array_equal(own.tip, given_.tip) and own.dissipated[-1] > 0

@@ -202,3 +202,47 @@ def test_the_validation_scans_catch_upward_imports_and_cycles(tmp_path):
     assert _layer_cycle("identification", tmp_path) in (["b", "c", "b"], ["c", "b", "c"])
     assert _validation_imports(ROOT / "validation" / "commands" / "main.py") >= {
         "validation.commands.control", "validation.commands.identify", "validation.commands.paper.app"}
+
+
+# no function hides its steps: at most this many lines, outside generated code and compiled (numba) kernels
+MAX_FUNCTION_LINES = 120
+_SCANNED = ("ancf", "fem_reference", "validation", "controller", "hardware", "benchmarks", "examples", "tests")
+
+
+def _is_compiled_kernel(node) -> bool:
+    """Decorated with numba's ``njit``/``jit``/``vectorize`` (a kernel: one loop nest the compiler sees whole)."""
+    import ast
+    for d in node.decorator_list:
+        f = d.func if isinstance(d, ast.Call) else d
+        name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", "")
+        if name in ("njit", "jit", "vectorize", "guvectorize", "cfunc"):
+            return True
+    return False
+
+
+def _long_functions(paths, limit: int = MAX_FUNCTION_LINES) -> list[tuple[str, str, int]]:
+    import ast
+    out = []
+    for p in paths:
+        if "generated" in p.name:
+            continue
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not _is_compiled_kernel(node):
+                n = node.end_lineno - node.lineno + 1
+                if n > limit:
+                    out.append((str(p.relative_to(ROOT) if p.is_relative_to(ROOT) else p), node.name, n))
+    return out
+
+
+def test_no_function_is_longer_than_the_limit():
+    paths = [p for d in _SCANNED for p in sorted((ROOT / d).rglob("*.py"))]
+    assert len(paths) > 100
+    assert _long_functions(paths) == [], f"functions over {MAX_FUNCTION_LINES} lines: split them into named steps"
+
+
+def test_the_length_scan_sees_long_functions_and_exempts_only_kernels(tmp_path):
+    body = "".join(f"    x{i} = {i}\n" for i in range(MAX_FUNCTION_LINES))
+    (tmp_path / "m.py").write_text(f"def long():\n{body}\n\n@njit(cache=True)\ndef kernel():\n{body}\n\n"
+                                   f"class A:\n    def method(self):\n    {body.replace(chr(10) + '    ', chr(10) + '        ')}")
+    assert sorted((f, n) for _, f, n in _long_functions([tmp_path / "m.py"])) == [
+        ("long", MAX_FUNCTION_LINES + 1), ("method", MAX_FUNCTION_LINES + 1)]

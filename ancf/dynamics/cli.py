@@ -7,6 +7,9 @@ or tendons locked with ``--locked``), a table, ``modes.json`` and a figure of th
 as a step, or a linear ramp over ``--ramp-ms``) at ``--pressure-kpa``, with a progress bar; writes
 ``simulation.csv`` (one row per step, units in the header), ``simulation.json`` (summary) and
 ``simulation.png`` (tip motion and energy).  Ctrl-C stops and still writes the rows done.
+
+``--pvd`` (both): ParaView time series of the rod (:mod:`ancf.paraview`): ``simulation.pvd`` with its frames in
+``simulation/``; ``mode_k.pvd`` per mode, one period of the undamped oscillation in the shape.
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ from __future__ import annotations
 import csv
 import json
 import pathlib
+import warnings
 from typing import Optional
 
 import numpy as np
@@ -25,11 +29,14 @@ from .. import clitools
 from ..cli import FORCE_HELP, NO_LIMITS_HELP, PRESET_HELP, PRESSURE_HELP, _model, console, parse_vector, warm_up
 from ..errors import InputError
 from ..export import write_json
+from .damping import UndampedWarning, states_damping, undamped_message
 from .transient import MAX_STEPS, rayleigh_about
 from ..outputs import prepare_output_dir
+from .. import paraview
 
 MODES_FILES = ("modes.png", "modes.json")
 SIM_FILES = ("simulation.csv", "simulation.json", "simulation.png")
+SIM_PVD = ("simulation.pvd", "simulation")            # --pvd: the collection and its frames folder
 
 # option ranges (clitools.number_range: a given value outside is a usage error, exit status 2)
 RATIO = clitools.number_range(0.0, 1.0)                                  # damping ratios, rho_inf
@@ -49,11 +56,17 @@ def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of t
                                                         "actuator file's damping coefficients."),
           preset: str = typer.Option("paper", help=PRESET_HELP),
           out: Optional[pathlib.Path] = typer.Option(None, help="Folder for modes.png and modes.json."),
+          pvd: bool = typer.Option(False, "--pvd", help="Also write each mode animated over one period as a ParaView "
+                                   "time series, mode_1.pvd … in the --out folder (tool-point amplitude 12 % of the "
+                                   "length; docs/data-formats.md)."),
           force: bool = typer.Option(False, "--force", help=FORCE_HELP),
           no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP),
           as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Vibration modes about an equilibrium: frequencies [Hz], damping ratios and shapes."""
-    folder = None if out is None else prepare_output_dir(out, MODES_FILES, force=force)
+    if pvd and out is None:
+        raise InputError("--pvd needs an --out folder to write the mode_k.pvd collections into")
+    folder = None if out is None else prepare_output_dir(
+        out, MODES_FILES + (tuple(paraview.mode_pvd_names(count)) if pvd else ()), force=force)
     model = _model(preset, None)
     T = parse_vector(tensions_n, model.m, "--tensions-n")
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
@@ -65,14 +78,19 @@ def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of t
         eq = model.fk_locked(eq.tendon_lengths, pressure_kpa * 1e3, F, q0=eq.q, tensions0=eq.tensions,
                              check_limits=not no_limits)
     r = model.modes(eq, count, damping=damping_ratio)   # None: the actuator file's coefficients
-    rows = [{"mode": k + 1, "frequency_Hz": float(f), "damping_ratio": float(z), "kind": _kind(r.tip_shapes[k]),
-             "tip_shape_mm": (r.tip_shapes[k] / max(np.linalg.norm(r.tip_shapes[k]), 1e-300)).tolist()}
-            for k, (f, z) in enumerate(zip(r.frequencies_hz, r.damping_ratios))]
+    rows = mode_rows(r)
     summary = {"preset": model.params.name, "tensions_N": T.tolist(), "pressure_kPa": pressure_kpa,
                "tip_force_N": F.tolist(), "tendons": "locked" if locked else "tensions held",
-               "damping": r.damping, "tip_mm": (eq.tip * 1e3).tolist(), "modes": rows}
+               "damping": r.damping, "damping_source": r.damping_source, "tip_mm": (eq.tip * 1e3).tolist(),
+               "modes": rows}
+    if r.damping_source == "none":
+        summary["damping_warning"] = undamped_message(model.params, "the damping ratios ζ are 0 because no "
+                                                      "damping is known, not because the actuator is undamped")
+        warn(summary["damping_warning"])
     if folder is not None:
         folder.mkdir(parents=True, exist_ok=True)
+        if pvd:
+            summary["paraview"] = paraview.write_mode_pvds(folder, model, eq, r)
         write_json(folder / "modes.json", summary)
         save_modes_png(folder / "modes.png", model, eq, r,
                        f"modes of '{model.params.name}' at T = {tensions_n} N, p = {pressure_kpa:g} kPa "
@@ -80,22 +98,39 @@ def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of t
     if as_json:
         typer.echo(json.dumps(summary, indent=2))
         return
-    t = Table(title=escape(f"modes at T = {tensions_n} N, p = {pressure_kpa:g} kPa — {summary['tendons']} "
-                           f"('{model.params.name}')"))
-    for c in ("mode", "f [Hz]", "ζ [-]", "kind", "tip direction"):
+    console.print(modes_table(rows, f"modes at T = {tensions_n} N, p = {pressure_kpa:g} kPa — "
+                                    f"{summary['tendons']} ('{model.params.name}')"))
+    if folder is not None:
+        console.print(f"wrote {folder / 'modes.png'} and {folder / 'modes.json'}")
+    if pvd:
+        console.print(f"wrote mode_1.pvd … mode_{len(rows)}.pvd in {folder}/ (one period each; tool-point "
+                      f"amplitude {paraview.MODE_TIP_AMPLITUDE * 100:g} % of the length, smaller where that "
+                      "leaves the model's domain: modes.json)")
+
+
+def mode_rows(r) -> list[dict]:
+    """One dict per mode of the ModalResult r: frequency [Hz], damping ratio [-], kind (axial / bending by the
+    axial share of its strain energy, ancf.dynamics.modes), that share [-], and the unit vector [-] along which
+    the tool point moves (world frame; a direction, not a displacement: shapes have no amplitude)."""
+    return [{"mode": k + 1, "frequency_Hz": float(r.frequencies_hz[k]), "damping_ratio": float(r.damping_ratios[k]),
+             "kind": r.kinds[k], "axial_energy_share": float(r.axial_share[k]),
+             "tip_direction": r.tip_directions[k].tolist()} for k in range(len(r.frequencies_hz))]
+
+
+def modes_table(rows: list[dict], title: str) -> Table:
+    """The printed table of :func:`mode_rows`."""
+    t = Table(title=escape(title))
+    for c in ("mode", "f [Hz]", "ζ [-]", "kind", "axial share [-]", "tip direction [-]"):
         t.add_column(escape(c), justify="right" if c != "kind" else "left")
     for row in rows:
         t.add_row(str(row["mode"]), f"{row['frequency_Hz']:.3f}", f"{row['damping_ratio']:.4f}", row["kind"],
-                  " ".join(f"{x:+.2f}" for x in row["tip_shape_mm"]))
-    console.print(t)
-    if folder is not None:
-        console.print(f"wrote {folder / 'modes.png'} and {folder / 'modes.json'}")
+                  f"{row['axial_energy_share']:.3f}", " ".join(f"{x:+.2f}" for x in row["tip_direction"]))
+    return t
 
 
-def _kind(tip_shape: np.ndarray) -> str:
-    """'axial' when the tool point moves mostly along the base axis x, else 'bending'."""
-    n = np.linalg.norm(tip_shape)
-    return "axial" if n > 0 and abs(tip_shape[0]) > 0.9 * n else "bending"
+def warn(text: str) -> None:
+    """A loud ``warning: …`` line on stderr (stdout stays the table or the JSON)."""
+    typer.secho(f"warning: {text}", err=True, fg=typer.colors.YELLOW, bold=True)
 
 
 def _finish(fig, title: str, path) -> pathlib.Path:
@@ -136,7 +171,7 @@ def save_modes_png(path, model, eq, r, title: str) -> pathlib.Path:
             ax.set_ylabel(f"{name[-1]} [mm]", fontsize=8)
             ax.tick_params(labelsize=7)
             if row == 0:
-                ax.set_title(f"mode {j + 1}: {r.frequencies_hz[j]:.2f} Hz\n({_kind(r.tip_shapes[j])})", fontsize=9)
+                ax.set_title(f"mode {j + 1}: {r.frequencies_hz[j]:.2f} Hz\n({r.kinds[j]})", fontsize=9)
     return _finish(fig, title, path)
 
 
@@ -157,6 +192,10 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
                                            f"{RATIO.text} (1: none of its numerical dissipation)."),
              preset: str = typer.Option("paper", help=PRESET_HELP),
              out: pathlib.Path = typer.Option(pathlib.Path("bellows_sim"), help="Output folder."),
+             pvd: bool = typer.Option(False, "--pvd", help="Also write the rod over time as a ParaView time series: "
+                                      "simulation.pvd and its frames in simulation/ (docs/data-formats.md)."),
+             pvd_frames: int = typer.Option(100, min=2, max=100_000, help="Most frames of --pvd (spread evenly "
+                                            "over the output steps, the first and last included)."),
              force: bool = typer.Option(False, "--force", help=FORCE_HELP),
              no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP)):
     """Step response in time: from the start equilibrium to new tensions (tip motion, energy)."""
@@ -167,7 +206,7 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
     if t_end_s / (dt_ms * 1e-3) > MAX_STEPS:
         raise InputError(f"--t-end-s / --dt-ms is more than {MAX_STEPS:.0e} steps ({t_end_s:g} s in steps of "
                          f"{dt_ms:g} ms): use a larger --dt-ms")
-    folder = prepare_output_dir(out, SIM_FILES, force=force)
+    folder = prepare_output_dir(out, SIM_FILES + (SIM_PVD if pvd else ()), force=force)
     model = _model(preset, None)
     T1 = parse_vector(tensions_n, model.m, "--tensions-n")
     T0 = parse_vector(start_tensions_n, model.m, "--start-tensions-n")
@@ -179,20 +218,31 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
     # a ratio is the first mode's about the state the response settles on (not the start, which the step
     # leaves at once)
     damping = None if damping_ratio is None else rayleigh_about(model, settled, damping_ratio)
+    undamped = damping is None and not states_damping(model.params)
+    undamped_text = undamped_message(model.params, "this run is undamped apart from the integrator's numerical "
+                                                   "dissipation (--rho-inf < 1) and will not settle")
+    if undamped:                       # said here, before the run, and in simulation.json
+        warn(undamped_text)
     ramp = ramp_ms * 1e-3
     tensions = (lambda t: T0 + (T1 - T0) * min(t / ramp, 1.0)) if ramp > 0 else T1
     with Progress(TextColumn("simulating"), BarColumn(), TextColumn("{task.fields[t]:.3f} / {task.total:.3f} s"),
                   TimeRemainingColumn(), console=console, transient=True) as bar:
         task = bar.add_task("sim", total=t_end_s, t=0.0)
-        sim = model.simulate(t_end_s, dt_ms * 1e-3, q0=start.q, tensions=tensions, pressure=p, tip_force=F,
-                             damping=damping, rho_inf=rho_inf, check_limits=not no_limits,
-                             progress=lambda t, te: bar.update(task, completed=t, t=t))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UndampedWarning)             # warned above, once
+            sim = model.simulate(t_end_s, dt_ms * 1e-3, q0=start.q, tensions=tensions, pressure=p, tip_force=F,
+                                 damping=damping, rho_inf=rho_inf, check_limits=not no_limits,
+                                 progress=lambda t, te: bar.update(task, completed=t, t=t))
     folder.mkdir(parents=True, exist_ok=True)
     write_simulation_csv(folder / "simulation.csv", sim)
+    if pvd:
+        paraview.write_pvd(folder / "simulation.pvd", paraview.simulation_frames(model, sim, pvd_frames))
     final = settled
     summary = {"preset": model.params.name, "start_tensions_N": T0.tolist(), "tensions_N": T1.tolist(),
                "ramp_ms": ramp_ms, "pressure_kPa": pressure_kpa, "tip_force_N": F.tolist(),
                "t_end_s": float(sim.t[-1]), "dt_s": sim.dt, "steps": len(sim.t) - 1, "damping": sim.damping,
+               "damping_source": sim.damping_source,
+               **({"damping_warning": undamped_text} if undamped else {}),
                "rho_inf": sim.rho_inf, "interrupted": sim.interrupted, "wall_time_s": sim.wall_time,
                "real_time_factor": sim.real_time_factor,
                "tip_start_mm": (sim.tip[0] * 1e3).tolist(), "tip_end_mm": (sim.tip[-1] * 1e3).tolist(),
@@ -203,14 +253,15 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
     write_json(folder / "simulation.json", summary)
     save_simulation_png(folder / "simulation.png", sim, None if final is None else final.tip,
                         f"'{model.params.name}': T {start_tensions_n} → {tensions_n} N at {pressure_kpa:g} kPa")
-    state = "interrupted at" if sim.interrupted else "done:"
+    state = ("interrupted at" if sim.interrupted else "done:") + (" (UNDAMPED)" if undamped else "")
     console.print(escape(f"{state} {sim.t[-1]:.3f} s simulated in {sim.wall_time:.2f} s "
                          f"({sim.real_time_factor:.1f}× real time, step {sim.dt * 1e3:g} ms)"))
     if final is not None:
         console.print(escape(f"tip {' '.join(f'{x:.2f}' for x in sim.tip[-1] * 1e3)} mm at the end; static "
                              f"equilibrium {' '.join(f'{x:.2f}' for x in final.tip * 1e3)} mm; overshoot "
                              f"{summary['overshoot_mm']:.2f} mm"))
-    console.print(f"wrote {folder / 'simulation.csv'}, {folder / 'simulation.json'} and {folder / 'simulation.png'}")
+    console.print(f"wrote {folder / 'simulation.csv'}, {folder / 'simulation.json'} and {folder / 'simulation.png'}"
+                  + (f"; {folder / 'simulation.pvd'} (frames in {folder / 'simulation'}/)" if pvd else ""))
 
 
 def _overshoot(sim, tip0, tip1) -> float:

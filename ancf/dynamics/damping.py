@@ -19,11 +19,46 @@ elastic EA ε), with the exact tangents
 S_x = [s_1' I, …, s_4' I] the slope shape matrix of an element (:func:`ancf.kinematics.shape_table`).  The
 power it takes from the motion is q̇ᵀ Q_d = ∫ c_a ε̇² dx ≥ 0.  A bending strain-rate damping is not included:
 bending modes are damped through β (docs/dynamics.md).
+
+**Where the damping of a run comes from** (:func:`damping_source`): the call's ``damping=`` when given, else
+the actuator's coefficients (``rayleigh_alpha``, ``rayleigh_beta``, ``axial_damping``).  An actuator that
+states none (all three 0, as the ``paper`` preset, whose damping is not measured) gives an *undamped* model:
+that is never taken silently — :meth:`ancf.Model.simulate` warns (:class:`UndampedWarning`) and both results
+say so (``damping_source == "none"``), as do ``bellows simulate`` and ``bellows modes``.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+#: the actuator-file keys of the damping coefficients (docs/dynamics.md)
+DAMPING_KEYS = ("rayleigh_alpha_per_s", "rayleigh_beta_s", "axial_damping_N_s")
+
+
+class UndampedWarning(UserWarning):
+    """A transient run integrates an undamped model because the actuator states no damping and the call
+    gave none (module docstring)."""
+
+
+def states_damping(params) -> bool:
+    """True when the actuator ``params`` states a damping coefficient (any of α, β, c_a > 0)."""
+    return bool(params.rayleigh_alpha > 0 or params.rayleigh_beta > 0 or params.axial_damping > 0)
+
+
+def damping_source(params, damping) -> str:
+    """Where a run's damping comes from: "given" (``damping`` is not None), "actuator" (the actuator's
+    coefficients) or "none" (the actuator states none: undamped)."""
+    if damping is not None:
+        return "given"
+    return "actuator" if states_damping(params) else "none"
+
+
+def undamped_message(params, consequence: str) -> str:
+    """The text that announces an undamped model: which actuator, which keys it lacks, the consequence and
+    the remedies."""
+    return (f"the actuator '{params.name}' states no damping ({', '.join(DAMPING_KEYS)} all 0): "
+            f"{consequence}; give a damping (damping= / --damping-ratio) or identify it from a free decay "
+            "(bellows identify-damping) and put it in the actuator file")
 
 
 def element_dofs(n_elements: int) -> np.ndarray:

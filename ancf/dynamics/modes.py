@@ -12,6 +12,25 @@ stiffness matrices of the stability check (:meth:`ancf.Model.fk`, docs/errors.md
 has real, positive frequencies.  The generalized symmetric eigenproblem K φ = ω² M φ is solved densely
 (:func:`scipy.linalg.eigh`); f = ω / 2π.
 
+**Axial or bending** (:func:`strain_energy_split`).  A mode is classified by where its elastic strain energy
+goes, along the body, not by the direction its tip moves in a fixed frame (a bent actuator's axial mode moves
+the tip along its own bent axis).  The first variation of the model's strains along a shape φ, at each
+quadrature point (a = r_x, b = r_xx, λ = |a|, t = a/λ, κ = a × b / λ³ the curvature vector whose square
+the bending energy ½ EI κ² uses — :mod:`ancf.forces.bending`):
+
+    δλ = t · δa,      δκ = (δa × b + a × δb) / λ³ − 3 (a · δa) (a × b) / λ⁵,
+
+gives the mode's axial and bending strain energies
+
+    U_A = ½ ∫ W''(λ) δλ² dx,      U_B = ½ ∫ EI(λ, p) |δκ|² dx,
+
+W''(λ) = ½ EA'(λ)(λ³ − λ) + ½ EA(λ)(3λ² − 1) the axial energy's stretch stiffness (:mod:`ancf.stiffness`,
+with the pressure factors of a pressure-dependent law).  These are the *material* parts of the second
+variation of U_axial and U_bend (the prestress terms — W'(λ)/λ (I − t tᵀ), κ · δ²κ — and the load potentials
+are left out: they are not strain of the body).  The axial share U_A / (U_A + U_B) ∈ [0, 1] labels a mode
+``axial`` above ½, else ``bending``; on a straight, unstressed rod it is exactly 1 for the axial modes and 0
+for the bending ones (no coupling at first order), and for mass-normalised shapes U_A + U_B ≈ ω²/2.
+
 Verified against closed forms (tests/test_dynamics_modes.py): the clamped-free Euler–Bernoulli beam
 (f_k = β_k² / 2π · √(EI / (m' L⁴)), β₁ L = 1.8751, β₂ L = 4.6941), the fixed-free axial rod
 (f = √(EA/m') / 4L), a tip mass on a light beam (f = √(3 EI / (m L³)) / 2π), and the interlacing of
@@ -26,7 +45,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from ..errors import InputError, UnstableEquilibriumError
-from .damping import axial_damping
+from .damping import axial_damping, damping_source
 from .mass import consistent_mass, tip_mass_matrix
 
 
@@ -37,7 +56,10 @@ class ModalResult:
     point's motion in each shape; locked: indices of the tendons held as constraints (empty: tensions held);
     damping_ratios (k,) [-]: ζ_k = φ_kᵀ C φ_k / (2 ω_k) with the damping C of :mod:`.damping` (exact for
     Rayleigh damping, first order in the damping for the axial Kelvin–Voigt part); damping: the coefficients
-    used {alpha [1/s], beta [s], axial [N s]}."""
+    used {alpha [1/s], beta [s], axial [N s]}; damping_source: "given" (the call's ``damping=``), "actuator"
+    (the actuator's coefficients) or "none" (the actuator states no damping: the ratios are 0 because nothing
+    is known, not because the actuator is undamped); axial_share (k,) [-]: the share of each mode's elastic
+    strain energy in axial stretch (module docstring; the rest is bending), ``kinds`` the labels from it."""
     frequencies: np.ndarray
     omega2: np.ndarray
     shapes: np.ndarray
@@ -45,6 +67,20 @@ class ModalResult:
     locked: tuple = ()
     damping_ratios: np.ndarray = None
     damping: dict = None
+    damping_source: str = "given"
+    axial_share: np.ndarray = None
+
+    @property
+    def kinds(self) -> tuple:
+        """Per mode "axial" (axial share of its strain energy > ½) or "bending"."""
+        return tuple("axial" if s > 0.5 else "bending" for s in self.axial_share)
+
+    @property
+    def tip_directions(self) -> np.ndarray:
+        """(k, 3) [-] the unit vector along which the tool point moves in each mode (world frame; zero for a
+        mode that does not move it)."""
+        n = np.linalg.norm(self.tip_shapes, axis=1, keepdims=True)
+        return np.divide(self.tip_shapes, n, out=np.zeros_like(self.tip_shapes), where=n > 0)
 
     @property
     def frequencies_hz(self) -> np.ndarray:
@@ -113,4 +149,41 @@ def modes(model, eq, count: int = 6, damping=None) -> ModalResult:
     if not np.any(C):
         zeta = np.zeros(count)
     return ModalResult(omega / (2 * np.pi), w2, shapes, shapes @ Jp.T, A if Z is not None or A else (),
-                       zeta, coeffs)
+                       zeta, coeffs, damping_source(p, damping), axial_share(model, eq, shapes))
+
+
+def strain_energy_split(model, q: np.ndarray, shapes: np.ndarray, pressure: float = 0.0) -> np.ndarray:
+    """(k, 2) [J]: the axial and bending strain energies (U_A, U_B) of each shape (k, ndof) (a δq about the
+    state q (ndof,)) at the pressure [Pa] (module docstring: the material parts of the second variation)."""
+    shapes = np.atleast_2d(np.asarray(shapes, float))
+    ea, ei = model.params.stiffness.coefficients(float(pressure))
+    n, N, wq = model.n, model._N, model._wq
+    idx = 6 * np.arange(n)[:, None] + np.arange(12)[None, :]
+
+    def slopes(v):                                                      # (r_x, r_xx) at every point (n, nq, 3)
+        ve = v[idx].reshape(n, 4, 3)
+        return np.einsum("kj,ejc->ekc", N[:, 1, :], ve), np.einsum("kj,ejc->ekc", N[:, 2, :], ve)
+
+    a, b = slopes(np.asarray(q, float))
+    lam = np.linalg.norm(a, axis=-1)
+    t = a / lam[..., None]
+    P = np.polynomial.polynomial
+    W2 = 0.5 * P.polyval(lam, P.polyder(ea)) * (lam ** 3 - lam) + 0.5 * P.polyval(lam, ea) * (3 * lam ** 2 - 1)
+    EI = P.polyval(lam, ei)
+    axb = np.cross(a, b)
+    out = np.empty((len(shapes), 2))
+    for k, phi in enumerate(shapes):
+        da, db = slopes(phi)
+        dlam = np.einsum("ekc,ekc->ek", t, da)
+        dkap = ((np.cross(da, b) + np.cross(a, db)) / lam[..., None] ** 3
+                - 3.0 * (np.einsum("ekc,ekc->ek", a, da) / lam ** 5)[..., None] * axb)
+        out[k] = 0.5 * np.sum(wq * W2 * dlam ** 2), 0.5 * np.sum(wq * EI * np.sum(dkap ** 2, axis=-1))
+    return out
+
+
+def axial_share(model, eq, shapes: np.ndarray) -> np.ndarray:
+    """(k,) [-]: U_A / (U_A + U_B) of each shape about the equilibrium ``eq`` (:func:`strain_energy_split`;
+    0 for a shape without strain)."""
+    U = strain_energy_split(model, eq.q, shapes, eq.pressure)
+    tot = U.sum(axis=1)
+    return np.divide(U[:, 0], tot, out=np.zeros(len(U)), where=tot > 0)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 import time as _time
+import warnings
 from dataclasses import dataclass, field
 from typing import Callable, Optional
 
@@ -40,7 +41,7 @@ import numpy as np
 
 from ..assembly import assemble
 from ..errors import CollapsedStateError, ConvergenceError, InputError, LimitError, check_finite, check_scalar
-from .damping import axial_damping
+from .damping import UndampedWarning, axial_damping, damping_source, undamped_message
 from .integrator import AlphaCoefficients, StepFailed, StepState, alpha_step
 from .mass import consistent_mass, tool_point_inertia
 from .signals import Signal
@@ -55,7 +56,9 @@ class Simulation:
     (N,) [J] (module docstring: energy + dissipated is conserved); events: list of dicts (t [s], kind,
     tendon, text) — tendons going slack/taut, steps subdivided; newton_iterations (N,) per output step;
     dt [s] the step used; damping: the coefficients used {alpha [1/s], beta [s], axial [N s]};
-    rho_inf; wall_time [s]."""
+    damping_source: where they come from — "given" (the call's ``damping=``), "actuator" (the actuator's
+    coefficients) or "none" (the actuator states no damping and none was given: an undamped run, announced
+    by an :class:`~ancf.dynamics.damping.UndampedWarning`); rho_inf; wall_time [s]."""
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
@@ -74,6 +77,7 @@ class Simulation:
     events: list = field(default_factory=list)
     wall_time: float = 0.0
     interrupted: bool = False
+    damping_source: str = "given"
 
     @property
     def real_time_factor(self) -> float:
@@ -138,8 +142,44 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
              tendon_penalty: Optional[float] = None, holding_force: Optional[float] = None,
              check_limits: bool = True, max_halvings: int = 8,
              max_iter: int = 12, progress: Optional[Callable[[float, float], None]] = None) -> Simulation:
-    """Integrate the model in time (module docstring); see :meth:`ancf.Model.simulate` for the arguments."""
+    """Integrate the model in time (module docstring); see :meth:`ancf.Model.simulate` for the arguments.
+
+    The steps: the run's inputs checked (:func:`_check_run`), the loads made and checked on the whole output
+    grid (:func:`_make_loads`), the start state (:func:`_start_state`), the equations of motion with their
+    damping (:func:`_make_plant`), then the time loop (:func:`_integrate`: substeps in :class:`_Stepper`,
+    output rows and the energy bookkeeping in :class:`_Recorder`), stopped early by Ctrl-C."""
     wall0 = _time.perf_counter()
+    t_end, rho_inf, h, times = _check_run(model, t_end, dt, rho_inf, max_halvings, tensions, lengths)
+    loads = _make_loads(model, tensions, lengths, pressure, tip_force, pressure_tau, tendon_penalty,
+                        holding_force, check_limits)
+    loads.check_grid(times)
+    p_init = _initial_pressure(loads, pressure0)
+    z, vz = _start_state(model, loads, q0, v0, p_init)
+    source = damping_source(model.params, damping)
+    if source == "none":
+        warnings.warn(UndampedWarning(undamped_message(model.params, "the run is undamped apart from the "
+                                                       "integrator's numerical dissipation (rho_inf < 1)")),
+                      stacklevel=3)
+    plant, coeffs = _make_plant(model, loads, z, p_init, damping)
+    stepper = _Stepper(h, AlphaCoefficients.from_rho(rho_inf), max_halvings, max_iter,
+                       max(model.default_tol, 1e-10))
+    rec = _Recorder(plant, _EnergyParts(model, loads), len(times))
+    state = _initial_acceleration(plant, loads, z, vz, p_init)
+    n_out = _integrate(plant, loads, stepper, rec, state, times, p_init, progress)
+    sl = slice(0, n_out)
+    return Simulation(t=times[sl].copy(), q=rec.q[sl], v=rec.v[sl], tip=rec.tip[sl], tensions=rec.T[sl],
+                      pressure=rec.p[sl], energy=rec.kinetic[sl] + rec.potential[sl] - rec.work[sl],
+                      kinetic=rec.kinetic[sl], potential=rec.potential[sl], work=rec.work[sl],
+                      dissipated=rec.dissipated[sl], newton_iterations=rec.iterations[sl], dt=h, damping=coeffs,
+                      rho_inf=rho_inf, events=stepper.events, wall_time=_time.perf_counter() - wall0,
+                      interrupted=n_out < len(times), damping_source=source)
+
+
+# ------------------------------------------------------------------------------------------------ inputs
+def _check_run(model, t_end, dt, rho_inf, max_halvings, tensions, lengths):
+    """The run's scalar inputs checked up front: (t_end [s], rho_inf, h [s] the step, times (N,) [s] the
+    output grid, N = ceil(t_end / dt) + 1).  InputError for anything out of range, for an actuator without
+    line mass and unless exactly one of tensions / lengths is given."""
     p = model.params
     t_end = check_scalar("t_end", t_end, low=0.0, high=1e6, unit="s")
     dt = check_scalar("dt", dt, low=0.0, high=t_end, unit="s")
@@ -159,12 +199,87 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
     if (tensions is None) == (lengths is None):
         raise InputError("give exactly one of tensions= (prescribed tension [N]) or lengths= (prescribed "
                          "tendon lengths [m], e.g. locked at eq.tendon_lengths)")
-    h = t_end / nsteps
-    times = np.linspace(0.0, t_end, nsteps + 1)
-    m = model.m
-    length_mode = lengths is not None
-    if length_mode:
-        l0_sig = Signal("lengths", lengths, (m,), "m")
+    return t_end, rho_inf, t_end / nsteps, np.linspace(0.0, t_end, nsteps + 1)
+
+
+@dataclass
+class _Loads:
+    """The load signals of a run and the rules they obey.  Tendons by tension (``T_sig`` (m,) [N]) or by length
+    (``l0_sig`` (m,) [m]: one-sided springs of stiffness ``k_pen`` [N/m], the motors giving way at ``F_hold``
+    [N], i.e. at the stretch ``s_hold`` [m]); ``pc_sig`` the pressure (command, with a supply of time constant
+    ``tau`` [s]) [Pa]; ``F_sig`` (3,) the tip force [N]."""
+    params: object
+    check_limits: bool
+    T_sig: Optional[Signal]
+    l0_sig: Optional[Signal]
+    pc_sig: Signal
+    F_sig: Signal
+    tau: Optional[float]
+    k_pen: float
+    F_hold: float
+    s_hold: float
+
+    @property
+    def length_mode(self) -> bool:
+        return self.l0_sig is not None
+
+    @property
+    def varying(self) -> bool:
+        """True when Π depends on time (loads that change, a pressure supply, tendons held by length)."""
+        return (self.length_mode or not (self.T_sig.constant and self.pc_sig.constant and self.F_sig.constant)
+                or self.tau is not None)
+
+    def tensions(self, t: float) -> Optional[np.ndarray]:
+        """The prescribed tensions [N] at t, None for tendons held by length."""
+        return None if self.length_mode else self.T_sig(t)
+
+    def lengths(self, t: float) -> Optional[np.ndarray]:
+        """The prescribed tendon lengths [m] at t, None for tendons driven by tension."""
+        return self.l0_sig(t) if self.length_mode else None
+
+    def check(self, t: float, T=None, pr=None, l0=None) -> None:
+        """InputError / LimitError (naming t [s]) for tensions T [N], pressure pr [Pa] or lengths l0 [m] the
+        actuator cannot take."""
+        p = self.params
+        if T is not None:
+            if np.any(T < -1e-12):
+                raise InputError(f"tensions at t = {t:.6g} s: a tendon cannot push (T = {T} N)")
+            if self.check_limits and np.any(T > p.tension_max + 1e-12):
+                raise LimitError(f"tensions at t = {t:.6g} s: {T} N above the actuator's tension_max "
+                                 f"{p.tension_max:g} N (check_limits=False analyses it anyway)")
+        if pr is not None and self.check_limits and not p.pressure_min - 1e-9 <= pr <= p.pressure_max + 1e-9:
+            raise LimitError(f"pressure at t = {t:.6g} s: {pr / 1e3:g} kPa outside the actuator's limits "
+                             f"[{p.pressure_min / 1e3:g}, {p.pressure_max / 1e3:g}] kPa (the Python API takes "
+                             "pascals; check_limits=False analyses it anyway)")
+        if l0 is not None and np.any(l0 <= 0):
+            raise InputError(f"lengths at t = {t:.6g} s must be > 0 m, got {l0}")
+
+    def check_grid(self, times: np.ndarray) -> None:
+        """Fail fast: every signal on the output grid before integrating."""
+        for t in times:
+            self.check(t, T=self.tensions(t), pr=float(self.pc_sig(t)), l0=self.lengths(t))
+            self.F_sig(t)
+
+    def pressure_at(self, t_new: float, t_old: float, p_old: float) -> float:
+        """The pressure [Pa] at t_new: the prescribed one, or the supply's (trapezoidal rule from p_old at
+        t_old)."""
+        if self.tau is None:
+            return float(self.pc_sig(t_new))
+        c = (t_new - t_old) / (2 * self.tau)
+        return (p_old * (1 - c) + c * (float(self.pc_sig(t_old)) + float(self.pc_sig(t_new)))) / (1 + c)
+
+    def springy(self, T: np.ndarray) -> np.ndarray:
+        """Tendons whose tension follows their stretch (taut, below the motors' holding force)."""
+        return (T > 0) & (T < self.F_hold)
+
+
+def _make_loads(model, tensions, lengths, pressure, tip_force, pressure_tau, tendon_penalty, holding_force,
+                check_limits) -> _Loads:
+    """The run's :class:`_Loads`, every argument checked (InputError)."""
+    p = model.params
+    T_sig = l0_sig = None
+    if lengths is not None:
+        l0_sig = Signal("lengths", lengths, (model.m,), "m")
         k_pen = p.tendon_stiffness if p.tendon_stiffness else (
             1e5 if tendon_penalty is None else check_scalar("tendon_penalty", tendon_penalty, low=1.0, high=1e12,
                                                             unit="N/m"))
@@ -172,120 +287,184 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
             raise InputError("tendon_penalty is for inextensible tendons; this actuator's tendons have "
                              f"tendon_stiffness = {p.tendon_stiffness:g} N/m, which is used")
     else:
-        T_sig = Signal("tensions", tensions, (m,), "N")
+        T_sig = Signal("tensions", tensions, (model.m,), "N")
         k_pen = 0.0
     if holding_force is not None:
-        if not length_mode:
+        if lengths is None:
             raise InputError("holding_force is the motors' force limit for tendons held by length (lengths=)")
         holding_force = check_scalar("holding_force", holding_force, low=1e-6, high=1e5, unit="N")
     F_hold = math.inf if holding_force is None else holding_force
-    s_hold = F_hold / k_pen if length_mode else math.inf         # the stretch at which a motor gives way
+    s_hold = F_hold / k_pen if lengths is not None else math.inf      # the stretch at which a motor gives way
     pc_sig = Signal("pressure", pressure, (), "Pa")
     F_sig = Signal("tip_force", tip_force, (3,), "N")
     tau = None if pressure_tau is None else check_scalar("pressure_tau", pressure_tau, low=1e-6, high=1e4,
                                                           unit="s")
+    return _Loads(p, check_limits, T_sig, l0_sig, pc_sig, F_sig, tau, k_pen, F_hold, s_hold)
 
-    def check_loads(t, T=None, pr=None, l0=None):
-        if T is not None:
-            if np.any(T < -1e-12):
-                raise InputError(f"tensions at t = {t:.6g} s: a tendon cannot push (T = {T} N)")
-            if check_limits and np.any(T > p.tension_max + 1e-12):
-                raise LimitError(f"tensions at t = {t:.6g} s: {T} N above the actuator's tension_max "
-                                 f"{p.tension_max:g} N (check_limits=False analyses it anyway)")
-        if pr is not None and check_limits and not p.pressure_min - 1e-9 <= pr <= p.pressure_max + 1e-9:
-            raise LimitError(f"pressure at t = {t:.6g} s: {pr / 1e3:g} kPa outside the actuator's limits "
-                             f"[{p.pressure_min / 1e3:g}, {p.pressure_max / 1e3:g}] kPa (the Python API takes "
-                             "pascals; check_limits=False analyses it anyway)")
-        if l0 is not None and np.any(l0 <= 0):
-            raise InputError(f"lengths at t = {t:.6g} s must be > 0 m, got {l0}")
 
-    # fail fast: every signal on the output grid before integrating
-    for t in times:
-        check_loads(t, T=None if length_mode else T_sig(t), pr=float(pc_sig(t)),
-                    l0=l0_sig(t) if length_mode else None)
-        F_sig(t)
-
-    # pressure state
-    p_init = float(pc_sig(0.0)) if pressure0 is None else float(check_scalar("pressure0", pressure0, unit="Pa"))
-    if pressure0 is not None and tau is None:
+def _initial_pressure(loads: _Loads, pressure0) -> float:
+    """The chamber pressure [Pa] at t = 0: the signal's, or the supply's ``pressure0``."""
+    p_init = float(loads.pc_sig(0.0)) if pressure0 is None else float(check_scalar("pressure0", pressure0,
+                                                                                     unit="Pa"))
+    if pressure0 is not None and loads.tau is None:
         raise InputError("pressure0 is the supply's initial pressure: it needs pressure_tau")
-    check_loads(0.0, pr=p_init)
+    loads.check(0.0, pr=p_init)
+    return p_init
 
-    def pressure_at(t_new, t_old, p_old):
-        if tau is None:
-            return float(pc_sig(t_new))
-        c = (t_new - t_old) / (2 * tau)
-        return (p_old * (1 - c) + c * (float(pc_sig(t_old)) + float(pc_sig(t_new)))) / (1 + c)
 
-    # start state
+def _start_state(model, loads: _Loads, q0, v0, p_init: float) -> tuple[np.ndarray, np.ndarray]:
+    """Free coordinates z (nz,) and velocities (nz,) at t = 0: q0 (default: the equilibrium of the start loads)
+    and v0 (default 0); InputError for a v0 that moves the clamp."""
     if q0 is None:
-        if length_mode:
+        if loads.length_mode:
             raise InputError("lengths= needs q0 (e.g. the equilibrium whose tendon lengths you lock)")
-        q0 = model.fk(T_sig(0.0), p_init, F_sig(0.0), check_limits=check_limits).q
+        q0 = model.fk(loads.T_sig(0.0), p_init, loads.F_sig(0.0), check_limits=loads.check_limits).q
     z = model._initial_z(q0)
-    nz, ndof = model.nz, model.ndof
-    P = model._P
     if v0 is None:
-        vz = np.zeros(nz)
-    else:
-        v0 = model._q(v0, "v0")
-        vz = model._to_free(v0)
-
-    def full_v(vz_):
-        if P is None:
-            v = np.zeros(ndof)
-            v[6:] = vz_
-            return v
-        return P @ vz_
-
-    if v0 is not None and not np.allclose(full_v(vz), v0, rtol=0, atol=1e-12 * max(1.0, np.abs(v0).max())):
+        return z, np.zeros(model.nz)
+    v0 = model._q(v0, "v0")
+    vz = model._to_free(v0)
+    if not np.allclose(_full_v(model, vz), v0, rtol=0, atol=1e-12 * max(1.0, np.abs(v0).max())):
         raise InputError("v0 moves the clamped base node (its first 6 entries must be 0, or only the base "
                          "stretch along the base axis with free_base_stretch)")
+    return z, vz
 
-    def red_v(x):
-        return model._reduce_vec(x)
 
-    def red_m(K):
-        return model._reduce_mat(K)
+def _full_v(model, vz: np.ndarray) -> np.ndarray:
+    """Full velocities (ndof,) from the free ones (nz,)."""
+    if model._P is None:
+        v = np.zeros(model.ndof)
+        v[6:] = vz
+        return v
+    return model._P @ vz
 
-    M0 = consistent_mass(model.n, model._N, model._wq, p.line_mass)
-    hoff, mtip = p.tool_offset, p.tip_mass
 
-    def mass_full(q):
+# ------------------------------------------------------------------------------------------------ the plant
+@dataclass
+class _Plant:
+    """The equations of motion in the free coordinates (module docstring): the residual and its iteration
+    matrices for the integrator (:meth:`system`), the mass, the tendon forces and the dissipated power.
+    M0 (ndof, ndof) the consistent mass [kg]; Mz_const (nz, nz) its constant reduced part (with a tool-point
+    mass without offset); C_R (nz, nz) the Rayleigh matrix or None; c_ax [N s] the axial damping; force_scale
+    [N] the Newton tolerance's scale."""
+    model: object
+    loads: _Loads
+    M0: np.ndarray
+    Mz_const: np.ndarray
+    C_R: Optional[np.ndarray] = None
+    Ct_const: Optional[np.ndarray] = None
+    c_ax: float = 0.0
+    force_scale: float = 0.0
+
+    @property
+    def tip_moves_mass(self) -> bool:
+        p = self.model.params
+        return p.tip_mass > 0 and p.tool_offset > 0
+
+    def full_v(self, vz: np.ndarray) -> np.ndarray:
+        return _full_v(self.model, vz)
+
+    def mass_full(self, q: np.ndarray):
+        """(M (ndof, ndof) [kg] with the tool-point mass at q, its Jacobian J_p (3, ndof) or None)."""
+        mtip = self.model.params.tip_mass
         if mtip > 0:
-            Jp = model._tip_jacobian(q)
-            return M0 + mtip * Jp.T @ Jp, Jp
-        return M0, None
+            Jp = self.model._tip_jacobian(q)
+            return self.M0 + mtip * Jp.T @ Jp, Jp
+        return self.M0, None
 
-    # tendon forces at a state
-    def tendon_state(q, t, l0=None):
-        if not length_mode:
-            return T_sig(t), None
-        lq = model._evaluate(q, None, 0.0, (0.0, 0.0, 0.0), False, 1.0, "values").lengths
-        T = np.minimum(k_pen * np.maximum(lq - l0, 0.0), F_hold)
-        return T, lq
+    def tendons(self, q: np.ndarray, t: float, l0=None):
+        """(tensions (m,) [N], tendon lengths (m,) [m] or None) at q and t: the prescribed ones, or the length
+        springs' k max(0, l − l0) capped at the holding force."""
+        ld = self.loads
+        if not ld.length_mode:
+            return ld.T_sig(t), None
+        lq = self.model._evaluate(q, None, 0.0, (0.0, 0.0, 0.0), False, 1.0, "values").lengths
+        return np.minimum(ld.k_pen * np.maximum(lq - l0, 0.0), ld.F_hold), lq
 
-    def springy(T):
-        """Tendons whose tension follows their stretch (taut, below the motors' holding force)."""
-        return (T > 0) & (T < F_hold)
+    def add_springs(self, K: np.ndarray, J_l: np.ndarray, T: np.ndarray) -> np.ndarray:
+        """K plus k JᵀJ of the taut length springs (reduced; J_l (m, ndof) the tendon-length gradients)."""
+        ld = self.loads
+        if not ld.length_mode:
+            return K
+        taut = ld.springy(T)
+        if np.any(taut):
+            JA = self.model._reduce_vec(J_l)[taut]
+            K = K + ld.k_pen * JA.T @ JA
+        return K
 
-    # Rayleigh stiffness at the start: the linearisation's stiffness under the start loads
+    def system(self, t1: float, T1_fixed, pr1: float, F1, l01):
+        """The integrator's system at t1 (:func:`.integrator.alpha_step`): (z, ż, z̈) → (residual (nz,) [N],
+        M, K_t, C_t (nz, nz), force scale [N])."""
+        model, length_mode = self.model, self.loads.length_mode
+        red_v, red_m = model._reduce_vec, model._reduce_mat
+
+        def system(z1, v1, x):
+            q = model._to_full(z1)
+            T1 = self.tendons(q, t1, l01)[0] if length_mode else T1_fixed
+            ev = model._evaluate(q, T1, pr1, F1, True, 1.0, bool(length_mode))
+            if not np.isfinite(ev.energy):
+                raise StepFailed(f"the state left the model's domain ({model.inadmissibility(q)})")
+            r = self.Mz_const @ x + red_v(ev.Q)
+            Kt = red_m(ev.K)
+            Mz = self.Mz_const
+            Ct = self.Ct_const
+            if self.C_R is not None:
+                r += self.C_R @ v1
+            if self.c_ax > 0:
+                Qd, Dq, Dv = axial_damping(q, self.full_v(v1), model.n, model._N, model._wq, self.c_ax)
+                r += red_v(Qd)
+                Kt = Kt + red_m(Dq)
+                Ct = Ct + red_m(Dv)
+            if self.tip_moves_mass:
+                r, Mz, Kt, Ct = self._tool_point(q, v1, x, r, Kt, Ct)
+            Kt = self.add_springs(Kt, ev.J_l, T1)
+            return r, Mz, Kt, Ct, self.force_scale + float(np.linalg.norm(Mz @ x))
+        return system
+
+    def _tool_point(self, q, v1, x, r, Kt, Ct):
+        """The tool point's inertia m J_pᵀ p̈ on the tip node's 6 coordinates (the last 6 of z) and its
+        tangents: (r, M, K_t, C_t)."""
+        p = self.model.params
+        fi, Ds, Dvs, B = tool_point_inertia(q[-3:], v1[-3:], x[-6:-3], x[-3:], p.tool_offset, p.tip_mass)
+        r[-6:] += fi
+        Mz = self.Mz_const.copy()
+        Mz[-6:, -6:] += B
+        Kt = Kt.copy()
+        Kt[-6:, -3:] += Ds
+        Ct = Ct.copy()
+        Ct[-6:, -3:] += Dvs
+        return r, Mz, Kt, Ct
+
+    def dissipation_power(self, q: np.ndarray, vq: np.ndarray, vz: np.ndarray) -> float:
+        """q̇ᵀ(C_R q̇ + Q_d) [W] at the state (q, vq (ndof,)), vz the free velocities."""
+        pw = 0.0
+        if self.C_R is not None:
+            pw += float(vz @ self.C_R @ vz)
+        if self.c_ax > 0:
+            m = self.model
+            pw += float(vq @ axial_damping(q, vq, m.n, m._N, m._wq, self.c_ax)[0])
+        return pw
+
+
+def _make_plant(model, loads: _Loads, z: np.ndarray, p_init: float, damping) -> tuple[_Plant, dict]:
+    """The run's :class:`_Plant` and its damping coefficients {alpha [1/s], beta [s], axial [N s]}: Rayleigh's
+    stiffness is the linearisation's at the start state under the start loads (or the one ``damping`` gives)."""
+    p = model.params
+    M0 = consistent_mass(model.n, model._N, model._wq, p.line_mass)
+    Mz_const = model._reduce_mat(M0).copy()
+    if p.tip_mass > 0 and p.tool_offset == 0:
+        Mz_const[-6:-3, -6:-3] += p.tip_mass * np.eye(3)
+    plant = _Plant(model, loads, M0, Mz_const)
     q_start = model._to_full(z)
-    l0_start = l0_sig(0.0) if length_mode else None
-    T_start, _ = tendon_state(q_start, 0.0, l0_start)
-    ev0 = model._evaluate(q_start, T_start, p_init, F_sig(0.0), True, 1.0, True)
+    T_start, _ = plant.tendons(q_start, 0.0, loads.lengths(0.0))
+    ev0 = model._evaluate(q_start, T_start, p_init, loads.F_sig(0.0), True, 1.0, True)
     if not np.isfinite(ev0.energy):
         raise InputError(f"q0 is outside the model's domain: {model.inadmissibility(q_start)}")
-    K0 = red_m(ev0.K)
-    if length_mode:
-        taut = springy(T_start)
-        if np.any(taut):
-            JA = red_v(ev0.J_l)[taut]
-            K0 = K0 + k_pen * JA.T @ JA
+    K0 = plant.add_springs(model._reduce_mat(ev0.K), ev0.J_l, T_start)
     K0 = 0.5 * (K0 + K0.T)
-    Mz0 = red_m(mass_full(q_start)[0])
+    Mz0 = model._reduce_mat(plant.mass_full(q_start)[0])
     coeffs = resolve_damping(model, damping, K0, Mz0)
-    alpha_d, beta_d, c_ax = coeffs["alpha"], coeffs["beta"], coeffs["axial"]
+    alpha_d, beta_d = coeffs["alpha"], coeffs["beta"]
     if "stiffness" in coeffs:                    # a fixed matrix for β (e.g. a plant's, across many runs)
         K0 = coeffs.pop("stiffness")
         K0 = 0.5 * (K0 + K0.T)
@@ -295,208 +474,215 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
             raise InputError("stiffness-proportional damping (beta) needs a stable start: the tangent at q0 "
                              f"has a negative eigenvalue ({lam:.3g}); start from an equilibrium or damp with "
                              "alpha / axial only")
-    C_R = alpha_d * Mz0 + beta_d * K0 if (alpha_d or beta_d) else None
+    plant.C_R = alpha_d * Mz0 + beta_d * K0 if (alpha_d or beta_d) else None
+    plant.Ct_const = np.zeros((model.nz, model.nz)) if plant.C_R is None else plant.C_R
+    plant.c_ax = coeffs["axial"]
     # Newton tolerance [N]: 1e-7 of the force scale (EA(1)·1e-3 + the weight + |M z̈|); a residual r moves the
     # state by about β' J⁻¹ r — far below 1 nm at every step size
-    force_scale = abs(float(p.stiffness.EA(1.0))) * 1e-3 + abs(float(p.line_mass)) * 9.81 * p.length
+    plant.force_scale = abs(float(p.stiffness.EA(1.0))) * 1e-3 + abs(float(p.line_mass)) * 9.81 * p.length
+    return plant, coeffs
 
-    # constant part of the reduced mass: the consistent mass, plus a tool-point mass without offset
-    Mz_const = red_m(M0).copy()
-    if mtip > 0 and hoff == 0:
-        Mz_const[-6:-3, -6:-3] += mtip * np.eye(3)
-    tip_moves_mass = mtip > 0 and hoff > 0
-    Ct_const = np.zeros((nz, nz)) if C_R is None else C_R
-    ev_lengths = bool(length_mode)
 
-    def make_system(t1, T1_fixed, pr1, F1, l01):
-        def system(z1, v1, x):
-            q = model._to_full(z1)
-            T1 = tendon_state(q, t1, l01)[0] if length_mode else T1_fixed
-            ev = model._evaluate(q, T1, pr1, F1, True, 1.0, ev_lengths)
-            if not np.isfinite(ev.energy):
-                raise StepFailed(f"the state left the model's domain ({model.inadmissibility(q)})")
-            r = Mz_const @ x + red_v(ev.Q)
-            Kt = red_m(ev.K)
-            Mz, Ct = Mz_const, Ct_const
-            if C_R is not None:
-                r += C_R @ v1
-            if c_ax > 0:
-                Qd, Dq, Dv = axial_damping(q, full_v(v1), model.n, model._N, model._wq, c_ax)
-                r += red_v(Qd)
-                Kt = Kt + red_m(Dq)
-                Ct = Ct + red_m(Dv)
-            if tip_moves_mass:
-                # the tool point's inertia m J_pᵀ p̈ acts on the tip node's 6 coordinates, the last 6 of z
-                fi, Ds, Dvs, B = tool_point_inertia(q[-3:], v1[-3:], x[-6:-3], x[-3:], hoff, mtip)
-                r[-6:] += fi
-                Mz = Mz_const.copy()
-                Mz[-6:, -6:] += B
-                Kt = Kt.copy()
-                Kt[-6:, -3:] += Ds
-                Ct = Ct.copy()
-                Ct[-6:, -3:] += Dvs
-            if length_mode:
-                taut = springy(T1)
-                if np.any(taut):
-                    JA = red_v(ev.J_l)[taut]
-                    Kt = Kt + k_pen * JA.T @ JA
-            return r, Mz, Kt, Ct, force_scale + float(np.linalg.norm(Mz @ x))
-        return system
+def _initial_acceleration(plant: _Plant, loads: _Loads, z: np.ndarray, vz: np.ndarray, p_init: float) -> StepState:
+    """The integrator's start: z̈0 from M z̈0 = −g(z0, ż0, 0)."""
+    sys0 = plant.system(0.0, loads.tensions(0.0), p_init, loads.F_sig(0.0), loads.lengths(0.0))
+    try:
+        r0, Mm, _, _, _ = sys0(z, vz, np.zeros(plant.model.nz))
+    except StepFailed as exc:
+        raise InputError(f"q0: {exc.reason}") from None
+    acc0 = -np.linalg.solve(Mm, r0)
+    return StepState(z.copy(), vz.copy(), acc0, acc0.copy())
 
-    # energy parts of a state: Π(q; T, p, F) = E0 + T·l − p V − F·p_end + ½ k Σ max(0, l − l0)²
-    s1 = model._N[:, 1, :]                                   # slope shape values (nq, 4)
-    eidx = np.arange(model.n)[:, None] * 6 + np.arange(12)[None, :]
-    vc = model._vc
 
-    law = model.params.stiffness
+# ------------------------------------------------------------------------------------------------ energy
+class _EnergyParts:
+    """Π(q; T, p, F) = E0 + T·l − p V − F·p_end + ½ k Σ max(0, l − l0)² (module docstring), split so the
+    q-dependent parts are computed once per output row (:meth:`parts`) and combined with any loads
+    (:meth:`potential`)."""
 
-    def parts(q):
+    def __init__(self, model, loads: _Loads):
+        self.model, self.loads = model, loads
+        self.law = model.params.stiffness
+        self.s1 = model._N[:, 1, :]                                   # slope shape values (nq, 4)
+        self.eidx = np.arange(model.n)[:, None] * 6 + np.arange(12)[None, :]
+
+    def parts(self, q: np.ndarray) -> tuple:
+        """(E0 [J] the energy without tendon and pressure loads, tendon lengths (m,) [m], V [m³] the chamber
+        volume ∫ A(λ) λ dx, p_end (3,) [m] the tool point, U_A, U_B [J] the axial and bending energies at p = 0
+        of a pressure-dependent law, else 0)."""
+        model = self.model
         e0 = model._evaluate(q, None, 0.0, (0.0, 0.0, 0.0), False, 1.0, "values")
-        lam = np.linalg.norm(np.einsum("kj,ejc->ekc", s1, q[eidx].reshape(model.n, 4, 3)), axis=-1)
-        V = float(np.sum(model._wq * sum(c * lam ** (j + 1) for j, c in enumerate(vc))))   # ∫ A(λ) λ dx
-        # a pressure-dependent law: the axial and bending energies at p = 0, scaled by their factors at p
+        lam = np.linalg.norm(np.einsum("kj,ejc->ekc", self.s1, q[self.eidx].reshape(model.n, 4, 3)), axis=-1)
+        V = float(np.sum(model._wq * sum(c * lam ** (j + 1) for j, c in enumerate(model._vc))))
         UA = UB = 0.0
-        if law.pressure_dependent:
+        if self.law.pressure_dependent:
             z3, z1 = np.zeros(3), np.zeros(1)
             common = (model._E, model._d, model._co, model._so, np.zeros(model.m), 0.0, z3, False, 0)
             UA = assemble(q, model.n, model._N, model._wq, model._ea, z1, z1, z3, *common)[0]
             UB = assemble(q, model.n, model._N, model._wq, z1, model._ei, z1, z3, *common)[0]
         return e0.energy, e0.lengths, V, model._tip(q), UA, UB
 
-    def potential(pt, T, pr, F, l0):
+    def potential(self, pt: tuple, T, pr: float, F, l0) -> float:
+        """Π [J] of the state whose :meth:`parts` are ``pt`` under tensions T [N] (or lengths l0 [m]), pressure
+        pr [Pa] and tip force F [N]."""
         E0, lq, V, pe, UA, UB = pt
+        ld = self.loads
         Pi = E0 - pr * V - float(F @ pe)
-        if law.pressure_dependent:
-            fA, fI = law.pressure_factors(pr)
+        if self.law.pressure_dependent:
+            fA, fI = self.law.pressure_factors(pr)
             Pi += (fA - 1.0) * UA + (fI - 1.0) * UB
-        if length_mode:
+        if ld.length_mode:
             st = np.maximum(lq - l0, 0.0)
-            sc = np.minimum(st, s_hold)
-            Pi += float(np.sum(0.5 * k_pen * sc ** 2 + F_hold * (st - sc) if math.isfinite(F_hold)
-                               else 0.5 * k_pen * sc ** 2))
+            sc = np.minimum(st, ld.s_hold)
+            Pi += float(np.sum(0.5 * ld.k_pen * sc ** 2 + ld.F_hold * (st - sc) if math.isfinite(ld.F_hold)
+                               else 0.5 * ld.k_pen * sc ** 2))
         else:
             Pi += float(T @ lq)
         return Pi
 
-    def dissipation_power(q, vq, vz_):
-        pw = 0.0
-        if C_R is not None:
-            pw += float(vz_ @ C_R @ vz_)
-        if c_ax > 0:
-            pw += float(vq @ axial_damping(q, vq, model.n, model._N, model._wq, c_ax)[0])
-        return pw
 
-    coeff = AlphaCoefficients.from_rho(rho_inf)
-    tol_abs = max(model.default_tol, 1e-10)
+# ------------------------------------------------------------------------------------------------ output rows
+class _Recorder:
+    """The output rows of a run (states, tip, tensions, pressure, energies, Newton iterations) and the energy
+    bookkeeping between rows (work of the loads, dissipation: trapezoidal sums)."""
 
-    # initial acceleration: M z̈0 = −g(z0, v0, 0)
-    F0 = F_sig(0.0)
-    sys0 = make_system(0.0, None if length_mode else T_sig(0.0), p_init, F0, l0_start)
+    def __init__(self, plant: _Plant, energy: _EnergyParts, n_rows: int):
+        self.plant, self.energy = plant, energy
+        model = plant.model
+        self.q = np.empty((n_rows, model.ndof))
+        self.v = np.empty((n_rows, model.ndof))
+        self.tip = np.empty((n_rows, 3))
+        self.T = np.empty((n_rows, model.m))
+        self.p = np.empty(n_rows)
+        self.kinetic = np.empty(n_rows)
+        self.potential = np.empty(n_rows)
+        self.work = np.zeros(n_rows)
+        self.dissipated = np.zeros(n_rows)
+        self.iterations = np.zeros(n_rows, dtype=int)
+        self.prev: Optional[dict] = None          # the last row's parts, tensions, power and loads
+
+    def record(self, i: int, st: StepState, t: float, pr: float, F, l0, n_it: int = 0) -> None:
+        """Row i: the state st at time t [s] under pressure pr [Pa], tip force F [N], lengths l0 [m]; the work
+        and dissipation since the previous row."""
+        plant = self.plant
+        q = plant.model._to_full(st.z)
+        vq = plant.full_v(st.v)
+        T, _ = plant.tendons(q, t, l0)
+        pt = self.energy.parts(q)
+        self.q[i], self.v[i], self.tip[i], self.T[i], self.p[i] = q, vq, pt[3], T, pr
+        Mf, _ = plant.mass_full(q)
+        self.kinetic[i] = 0.5 * float(vq @ Mf @ vq)
+        self.potential[i] = self.energy.potential(pt, T, pr, F, l0)
+        self.iterations[i] = n_it
+        row = {"pt": pt, "T": T, "pw": plant.dissipation_power(q, vq, st.v), "pr": pr, "F": F, "l0": l0, "t": t}
+        if self.prev is not None:
+            self._accumulate(i, self.prev, row)
+        self.prev = row
+
+    def _accumulate(self, i: int, a: dict, b: dict) -> None:
+        """Work of the time-varying loads (trapezoid of ∂Π/∂t) and dissipation (trapezoid of the power) from
+        row a to row b = i."""
+        ld, pot = self.plant.loads, self.energy.potential
+        if ld.varying:
+            Tn, Tn1 = ld.tensions(a["t"]), ld.tensions(b["t"])
+            dW = 0.5 * ((pot(a["pt"], Tn1, b["pr"], b["F"], b["l0"]) - pot(a["pt"], Tn, a["pr"], a["F"], a["l0"]))
+                        + (pot(b["pt"], Tn1, b["pr"], b["F"], b["l0"]) - pot(b["pt"], Tn, a["pr"], a["F"], a["l0"])))
+            self.work[i] = self.work[i - 1] + dW
+        else:
+            self.work[i] = self.work[i - 1]
+        self.dissipated[i] = self.dissipated[i - 1] + 0.5 * (b["pw"] + a["pw"]) * (b["t"] - a["t"])
+
+    def tendon_events(self, T_prev: np.ndarray, T_now: np.ndarray, t: float) -> list:
+        """Tendons gone slack / taut and motors overpowered / holding again between two rows (tendons held by
+        length only)."""
+        ld = self.plant.loads
+        if not ld.length_mode:
+            return []
+        events, F_hold = [], ld.F_hold
+        for j in range(len(T_now)):
+            if (T_prev[j] > 0) != (T_now[j] > 0):
+                kind = "taut" if T_now[j] > 0 else "slack"
+                events.append({"t": float(t), "kind": kind, "tendon": j,
+                               "text": f"tendon {j + 1} {kind} at t = {t:.6g} s"})
+            if (T_prev[j] >= F_hold) != (T_now[j] >= F_hold):
+                kind = "overpowered" if T_now[j] >= F_hold else "holding"
+                what = "gives way at its holding force" if kind == "overpowered" else "holds again"
+                events.append({"t": float(t), "kind": kind, "tendon": j,
+                               "text": f"motor {j + 1} {what} ({F_hold:g} N) at t = {t:.6g} s"})
+        return events
+
+
+# ------------------------------------------------------------------------------------------------ time stepping
+class _Stepper:
+    """Advances the state from one output time to the next in substeps h / 2^level: a failed step halves
+    them (up to ``max_halvings`` times; then ConvergenceError or CollapsedStateError naming the time), four
+    good ones in a row double them again.  ``events`` collects the subdivisions (and the recorder's tendon
+    events)."""
+
+    def __init__(self, h: float, coeff: AlphaCoefficients, max_halvings: int, max_iter: int, tol_abs: float):
+        self.h, self.coeff, self.max_halvings, self.max_iter, self.tol_abs = h, coeff, max_halvings, max_iter, tol_abs
+        self.level = self.good = 0
+        self.events: list = []
+
+    def advance(self, plant: _Plant, st: StepState, tt: float, pr_s: float, t_target: float):
+        """(state, pressure [Pa], Newton iterations) at t_target from st at tt [s] with pressure pr_s [Pa]."""
+        loads, h, n_it = plant.loads, self.h, 0
+        while t_target - tt > 1e-12 * h:
+            hh = min(h / 2 ** self.level, t_target - tt)
+            if t_target - tt - hh < 1e-9 * hh:
+                hh = t_target - tt
+            t1 = t_target if hh == t_target - tt else tt + hh
+            pr1 = loads.pressure_at(t1, tt, pr_s)
+            F1, l01, T1 = loads.F_sig(t1), loads.lengths(t1), loads.tensions(t1)
+            loads.check(t1, T=T1, pr=pr1, l0=l01)
+            try:
+                st_new, k = alpha_step(st, hh, self.coeff, plant.system(t1, T1, pr1, F1, l01), rtol=1e-14,
+                                       atol=0.0, vtol=1e-7, max_iter=self.max_iter)
+            except StepFailed as exc:
+                self._halve(exc, tt, t1, hh)
+                continue
+            n_it += k
+            st, tt, pr_s = st_new, t1, pr1
+            self.good += 1
+            if self.level and self.good >= 4:
+                self.level, self.good = self.level - 1, 0
+        return st, pr_s, n_it
+
+    def _halve(self, exc: StepFailed, tt: float, t1: float, hh: float) -> None:
+        """Halve the substep after a failed one (an event), or raise when it was halved often enough."""
+        if self.level >= self.max_halvings:
+            why = exc.reason
+            if "domain" in why:
+                raise CollapsedStateError(f"simulate: at t = {t1:.6g} s {why}, even with the step "
+                                          f"halved {self.level} times", solver="simulate",
+                                          stretch=float("nan")) from None
+            raise ConvergenceError(f"at t = {t1:.6g} s the step did not converge even halved {self.level} "
+                                   f"times (h = {hh:.3g} s): {why}", solver="simulate",
+                                   iterations=exc.iterations, residual_norm=exc.residual,
+                                   tolerance=self.tol_abs) from None
+        self.level += 1
+        self.good = 0
+        self.events.append({"t": float(tt), "kind": "subdivided", "tendon": None,
+                            "text": f"step halved to {self.h / 2 ** self.level:.3g} s ({exc.reason})"})
+
+
+def _integrate(plant: _Plant, loads: _Loads, stepper: _Stepper, rec: _Recorder, state: StepState,
+               times: np.ndarray, p_init: float, progress) -> int:
+    """The time loop: row 0 at t = 0, then one row per output time.  Returns the number of rows done — all of
+    them, or those before the one a Ctrl-C (KeyboardInterrupt) stopped."""
+    rec.record(0, state, 0.0, p_init, loads.F_sig(0.0), loads.lengths(0.0))
+    t_prev, pr_prev, done = 0.0, p_init, 1
     try:
-        r0, Mm, _, _, _ = sys0(z, vz, np.zeros(nz))
-    except StepFailed as exc:
-        raise InputError(f"q0: {exc.reason}") from None
-    acc0 = -np.linalg.solve(Mm, r0)
-    state = StepState(z.copy(), vz.copy(), acc0, acc0.copy())
-
-    N1 = nsteps + 1
-    out_q = np.empty((N1, ndof)); out_v = np.empty((N1, ndof)); out_tip = np.empty((N1, 3))
-    out_T = np.empty((N1, m)); out_p = np.empty(N1); kin_ = np.empty(N1); pot = np.empty(N1)
-    work = np.zeros(N1); diss = np.zeros(N1); iters = np.zeros(N1, dtype=int)
-    events: list = []
-
-    def record(i, st, t, pr, F, l0):
-        q = model._to_full(st.z)
-        vq = full_v(st.v)
-        T, _ = tendon_state(q, t, l0)
-        pt = parts(q)
-        out_q[i], out_v[i], out_tip[i], out_T[i], out_p[i] = q, vq, pt[3], T, pr
-        Mf, _ = mass_full(q)
-        kin_[i] = 0.5 * float(vq @ Mf @ vq)
-        pot[i] = potential(pt, T, pr, F, l0)
-        return pt, T, dissipation_power(q, vq, st.v)
-
-    pt_prev, T_prev, pw_prev = record(0, state, 0.0, p_init, F0, l0_start)
-    pr_prev, F_prev, l0_prev, t_prev = p_init, F0, l0_start, 0.0
-    interrupted = False
-    level = good = 0
-    try:
-        for i in range(1, N1):
+        for i in range(1, len(times)):
             t_target = times[i]
-            n_it = 0
-            st, tt, pr_s = state, t_prev, pr_prev
-            # advance t_prev → t_target in substeps h / 2^level: a failed step halves them (up to
-            # max_halvings times), four good ones in a row double them again
-            while t_target - tt > 1e-12 * h:
-                hh = min(h / 2 ** level, t_target - tt)
-                if t_target - tt - hh < 1e-9 * hh:
-                    hh = t_target - tt
-                t1 = t_target if hh == t_target - tt else tt + hh
-                pr1 = pressure_at(t1, tt, pr_s)
-                F1 = F_sig(t1)
-                l01 = l0_sig(t1) if length_mode else None
-                T1 = None if length_mode else T_sig(t1)
-                check_loads(t1, T=T1, pr=pr1, l0=l01)
-                try:
-                    st_new, k = alpha_step(st, hh, coeff, make_system(t1, T1, pr1, F1, l01), rtol=1e-14, atol=0.0, vtol=1e-7,
-                                           max_iter=max_iter)
-                except StepFailed as exc:
-                    if level >= max_halvings:
-                        why = exc.reason
-                        if "domain" in why:
-                            raise CollapsedStateError(f"simulate: at t = {t1:.6g} s {why}, even with the step "
-                                                      f"halved {level} times", solver="simulate",
-                                                      stretch=float("nan")) from None
-                        raise ConvergenceError(f"at t = {t1:.6g} s the step did not converge even halved {level} "
-                                               f"times (h = {hh:.3g} s): {why}", solver="simulate",
-                                               iterations=exc.iterations, residual_norm=exc.residual,
-                                               tolerance=tol_abs) from None
-                    level += 1
-                    good = 0
-                    events.append({"t": float(tt), "kind": "subdivided", "tendon": None,
-                                   "text": f"step halved to {h / 2 ** level:.3g} s ({exc.reason})"})
-                    continue
-                n_it += k
-                st, tt, pr_s = st_new, t1, pr1
-                good += 1
-                if level and good >= 4:
-                    level, good = level - 1, 0
-            state = st
-            pr_i, F_i, l0_i = pr_s, F_sig(t_target), (l0_sig(t_target) if length_mode else None)
-            pt, T_i, pw = record(i, state, t_target, pr_i, F_i, l0_i)
-            iters[i] = n_it
-            # work of the time-varying loads (trapezoid of ∂Π/∂t), dissipation (trapezoid of the power)
-            if length_mode or not (T_sig.constant and pc_sig.constant and F_sig.constant) or tau is not None:
-                Tn = None if length_mode else T_sig(t_prev)
-                Tn1 = None if length_mode else T_sig(t_target)
-                dW = 0.5 * ((potential(pt_prev, Tn1, pr_i, F_i, l0_i) - potential(pt_prev, Tn, pr_prev, F_prev, l0_prev))
-                            + (potential(pt, Tn1, pr_i, F_i, l0_i) - potential(pt, Tn, pr_prev, F_prev, l0_prev)))
-                work[i] = work[i - 1] + dW
-            else:
-                work[i] = work[i - 1]
-            diss[i] = diss[i - 1] + 0.5 * (pw + pw_prev) * (t_target - t_prev)
-            if length_mode:
-                for j in range(m):
-                    if (T_prev[j] > 0) != (T_i[j] > 0):
-                        kind = "taut" if T_i[j] > 0 else "slack"
-                        events.append({"t": float(t_target), "kind": kind, "tendon": j,
-                                       "text": f"tendon {j + 1} {kind} at t = {t_target:.6g} s"})
-                    if (T_prev[j] >= F_hold) != (T_i[j] >= F_hold):
-                        kind = "overpowered" if T_i[j] >= F_hold else "holding"
-                        events.append({"t": float(t_target), "kind": kind, "tendon": j,
-                                       "text": f"motor {j + 1} {'gives way at its holding force' if kind == 'overpowered' else 'holds again'}"
-                                               f" ({F_hold:g} N) at t = {t_target:.6g} s"})
-            pt_prev, T_prev, pw_prev = pt, T_i, pw
-            pr_prev, F_prev, l0_prev, t_prev = pr_i, F_i, l0_i, t_target
+            state, pr_prev, n_it = stepper.advance(plant, state, t_prev, pr_prev, t_target)
+            T_prev = rec.prev["T"]
+            rec.record(i, state, t_target, pr_prev, loads.F_sig(t_target), loads.lengths(t_target), n_it)
+            stepper.events.extend(rec.tendon_events(T_prev, rec.prev["T"], t_target))
+            t_prev = t_target
             if progress is not None:
-                progress(t_target, t_end)
+                progress(t_target, times[-1])
+            done = i + 1                      # a row whose progress report was interrupted is not kept
     except KeyboardInterrupt:
-        interrupted = True
-        i -= 1
-    n_out = i + 1 if interrupted else N1
-    sl = slice(0, n_out)
-    energy = kin_[sl] + pot[sl] - work[sl]
-    return Simulation(t=times[sl].copy(), q=out_q[sl], v=out_v[sl], tip=out_tip[sl], tensions=out_T[sl],
-                      pressure=out_p[sl], energy=energy, kinetic=kin_[sl], potential=pot[sl], work=work[sl],
-                      dissipated=diss[sl], newton_iterations=iters[sl], dt=h, damping=coeffs, rho_inf=rho_inf,
-                      events=events, wall_time=_time.perf_counter() - wall0, interrupted=interrupted)
+        pass
+    return done

@@ -107,3 +107,16 @@ def test_paper_module_forwards():
     paper = pytest.importorskip("validation.paper")
     res = paper.table1(iterations=1, configurations={"downward": cs.DIRECTIONS["downward"]})
     assert "downward" in res and len(res["downward"]["lacc_history"]) == 2
+
+
+def test_loading_steps_masses_and_plant():
+    """The named steps of the loading study: the paper's masses unless both are given (scaled with a note when the
+    preset cannot carry them), and the plant's motor rate filled in only where the given plant has none."""
+    from controller import PlantOptions
+    assert cs._loading_masses(presets.paper_unscaled(), cs.PRESSURE, None, 0.05, 0.04) == (0.05, 0.04, "")
+    assert cs._loading_masses(presets.paper_unscaled(), cs.PRESSURE, (2, 2, 2), None, None) == (0.110, 0.080, "")
+    peak, cyc, note = cs._loading_masses(soft_paper(), cs.PRESSURE, None, None, None)
+    assert 0 < peak < 0.110 and cyc / peak == pytest.approx(0.080 / 0.110) and "scaled" in note
+    assert cs._loading_plant_options(None, 4e-3) == PlantOptions(length_rate=4e-3)
+    assert cs._loading_plant_options(PlantOptions(noise_std=1e-5), 4e-3).length_rate == 4e-3
+    assert cs._loading_plant_options(PlantOptions(length_rate=1e-3), 4e-3).length_rate == 1e-3

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ancf import Model, presets
-from controller import LACC, VFCC, run_on_rig
+from controller import LACC, VFCC, RunOptions, run_on_rig
 from hardware import SimulatedRig
 
 P = 30e3
@@ -46,8 +46,8 @@ def test_the_load_step_is_really_out_of_reach(model, target):
 def test_saturated_while_out_of_reach_then_tracking_again(model, target, make, tmp_path):
     rig = SimulatedRig(model, load=lateral_step)
     ctrl = make(model)
-    res = run_on_rig(ctrl, rig, target, duration=8.0, idle_period=0.05, sim_compute_time=0.0,
-                     log=tmp_path / "run.h5")
+    res = run_on_rig(ctrl, rig, target, RunOptions(duration=8.0, idle_period=0.05, sim_compute_time=0.0,
+                                                   log=tmp_path / "run.h5"))
     assert res.status == "held"                                   # ran to its duration
     t, e = np.array(res.times), np.array(res.errors)
     sat = np.array(["reach" in s for s in res.saturation])
@@ -72,8 +72,9 @@ def test_lacc_estimate_does_not_wind_up_while_saturated(model, target):
     rig = SimulatedRig(model, load=lateral_step)
     ctrl = LACC(model, P)
     seen = []
-    run_on_rig(ctrl, rig, target, duration=5.0, idle_period=0.05, sim_compute_time=0.0,
-               status=lambda s: seen.append((s["t"], s["saturated"], np.array(s["estimate_N"]))))
+    run_on_rig(ctrl, rig, target, RunOptions(duration=5.0, idle_period=0.05, sim_compute_time=0.0,
+                                             status=lambda s: seen.append((s["t"], s["saturated"],
+                                                                           np.array(s["estimate_N"])))))
     during = [F for t, sat, F in seen if sat]
     assert len(during) >= 3
     assert max(np.linalg.norm(F) for F in during) < 0.7           # true load 0.5 N

@@ -17,7 +17,10 @@ def test_cli_solve_json_and_files(tmp_path):
     d = json.loads(line)
     assert len(d["tip_position_m"]) == 3 and d["iterations"] >= 1
     assert d["tensions_N"] == [0.2, 0.0, 0.0]
-    assert (tmp_path / "result.vtu").exists()
+    import meshio
+    vtu = meshio.read(tmp_path / "result.vtu")         # the fields ParaView users expect (tests/test_fem/test_fem_fields.py)
+    assert {"displacement", "chamber_pressure_Pa"} <= set(vtu.point_data)
+    assert {"cauchy_stress_Pa", "von_mises_Pa", "pressure_Pa", "principal_stretches"} <= set(vtu.cell_data)
     assert json.loads((tmp_path / "result.json").read_text())["pressure_Pa"] == 0.0
     # not a terminal: progress as plain lines, one per load step (never only at the end, never a bar)
     steps = [ln for ln in r.stderr.splitlines() if ln.startswith("load λ = ")]

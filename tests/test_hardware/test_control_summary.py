@@ -1,7 +1,7 @@
 """'bellows control' ends with a summary of the whole run (not of its last sample), stores it in --json and
 the run log, and decides its exit status from it; a run refused up front leaves no run log behind."""
 
-import functools
+import dataclasses
 import json
 
 import numpy as np
@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 import controller
 from ancf import Model, presets
-from controller import LACC, run_on_rig
+from controller import LACC, RunOptions, run_on_rig
 from hardware import PlantOptions, SimulatedRig, TrackingLost
 from hardware.loads import load_profile
 from hardware.runlog import read_run_log
@@ -24,7 +24,9 @@ TARGET_MM = "178,0,-55"          # reachable with margin for the stochastic load
 def deterministic_clock(monkeypatch):
     """On the simulated rig the controller's wall-clock compute time passes on the rig clock; make it 0 so
     that the sample times (and so which sample is the last) do not depend on the machine."""
-    monkeypatch.setattr(controller, "run_on_rig", functools.partial(run_on_rig, sim_compute_time=0))
+    def zero_compute_time(ctrl, rig, target, options=None):
+        return run_on_rig(ctrl, rig, target, dataclasses.replace(options or RunOptions(), sim_compute_time=0))
+    monkeypatch.setattr(controller, "run_on_rig", zero_compute_time)
 
 
 def _control(tmp_path, *extra):
@@ -78,8 +80,8 @@ def test_a_fault_is_in_the_summary_and_the_log(tmp_path):
     rig = SimulatedRig(presets.paper(), load=load_profile("stochastic", seed=1), options=PlantOptions.mismatched())
     rig.inject("tracking_lost", at=3.0)
     with pytest.raises(TrackingLost) as info:
-        run_on_rig(LACC(m, 60e3), rig, np.array([0.178, 0, -0.055]), duration=10.0, sim_compute_time=0,
-                   log=tmp_path / "f.h5")
+        run_on_rig(LACC(m, 60e3), rig, np.array([0.178, 0, -0.055]),
+                   RunOptions(duration=10.0, sim_compute_time=0, log=tmp_path / "f.h5"))
     sm = info.value.result.summary
     assert len(sm.faults) == 1 and "TrackingLost" in sm.faults[0] and sm.duration >= 3.0
     assert read_run_log(tmp_path / "f.h5").summary["faults"] == sm.faults
@@ -89,12 +91,12 @@ def test_saturation_time_when_a_tendon_is_at_its_tension_bound():
     m = Model(presets.paper())
     target = m.fk((0.02, 1.6, 1.6), 60e3).tip                  # tendon 1 within 1 % of its lower bound (0 N)
     rig = SimulatedRig(presets.paper())
-    res = run_on_rig(LACC(m, 60e3), rig, target, duration=2.0, sim_compute_time=0)
+    res = run_on_rig(LACC(m, 60e3), rig, target, RunOptions(duration=2.0, sim_compute_time=0))
     sm = res.summary
     assert res.status == "held" and sm.saturated_samples == res.samples
     assert sm.saturation["tension"] == pytest.approx(sm.duration - (res.times[0] - 0.0), abs=1e-9)
-    away = run_on_rig(LACC(m, 60e3), SimulatedRig(presets.paper()), np.array([0.178, 0, -0.055]), duration=2.0,
-                      sim_compute_time=0)
+    away = run_on_rig(LACC(m, 60e3), SimulatedRig(presets.paper()), np.array([0.178, 0, -0.055]),
+                      RunOptions(duration=2.0, sim_compute_time=0))
     assert away.summary.saturation_time == 0.0
 
 

@@ -8,7 +8,7 @@ from kernel_signatures import grown, run_fresh
 
 CHECK = """
     from ancf import Model, presets
-    from controller import LACC, VFCC, run_on_rig
+    from controller import LACC, VFCC, RunOptions, run_on_rig
     from hardware import SimulatedRig
     from validation.commands.control import compile_loop_kernels
 
@@ -21,8 +21,8 @@ CHECK = """
     # 0.5 N along +y from 2 s to 4 s: the target is out of reach meanwhile (tests/test_controller/test_saturation.py)
     load = lambda t: np.array([0.0, 0.5, 0.0]) if 2.0 <= t < 4.0 else np.zeros(3)
     ctrl = LACC(model, P) if which == "lacc" else VFCC(model, P, law="integral")
-    res = run_on_rig(ctrl, SimulatedRig(model, load=load), target, duration=5.0, idle_period=0.05,
-                     sim_compute_time=0.0, log=sys.argv[2])
+    res = run_on_rig(ctrl, SimulatedRig(model, load=load), target, RunOptions(duration=5.0, idle_period=0.05,
+                     sim_compute_time=0.0, log=sys.argv[2]))
     saturated = sum("reach" in s for s in res.saturation)
     print(json.dumps({"before": before, "after": signatures(), "saturated": saturated,
                       "corrections": res.iterations}))

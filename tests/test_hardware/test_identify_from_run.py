@@ -4,7 +4,7 @@ which recovers the plant's stiffness law from them."""
 import pytest
 
 from ancf import Model, presets
-from controller import LACC, run_on_rig
+from controller import LACC, RunOptions, run_on_rig
 from hardware import PlantOptions, SimulatedRig
 from hardware.runlog import RunLog
 
@@ -18,7 +18,8 @@ def test_identification_from_a_run_log(tmp_path):
             for p in (40e3, 60e3, 80e3):
                 tip = model.fk(T, p, (0, 0, 0)).tip
                 rig = SimulatedRig(model, options=PlantOptions(force_noise_std=0.001, seed=int(p) + int(10 * T[0])))
-                res = run_on_rig(LACC(model, p, compliance="exact"), rig, tip, log=log, applied_load=(0, 0, 0))
+                res = run_on_rig(LACC(model, p, compliance="exact"), rig, tip,
+                                 RunOptions(log=log, applied_load=(0, 0, 0)))
                 assert res.status == "converged"
     r = from_measurements(path, presets.paper(), heldout_fraction=0, forms=("paper",))
     law = presets.paper_unscaled().stiffness.source

@@ -185,7 +185,7 @@ def test_a_drive_fault_leaves_every_drive_stopped_after_close(fake_bench):
 
 def test_run_on_rig_drive_fault_leaves_the_drives_stopped(fake_bench, tmp_path):
     from ancf import Model, presets
-    from controller import LACC, run_on_rig
+    from controller import LACC, RunOptions, run_on_rig
     path, drives, loadcells, valves, nat = fake_bench
     model = Model(presets.paper_unscaled())
     target = model.fk((2.2, 1.6, 1.6), 60e3).tip
@@ -199,7 +199,7 @@ def test_run_on_rig_drive_fault_leaves_the_drives_stopped(fake_bench, tmp_path):
         return orig()
     rig.check_health = faulty
     with pytest.raises(DriveFault):
-        run_on_rig(LACC(model, 60e3), rig, target, log=tmp_path / "run.h5", max_iterations=2)
+        run_on_rig(LACC(model, 60e3), rig, target, RunOptions(log=tmp_path / "run.h5", max_iterations=2))
     assert drives[0].state == "FAULT"
     assert [d.state for d in drives[1:]] == ["SWITCH ON DISABLED"] * 2
     assert not any(_enable_writes_after_quick_stop(d) for d in drives)

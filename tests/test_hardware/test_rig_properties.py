@@ -126,12 +126,12 @@ def test_controller_steps(started, target, meas, load, tol, kind):
 @settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(it=st.one_of(bad, st.integers(-2, 3)), dur=st.one_of(bad, st.floats(0, 0.5)), idle=bad)
 def test_run_on_rig_arguments(started, it, dur, idle):
-    from controller import LACC, run_on_rig
+    from controller import LACC, RunOptions, run_on_rig
     from hardware import SimulatedRig
     model, tip = started
     try:
         res = run_on_rig(LACC(model, 60e3, compliance="exact"), SimulatedRig(model, load=(0, 0, -0.2)), tip,
-                         max_iterations=it, duration=dur, idle_period=idle)
+                         RunOptions(max_iterations=it, duration=dur, idle_period=idle))
     except BellowsError:
         return
     assert res.status in ("converged", "held", "not converged")
@@ -141,14 +141,14 @@ def test_a_wait_lost_in_the_clocks_round_off_is_refused_not_a_hang(started):
     """idle_period = 1e-300 s with a duration never advanced the rig clock (t + 1e-300 == t): the run held
     forever (found by the property test above).  It is an InputError now, at once."""
     from ancf.errors import InputError
-    from controller import LACC, run_on_rig
+    from controller import LACC, RunOptions, run_on_rig
     from controller.run import MIN_IDLE_PERIOD
     from hardware import SimulatedRig
     model, tip = started
     for idle in (1e-300, 0.5 * MIN_IDLE_PERIOD):
         with pytest.raises(InputError, match="idle_period"):
             run_on_rig(LACC(model, 60e3, compliance="exact"), SimulatedRig(model, load=(0, 0, -0.2)), tip,
-                       max_iterations=None, duration=0.5, idle_period=idle)
+                       RunOptions(max_iterations=None, duration=0.5, idle_period=idle))
     res = run_on_rig(LACC(model, 60e3, compliance="exact"), SimulatedRig(model, load=(0, 0, -0.2)), tip,
-                     max_iterations=None, duration=0.05, idle_period=MIN_IDLE_PERIOD)
+                     RunOptions(max_iterations=None, duration=0.05, idle_period=MIN_IDLE_PERIOD))
     assert res.status in ("converged", "held", "not converged")

@@ -7,7 +7,7 @@ import signal
 import numpy as np
 import pytest
 
-from controller import LACC, run_on_rig
+from controller import LACC, RunOptions, run_on_rig
 from hardware import (DriveFault, HardwareError, LimitError, PressureFault, RunAborted, SensorTimeout,
                       SimulatedRig, TrackingLost)
 from hardware.limits import SafetyLimits
@@ -58,7 +58,7 @@ def test_measured_tension_beyond_limit_stops_the_run(paper_model, target, tmp_pa
     # the IK expects 2.2 N at most (within 2.5 N); the hidden 0.4 N load makes the measured tension exceed it
     rig = SimulatedRig(paper_model, load=(0, 0, -0.4), limits=SafetyLimits.around(0.16, tension_max=2.5))
     with pytest.raises(LimitError, match="measured tension") as info:
-        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "run.h5")
+        run_on_rig(LACC(paper_model, P), rig, target, RunOptions(log=tmp_path / "run.h5"))
     assert info.value.log_path == tmp_path / "run.h5"
     d = read_run_log(tmp_path / "run.h5")
     assert d.ended.startswith("fault") and "measured tension" in d.ended
@@ -68,7 +68,7 @@ def test_measured_tension_beyond_limit_stops_the_run(paper_model, target, tmp_pa
 def test_expected_tension_beyond_limit_is_refused_before_the_log(paper_model, target, tmp_path):
     rig = SimulatedRig(paper_model, limits=SafetyLimits.around(0.16, tension_max=2.0))
     with pytest.raises(LimitError, match="expected tension"):
-        run_on_rig(LACC(paper_model, P), rig, target, log=tmp_path / "run.h5")
+        run_on_rig(LACC(paper_model, P), rig, target, RunOptions(log=tmp_path / "run.h5"))
     assert not (tmp_path / "run.h5").exists() and rig.lengths is None          # no log, nothing commanded
 
 
@@ -84,7 +84,7 @@ def test_each_fault_stops_motion_with_its_reason(paper_model, target, tmp_path, 
     log = tmp_path / f"{fault}.h5"
     with pytest.raises(exc) as info:
         # tracker_stale: the frame freezes at 0.3 s; the next reads are older than the 0.5 s timeout
-        run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=5.0, idle_period=0.3)
+        run_on_rig(LACC(paper_model, P), rig, target, RunOptions(log=log, duration=5.0, idle_period=0.3))
     assert isinstance(info.value, HardwareError)
     res = info.value.result
     assert res.status == "fault" and type(info.value).__name__ in res.reason
@@ -119,7 +119,7 @@ def _interrupted_run(paper_model, target, log, duration, at_third_sample, by="Ct
         if len(calls) == 3:
             at_third_sample()
     with pytest.raises(RunAborted, match=by) as info:
-        run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=duration, status=status)
+        run_on_rig(LACC(paper_model, P), rig, target, RunOptions(log=log, duration=duration, status=status))
     return rig, calls, info.value
 
 
@@ -221,7 +221,8 @@ def test_a_drive_fault_is_recovered_only_when_a_person_confirms(paper_model, tar
         return confirm
     log = tmp_path / "r.h5"
     if confirm:
-        res = run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=3.0, idle_period=0.2, recover=person)
+        res = run_on_rig(LACC(paper_model, P), rig, target,
+                         RunOptions(log=log, duration=3.0, idle_period=0.2, recover=person))
         assert res.status == "held" and res.recoveries == 1 and res.final_error < 0.2e-3
         events = read_run_log(log).events
         kinds = [k for _, k, _ in events]
@@ -230,7 +231,8 @@ def test_a_drive_fault_is_recovered_only_when_a_person_confirms(paper_model, tar
         assert all(f"sim drive {i}" in events[kinds.index("recovered")][2] for i in (1, 2, 3))
     else:
         with pytest.raises(DriveFault):
-            run_on_rig(LACC(paper_model, P), rig, target, log=log, duration=3.0, idle_period=0.2, recover=person)
+            run_on_rig(LACC(paper_model, P), rig, target,
+                       RunOptions(log=log, duration=3.0, idle_period=0.2, recover=person))
         assert read_run_log(log).ended.startswith("fault")
     assert len(asked) == 1 and isinstance(asked[0], DriveFault)
 
@@ -238,12 +240,12 @@ def test_a_drive_fault_is_recovered_only_when_a_person_confirms(paper_model, tar
 def test_recover_must_be_a_callable(paper_model, target):
     from ancf.errors import InputError
     with pytest.raises(InputError, match="recover"):
-        run_on_rig(LACC(paper_model, P), SimulatedRig(paper_model), target, recover=True)
+        run_on_rig(LACC(paper_model, P), SimulatedRig(paper_model), target, RunOptions(recover=True))
 
 
 def test_without_a_person_a_drive_fault_ends_the_run(paper_model, target):
     rig = SimulatedRig(paper_model, options=__import__("hardware").PlantOptions(length_rate=5e-3))
     rig.inject("drive_fault", at=0.5)
     with pytest.raises(DriveFault):
-        run_on_rig(LACC(paper_model, P), rig, target, duration=3.0, idle_period=0.2)
+        run_on_rig(LACC(paper_model, P), rig, target, RunOptions(duration=3.0, idle_period=0.2))
     assert not rig.drives[0].enabled

@@ -115,14 +115,14 @@ def test_the_rig_loop_converges_on_the_dynamic_plant_only_with_shaped_moves(mode
     """run_on_rig measures as soon as the motors stop: on the dynamic plant each unshaped correction starts
     a ringing that the next one corrects (not converged, ~10 mm off after 20); ZV-shaped moves at the
     model's first locked mode leave no ringing and LACC converges at once."""
-    from controller import LACC, run_on_rig, zv_shaper
+    from controller import LACC, RunOptions, run_on_rig, zv_shaper
     start = model.ik(ref.tip, P)
     f1 = model.modes(model.fk_locked(start.tendon_lengths, P), 1).frequencies_hz[0]
     out = {}
     for name, shaper in (("plain", None), ("shaped", zv_shaper(f1, 0.1))):
         rig = SimulatedRig(model, P, load=(0, 0, -0.2), dynamics=True, options=PlantOptions(damping=0.1))
-        out[name] = run_on_rig(LACC(model, P), rig, ref.tip, max_iterations=20, sim_compute_time=0.002,
-                               shaper=shaper)
+        out[name] = run_on_rig(LACC(model, P), rig, ref.tip,
+                               RunOptions(max_iterations=20, sim_compute_time=0.002, shaper=shaper))
     assert out["plain"].status == "not converged" and out["plain"].final_error > 2e-3
     assert out["shaped"].status == "converged" and out["shaped"].iterations <= 3
 

@@ -8,7 +8,7 @@ import pytest
 
 from ancf.errors import InputError
 from ancf import presets
-from controller import LACC, run_iterations, run_on_rig
+from controller import LACC, RunOptions, run_iterations, run_on_rig
 from hardware import PlantOptions, SimulatedRig
 from hardware.loads import load_profile
 from hardware.static_states import read_static_states
@@ -139,8 +139,9 @@ def test_lacc_holds_within_0_2_mm_under_stochastic_loading_on_a_mismatched_rig(p
     opts = PlantOptions.mismatched(base=paper_model.params, seed=5)
     load = load_profile("stochastic", period=3.0, seed=11)
     rig = SimulatedRig(paper_model, load=load, options=opts)
-    res = run_on_rig(LACC(paper_model, P, tolerance=1e-4), rig, ref.tip, log=tmp_path / "hold.h5", duration=12.0,
-                     idle_period=0.1, sim_compute_time=0.05, average_frames=4)
+    res = run_on_rig(LACC(paper_model, P, tolerance=1e-4), rig, ref.tip,
+                     RunOptions(log=tmp_path / "hold.h5", duration=12.0, idle_period=0.1, sim_compute_time=0.05,
+                                average_frames=4))
     assert res.status == "held"
     assert res.true_errors[0] > 1e-3                          # the loads really displace the tip
     from hardware.runlog import read_run_log
@@ -157,7 +158,7 @@ def test_lacc_holds_within_0_2_mm_under_stochastic_loading_on_a_mismatched_rig(p
 
 def test_static_states_of_a_run_read_back(paper_model, ref, tmp_path):
     rig = SimulatedRig(paper_model, load=(0, 0.05, -0.4), options=PlantOptions(force_noise_std=0.01))
-    res = run_on_rig(LACC(paper_model, P, compliance="exact"), rig, ref.tip, log=tmp_path / "s.h5")
+    res = run_on_rig(LACC(paper_model, P, compliance="exact"), rig, ref.tip, RunOptions(log=tmp_path / "s.h5"))
     assert res.status == "converged" and res.static_states == 1
     st = read_static_states(tmp_path / "s.h5")
     eq = rig.equilibrium()

@@ -61,6 +61,9 @@ CASES = {
     "simulate": (["simulate", "--tensions-n", "1,0,0", "--out", "{d}"], "simulation.csv", "ancf.dynamics.cli:warm_up"),
     "paper dynamic": (["paper", "dynamic", "--out", "{d}"], "dynamic_loading.json",
                       "validation.paper.dynamic:dynamic_loading"),
+    "paper convergence": (["paper", "convergence", "--out", "{d}"], "convergence.svg",
+                          "validation.paper.convergence:element_convergence"),
+    "paper loads": (["paper", "loads", "--out", "{d}"], "loads.json", "validation.paper.loads:locked_drift"),
 }
 
 

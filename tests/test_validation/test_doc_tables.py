@@ -7,7 +7,9 @@
   convergence, drift, holding, Table I, ablation) and the controller-study details are recomputed here
   through the same code path and compared tightly; the workspace (same seeds and sample counts) and the
   loading study (wall-clock timed) are re-run in the ``slow`` tests;
-* the hand-written readings table and the numbers of the prose around the tables agree with the data.
+* the hand-written readings table and the numbers of the prose around the tables agree with the data;
+* Table I is shown on the noise-free plant and on the mismatched, noisy simulated rig (docs/data/paper_table1_rig.json,
+  recomputed here too), each labelled with its plant, beside the paper's physical rig.
 """
 
 from __future__ import annotations
@@ -49,7 +51,8 @@ def test_generated_blocks_equal_the_generator_output():
 
 @pytest.fixture()
 def copy_root(tmp_path):
-    for f in ("README.md", "docs/paper-readings.md", str(dt.COMPARE_JSON), str(dt.CONTROL_JSON)):
+    for f in ("README.md", "docs/paper-readings.md", str(dt.COMPARE_JSON), str(dt.CONTROL_JSON),
+              str(dt.TABLE1_RIG_JSON)):
         (tmp_path / f).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(ROOT / f, tmp_path / f)
     return tmp_path
@@ -74,6 +77,44 @@ def test_a_hand_edit_or_a_data_change_is_detected(copy_root, capsys):
     (copy_root / dt.COMPARE_JSON).write_text(json.dumps(d))
     assert dt.stale(copy_root) == ["README.md", "docs/paper-readings.md"]
     assert "31.0 mm ✓" in dt.generate(copy_root)["README.md"]
+
+
+def test_table1_sets_the_noisy_mismatched_rig_beside_the_noise_free_plant(copy_root):
+    """The README's Table I rows say which plant each number comes from, and a change in the rig data shows."""
+    text = (copy_root / "README.md").read_text()
+    block = text[text.index("<!-- table:paper-control begin"):text.index("<!-- table:paper-control end")]
+    rows = {ln.split(" | ")[0].strip("| "): ln for ln in block.splitlines() if ln.startswith("| Table I")}
+    free = next(v for k, v in rows.items() if k.startswith("Table I, noise-free simulated plant"))
+    noisy = next(v for k, v in rows.items() if k.startswith("Table I, simulated rig with model mismatch and 0.05 mm"))
+    assert "(physical rig)" in free and "(physical rig)" in noisy
+    rig = dt.load_rig(copy_root)
+    lacc = [rig["presets"]["paper_scaled"]["configurations"][c]["lacc_mm"] for c in dt.TABLE1]
+    assert dt.joined(lacc, 2, unit="mm") in noisy
+    d = json.loads((copy_root / dt.TABLE1_RIG_JSON).read_text())
+    d["presets"]["paper_scaled"]["configurations"]["upward"]["lacc_mm"] = 0.777
+    (copy_root / dt.TABLE1_RIG_JSON).write_text(json.dumps(d))
+    assert dt.stale(copy_root) == ["README.md"]
+    assert "0.78 / 0.14 / 0.14 mm" in dt.generate(copy_root)["README.md"]
+    del d["presets"]["paper_unscaled"]
+    (copy_root / dt.TABLE1_RIG_JSON).write_text(json.dumps(d))
+    assert "| not run |" in dt.generate(copy_root)["README.md"].split("<!-- table:paper-control begin")[1]
+
+
+def test_extract_rig_takes_only_mismatched_noisy_runs(copy_root, tmp_path, capsys):
+    run = tmp_path / "run"
+    run.mkdir()
+    t1 = {c: {"load_mass_g": 40.0, "vfcc_mm": 9.0, "lacc_mm": 0.1, "compare_mm": 0.3} for c in dt.TABLE1}
+    settings = {"compliance": "exact", "compare": "ik", "seed": 0, "mass_range_kg": [0.02, 0.06], "actuator": "paper",
+                "plant_summary": {"model_mismatch": [], "tracker_noise_std_m": 0.0}}
+    (run / "table1.json").write_text(json.dumps({**t1, "settings": settings}))
+    assert dt.main(["--root", str(copy_root), "extract-rig", "--table1", str(run), "--force"]) == 2
+    assert "--mismatch" in capsys.readouterr().err                     # a noise-free run is not a rig run
+    settings["plant_summary"] = {"model_mismatch": ["line_mass"], "tracker_noise_std_m": 5e-5}
+    (run / "table1.json").write_text(json.dumps({**t1, "settings": settings}))
+    assert dt.main(["--root", str(copy_root), "extract-rig", "--table1", str(run)]) == 2
+    assert "--force" in capsys.readouterr().err                        # the committed file is kept
+    assert dt.main(["--root", str(copy_root), "extract-rig", "--table1", str(run), "--force"]) == 0
+    assert dt.load_rig(copy_root)["presets"]["paper"]["plant"]["tracker_noise_std_m"] == 5e-5
 
 
 def test_missing_markers_and_data_are_one_error_line(copy_root, capsys):
@@ -174,6 +215,36 @@ def test_committed_control_numbers_are_current(data, recomputed):
         assert ab["ik_faster_percent"] == pytest.approx(c["ablation"]["ik_faster_percent"], rel=1e-9)
         for m, v in c["ablation"]["methods"].items():
             assert ab["methods"][m]["mean_iterations"] == pytest.approx(v["mean_iterations"], rel=1e-9)
+
+
+def test_committed_rig_table1_numbers_are_current(recomputed):
+    """docs/data/paper_table1_rig.json is what ``bellows paper table1 --mismatch`` computes today (seeded: the
+    tracker noise and the load draws are reproducible), and its plant is the mismatched, noisy one while the
+    noise-free Table I ran on the controllers' own model without noise."""
+    from controller import PlantOptions
+    _, recorded = recomputed
+    rig = dt.load_rig(ROOT)
+    assert set(rig["presets"]) == set(dt.README_PRESETS)
+    for p in dt.README_PRESETS:
+        prm = resolve_params(p)
+        res = paper.table1(params=prm, plant_options=PlantOptions.mismatched(base=prm))
+        c = rig["presets"][p]
+        assert c["plant"] == to_jsonable(res["settings"]["plant_summary"])
+        assert c["plant"]["tracker_noise_std_m"] > 0 and {"line_mass", "stiffness", "tip_mass"} <= set(c["plant"]["model_mismatch"])
+        for cfg in dt.TABLE1:
+            for k in ("load_mass_g", "vfcc_mm", "lacc_mm", "compare_mm"):
+                assert res[cfg][k] == pytest.approx(c["configurations"][cfg][k], rel=1e-3), (p, cfg, k)
+        free = recorded[(p, "table1")]["settings"]["plant_summary"]
+        assert free["model_mismatch"] == [] and free["tracker_noise_std_m"] == 0.0
+
+
+def test_rig_prose_agrees_with_the_data():
+    """The sentence around Table I gives the range of LACC's residual on the noisy, mismatched rig."""
+    readme = (ROOT / "README.md").read_text()
+    m = re.search(r"there LACC ends at ([\d.]+)–([\d.]+) mm", readme)
+    assert m, "the Table I sentence of README.md changed; update this test"
+    vals = [c["lacc_mm"] for e in dt.load_rig(ROOT)["presets"].values() for c in e["configurations"].values()]
+    assert _agrees(m.group(1), min(vals)) and _agrees(m.group(2), max(vals))
 
 
 def test_committed_tracking_numbers_are_current(data):

@@ -149,3 +149,64 @@ def test_tracking_command_reports_rmse_per_trajectory(tmp_path):
     text = json.dumps(data)
     for name in ("circle", "rose", "SJTU"):
         assert name in text and name in r.stdout
+
+
+# ----------------------------------------------------------------------------- convergence and loads write files
+def test_convergence_command_writes_json_and_figure_and_explains_failures(tmp_path):
+    """n = 1 cannot solve the third default state (two tendons at T_max): the output says which state, why (the
+    solver's limit-point message) and what it does to the numbers; the JSON has the units in its keys; the rate
+    is the least-squares log-log slope over the n where every state solved."""
+    res = runner.invoke(app, ["convergence", "--n-values", "1,3,4,6", "--n-ref", "8", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    out = " ".join(res.output.split())
+    assert "n = 1: state 2 (T = (5, 5, 0) N, p = 0 kPa)" in out
+    assert "% of the asked load" in out and "limit point" in out and "lower bound" in out
+    data = json.loads((tmp_path / "convergence.json").read_text())
+    assert {"tip_error_m", "per_state_m", "n_ref", "rate", "rate_n", "complete", "notes"} <= set(data)
+    assert data["complete"] == [False, True, True, True] and data["rate_n"] == [3, 4, 6]
+    assert data["per_state_m"][0][2] is None and data["tip_error_m"][0] == pytest.approx(
+        max(data["per_state_m"][0][:2]))                                  # the max over the states that solved
+    n, e = np.array([3.0, 4.0, 6.0]), np.array(data["tip_error_m"][1:])
+    slope = np.sum((np.log(n) - np.log(n).mean()) * (np.log(e) - np.log(e).mean())) / np.sum((np.log(n) - np.log(n).mean()) ** 2)
+    assert data["rate"] == pytest.approx(-slope, rel=1e-9)
+    for f in ("convergence.png", "convergence.svg"):
+        assert (tmp_path / f).stat().st_size > 1000
+    again = runner.invoke(app, ["convergence", "--n-values", "3", "--out", str(tmp_path)])
+    assert again.exit_code == 2 and "--force" in again.output          # the first result is kept
+    assert json.loads((tmp_path / "convergence.json").read_text())["n"] == [1, 3, 4, 6]
+    forced = runner.invoke(app, ["convergence", "--n-values", "3,4", "--n-ref", "8", "--out", str(tmp_path), "--force"])
+    assert forced.exit_code == 0 and json.loads((tmp_path / "convergence.json").read_text())["n"] == [3, 4]
+
+
+def test_loads_command_writes_json_and_says_why_a_payload_is_not_held(tmp_path):
+    res = runner.invoke(app, ["loads", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    data = json.loads((tmp_path / "loads.json").read_text())
+    assert {"drift", "hold", "ik_time", "notes"} <= set(data)
+    assert data["drift"]["drift_m"] > 0.01 and data["ik_time"]["cold_s"] > 0
+    up = data["hold"]["configurations"]["upward"]
+    assert up["held"] is False and up["max_tension_needed_N"] is None     # NaN → null
+    assert "T2 >= 0" in up["reason"] and "[0, 50] N" in up["relaxed_error"]
+    out = " ".join(res.output.split())
+    assert "nan N" not in out and "none ≤ 50 N" in out
+    assert "upward: not held even with tensions up to 50 N" in out and "unconstrained solution needs" in out
+    again = runner.invoke(app, ["loads", "--out", str(tmp_path)])
+    assert again.exit_code == 2 and "--force" in again.output
+
+
+def test_table1_mismatch_runs_on_the_imperfect_simulated_rig(tmp_path, monkeypatch):
+    """``table1 --mismatch`` hands the study PlantOptions.mismatched around the preset; without it, none."""
+    from controller import PlantOptions
+    seen = {}
+
+    def fake(**kw):
+        seen.update(kw)
+        return {"table": "t"}
+    monkeypatch.setitem(paper.CONTROL_STUDIES, "table1", fake)
+    assert runner.invoke(app, ["table1", "--out", str(tmp_path / "a")]).exit_code == 0
+    assert "plant_options" not in seen
+    res = runner.invoke(app, ["table1", "--mismatch", "--preset", "paper_unscaled", "--out", str(tmp_path / "b")])
+    assert res.exit_code == 0, res.output
+    opts = seen["plant_options"]
+    assert opts == PlantOptions.mismatched(base=presets.paper_unscaled())
+    assert opts.noise_std > 0 and opts.params.line_mass > presets.paper_unscaled().line_mass

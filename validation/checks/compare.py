@@ -89,6 +89,36 @@ class ValidationResult:
                            | {"params": self.params.to_toml()}
                            | {"fem_discretisation_error": self.fem_error or None})
 
+    # -------------------------------------------------------------------- display
+    def _display_rows(self) -> list[tuple[str, str]]:
+        """(quantity, value) of the summary, errors in % of the length L."""
+        pct = lambda d: f"mean {d['mean']:.2f} %, max {d['max']:.2f} %" if d else "–"  # noqa: E731
+        rows = [("held-out states compared", str(len(self.rows))), ("tip error [% L]", pct(self.tip_error_pct)),
+                ("shape error [% L]", pct(self.shape_error_pct))]
+        if self.compliance_error_pct:
+            rows += [(f"compliance error, {w} [%]", pct(self.compliance_error_pct[m]))
+                     for m, w in (("tension", "tensions held"), ("locked", "tendons locked"))]
+        for name, t in self.targets.items():
+            rows.append((f"target {name} < {t['target']:g} %", f"{t['value']:.2f} %: {t.get('status', '')}"))
+        if self.failures:
+            rows.append(("not compared", ", ".join(f"{f['label']} ({f['model']})" for f in self.failures)))
+        if self.extrapolation:
+            rows.append(("extrapolation, tip error [% L]", pct(self.extrapolation.get("tip_error_pct"))))
+        return rows
+
+    def __repr__(self) -> str:
+        """One line: states compared, tip and shape errors (mean/max, % of L), the targets' verdicts."""
+        st = lambda d: f"{d['mean']:.2f}/{d['max']:.2f} % L" if d else "–"  # noqa: E731
+        targets = ", ".join(f"{k}: {t.get('status', '')}" for k, t in self.targets.items())
+        return (f"ValidationResult({len(self.rows)} states, tip error mean/max {st(self.tip_error_pct)}, "
+                f"shape error mean/max {st(self.shape_error_pct)}, {len(self.failures)} not compared"
+                + (f", targets {targets}" if targets else "") + ")")
+
+    def _repr_html_(self) -> str:
+        from ancf.htmlrepr import table
+        return table(f"Reduced model vs FEM on held-out states (L = {1e3 * self.length:.1f} mm)",
+                     self._display_rows(), header=("quantity", "value"))
+
 
 def _max_abs(x) -> float:
     x = np.abs(np.asarray([v for v in x if v is not None and np.isfinite(v)], float))

@@ -381,16 +381,16 @@ def for_validation(validation, spec: FemSpec, records: Sequence[FemRecord], n_ca
                    estimate: Optional[FemErrorEstimate] = None, **kw) -> dict:
     """Measure the FEM error of the ``n_cases`` held-out states of ``validation`` with the largest deformation
     (``records``: their default-mesh results, e.g. ``IdentificationResult.records``) and set
-    ``validation.checks.fem_error`` to :func:`assess` of it; ``kw`` go to :func:`estimate_fem_error`.  ``estimate``: one
+    ``validation.fem_error`` to :func:`assess` of it; ``kw`` go to :func:`estimate_fem_error`.  ``estimate``: one
     already made by :func:`estimate_for_heldout`, used when its states are among those compared (else measured
     again here).  Returns it."""
     labels = {r["label"] for r in validation.rows}
     ho = [r for r in records if r.ok and r.case.label in labels]
     if not ho:
-        validation.checks.fem_error = assess(validation, None, reason="no held-out state was compared")
-        return validation.checks.fem_error
+        validation.fem_error = assess(validation, None, reason="no held-out state was compared")
+        return validation.fem_error
     chosen = select_cases(ho, n_cases)
     if estimate is None or [r["label"] for r in estimate.rows] != [r.case.label for r in chosen]:
         estimate = estimate_fem_error(spec, [r.case for r in chosen], records=chosen, **kw)
-    validation.checks.fem_error = assess(validation, estimate, ho)
-    return validation.checks.fem_error
+    validation.fem_error = assess(validation, estimate, ho)
+    return validation.fem_error

@@ -3,9 +3,15 @@
 It runs a :mod:`controller` on a :mod:`hardware` rig, so it lives here, above both (``hardware`` never
 imports ``controller``).  Units are in the option names; an option that is given is used or rejected, never
 replaced; the run log is checked before any motion and never overwritten without ``--force``; handled
-errors are one ``error:`` line with exit status 2 (:func:`validation.commands.main.main`); Ctrl-C stops the run,
-leaves the rig safe (drives holding, pressure held or vented as configured), closes the log and says where
-it is.
+errors are one ``error:`` line with exit status 2 (:func:`validation.commands.main.main`).  Ctrl-C is a run's
+normal end (the way to end one without ``--duration-s``): the rig is left safe (drives holding, pressure held
+or vented as configured), the summary printed, the log closed complete, and the exit status is the verdict of
+the run's load periods; SIGTERM, a fault or a limit also leave the rig safe and close the log, with one
+``error:`` line that says where the log is.
+
+:func:`control` is the typer command; its steps: check the request (:func:`_checked_request`), build the rig
+(:func:`_built_rig`), build the controller (:func:`_built_controller`), run (:func:`_run`), print the result
+(:func:`_print_result`).
 """
 
 from __future__ import annotations
@@ -14,8 +20,10 @@ import math
 import pathlib
 import sys
 import time
+from types import SimpleNamespace
 from typing import Optional
 
+import numpy as np
 import typer
 
 from ancf.clitools import SEED_MAX
@@ -59,13 +67,13 @@ def compile_loop_kernels(params=None, controller: str = "lacc", compliance: Opti
     Otherwise the first saturation of a live run would stop the loop for the compiler (tens of seconds on a
     fresh install), and a Ctrl-C could wait for it (tests/test_hardware/test_control_warm_up.py checks that a
     run after it compiles nothing).  Returns False when a solve of the warm-up failed for this actuator (then what
-    it did not reach compiles when first used), True otherwise."""
-    import numpy as np
-
+    it did not reach compiles when first used), True otherwise.  A Ctrl-C (or SIGTERM) during the warm-up raises
+    KeyboardInterrupt: the command is aborted before its run starts."""
     from ancf import Model, presets
     from ancf.errors import BellowsError, InfeasibleTargetError
-    from controller import LACC, VFCC, run_on_rig
+    from controller import LACC, VFCC, RunOptions, run_on_rig
     from hardware import SimulatedRig
+    from hardware.errors import RunAborted
 
     from ancf import ActuatorParams
     if controller not in CONTROLLERS:
@@ -85,11 +93,14 @@ def compile_loop_kernels(params=None, controller: str = "lacc", compliance: Opti
     ctrl = (LACC(model, p, compliance=compliance or "exact") if controller == "lacc" else VFCC(model, p))
     try:
         target = model.fk(T, p, load).tip
-        run_on_rig(ctrl, SimulatedRig(params, load=load, seed=0, dynamics=dynamics), target, max_iterations=2)
+        run_on_rig(ctrl, SimulatedRig(params, load=load, seed=0, dynamics=dynamics), target,
+                   RunOptions(max_iterations=2))
         try:                                               # the bounded IK: a tip 10 cm off to the side
             model.ik(target + (0.0, 0.1, 0.0), p, load)
         except InfeasibleTargetError:
             pass
+    except RunAborted:     # Ctrl-C (or SIGTERM) before the real run: abort the command, do not start the run
+        raise KeyboardInterrupt from None
     except BellowsError:   # its only product is the compiled kernels: the run itself says what is wrong
         return False
     return True
@@ -158,155 +169,223 @@ def control(
 ):
     """Run a tip-position controller live on a rig (simulated or real).
 
-    A status line while it runs, a run log, and at the end a summary of the whole run: the settled tip error per load period (a load period is the
-    time between two load changes of the simulated rig's load profile, or the whole run when the load is
-    constant or unknown, as on hardware; settled = its second half; a period's settled error is the median
-    tip error there) with median and max over the periods, the saturation time, faults and corrections
-    (also in --json and in the run log's /summary).  The target, pressure and limits are checked before
-    the run log is created.
+    A status line while it runs, a run log, and at the end a summary of the whole run: the settled tip error
+    per load period (a load period is the time between two load changes of the simulated rig's load profile,
+    or the whole run when the load is constant or unknown, as on hardware; settled = its second half; a
+    period's settled error is the median tip error there) with median and max over the periods, the
+    saturation time, faults and corrections (also in --json and in the run log's /summary).  The target,
+    pressure and limits are checked before the run log is created.
 
-    Exit status: a --duration-s (hold) run exits 0 when every judged load period settled below the
-    tolerance and 1 when one did not (a last period cut short by the end of the run is not judged, nor
-    one whose load kept the target out of reach — saturated throughout its settled half); a
-    --max-iterations run exits 0 at convergence and 1 without; 2 on an error (a fault, a limit, Ctrl-C:
-    the rig is made safe first)."""
-    import json
+    Ctrl-C ends the run normally (the way to end a run without --duration-s): the rig is made safe (drives
+    holding, pressure held or vented as the rig file says), the summary is printed and the log closed as at the
+    end of a --duration-s; a second Ctrl-C, or one before the run started, aborts.
 
-    from ancf import Model
+    Exit status: a --duration-s (hold) run, or one ended by Ctrl-C, exits 0 when every judged load period
+    settled below the tolerance and 1 when one did not (a last period cut short by the end of the run is not
+    judged, nor one whose load kept the target out of reach — saturated throughout its settled half); a
+    --max-iterations run exits 0 at convergence and 1 without (also when Ctrl-C ended it first); 2 on an error
+    (a fault, a limit, SIGTERM: the rig is made safe first)."""
+    args = SimpleNamespace(**locals())                    # the options, as given (checked in the steps below)
+    target, cfg = _checked_request(args)
+    the_rig = _built_rig(args, cfg)
+    ctrl, shaper = _built_controller(args, cfg, target)
+    t0 = time.monotonic()
+    res = _run(args, ctrl, the_rig, target, shaper)
+    exit_status = _print_result(args, ctrl, res, wall_s=time.monotonic() - t0)
+    if exit_status:
+        raise typer.Exit(exit_status)
+
+
+def _checked_request(a: SimpleNamespace):
+    """Parse and check every option before any work or motion (the run log too: refused if it exists unless
+    --force).  Returns (target (3,) [m], the rig's :class:`hardware.config.RigConfig`)."""
     from ancf.cli import parse_vector
     from ancf.outputs import prepare_output_file
-    from controller import LACC, VFCC, run_on_rig
-    from hardware.build import build_rig
     from hardware.config import RigConfig
-    from hardware.errors import RunAborted
-    from hardware.loads import load_profile as make_profile
     from hardware.runlog import SUFFIXES
 
-    target = parse_vector(target_mm, 3, "--target-mm") * 1e-3
-    if not (math.isfinite(pressure_kpa) and pressure_kpa >= 0):
-        raise InputError(f"--pressure-kpa must be a finite pressure >= 0 kPa, got {pressure_kpa}")
-    if not (math.isfinite(tolerance_mm) and tolerance_mm >= 0):
-        raise InputError(f"--tolerance-mm must be >= 0 mm, got {tolerance_mm}")
-    if controller not in CONTROLLERS:
-        raise InputError(f"--controller must be one of {', '.join(CONTROLLERS)}, got {controller!r}")
-    if compliance is not None and compliance not in COMPLIANCE_METHODS:
-        raise InputError(f"--compliance must be one of {', '.join(COMPLIANCE_METHODS)}, got {compliance!r}")
-    if on_drive_fault not in ("ask", "stop"):
-        raise InputError(f"--on-drive-fault must be 'ask' or 'stop', got {on_drive_fault!r}")
-    if controller == "vfcc" and compliance is not None:
+    target = parse_vector(a.target_mm, 3, "--target-mm") * 1e-3
+    _check_ranges(a)
+    if a.log is not None:
+        prepare_output_file(a.log, force=a.force, suffixes=SUFFIXES)        # before any work or motion
+    cfg = RigConfig(name="simulated rig") if a.rig == "sim" else RigConfig.from_toml(a.rig)
+    _check_sim_only(a, simulated=cfg.backend == "sim")
+    return target, cfg
+
+
+def _check_ranges(a: SimpleNamespace) -> None:
+    """Each option on its own and the pairs that exclude each other (InputError naming the option)."""
+    if not (math.isfinite(a.pressure_kpa) and a.pressure_kpa >= 0):
+        raise InputError(f"--pressure-kpa must be a finite pressure >= 0 kPa, got {a.pressure_kpa}")
+    if not (math.isfinite(a.tolerance_mm) and a.tolerance_mm >= 0):
+        raise InputError(f"--tolerance-mm must be >= 0 mm, got {a.tolerance_mm}")
+    if a.controller not in CONTROLLERS:
+        raise InputError(f"--controller must be one of {', '.join(CONTROLLERS)}, got {a.controller!r}")
+    if a.compliance is not None and a.compliance not in COMPLIANCE_METHODS:
+        raise InputError(f"--compliance must be one of {', '.join(COMPLIANCE_METHODS)}, got {a.compliance!r}")
+    if a.on_drive_fault not in ("ask", "stop"):
+        raise InputError(f"--on-drive-fault must be 'ask' or 'stop', got {a.on_drive_fault!r}")
+    if a.controller == "vfcc" and a.compliance is not None:
         raise InputError("--compliance applies to LACC only; VF-CC has no compliance option")
-    if duration_s is not None and not (math.isfinite(duration_s) and duration_s > 0):
-        raise InputError(f"--duration-s must be a finite time > 0 s, got {duration_s}")
-    if load_mass_g is not None and not (0 <= load_mass_g <= 1000):
-        raise InputError(f"--load-mass-g must be in [0, 1000] g, got {load_mass_g}")
-    if seed is not None and not (0 <= seed <= SEED_MAX):
-        raise InputError(f"--seed must be in [0, {SEED_MAX}], got {seed}")
-    if plant_damping_ratio is not None and not (0 <= plant_damping_ratio <= 1):
-        raise InputError(f"--plant-damping-ratio must be in [0, 1], got {plant_damping_ratio}")
-    if shaping_damping_ratio is not None and not (0 <= shaping_damping_ratio < 1):
-        raise InputError(f"--shaping-damping-ratio must be in [0, 1), got {shaping_damping_ratio:g}")
-    if max_iterations is not None and max_iterations < 0:
-        raise InputError(f"--max-iterations must be >= 0, got {max_iterations}")
-    if duration_s is not None and max_iterations is not None:
+    if a.duration_s is not None and not (math.isfinite(a.duration_s) and a.duration_s > 0):
+        raise InputError(f"--duration-s must be a finite time > 0 s, got {a.duration_s}")
+    if a.load_mass_g is not None and not (0 <= a.load_mass_g <= 1000):
+        raise InputError(f"--load-mass-g must be in [0, 1000] g, got {a.load_mass_g}")
+    if a.seed is not None and not (0 <= a.seed <= SEED_MAX):
+        raise InputError(f"--seed must be in [0, {SEED_MAX}], got {a.seed}")
+    if a.plant_damping_ratio is not None and not (0 <= a.plant_damping_ratio <= 1):
+        raise InputError(f"--plant-damping-ratio must be in [0, 1], got {a.plant_damping_ratio}")
+    if a.shaping_damping_ratio is not None and not (0 <= a.shaping_damping_ratio < 1):
+        raise InputError(f"--shaping-damping-ratio must be in [0, 1), got {a.shaping_damping_ratio:g}")
+    if a.max_iterations is not None and a.max_iterations < 0:
+        raise InputError(f"--max-iterations must be >= 0, got {a.max_iterations}")
+    if a.duration_s is not None and a.max_iterations is not None:
         raise InputError("give --duration-s (hold the target) or --max-iterations (stop at convergence), not both")
-    if log is not None:
-        prepare_output_file(log, force=force, suffixes=SUFFIXES)        # before any work or motion
-    cfg = RigConfig(name="simulated rig") if rig == "sim" else RigConfig.from_toml(rig)
-    simulated = cfg.backend == "sim"
-    sim_only = {"--load-profile": load_profile != "none", "--load-mass-g": load_mass_g is not None,
-                "--seed": seed is not None, "--mismatch": mismatch, "--fast": not realtime, "--dynamics": dynamics,
-                "--plant-damping-ratio": plant_damping_ratio is not None}
-    if plant_damping_ratio is not None and not dynamics:
+
+
+def _check_sim_only(a: SimpleNamespace, simulated: bool) -> None:
+    """The simulated rig's options: only for one, and only in combinations the simulated plant models."""
+    sim_only = {"--load-profile": a.load_profile != "none", "--load-mass-g": a.load_mass_g is not None,
+                "--seed": a.seed is not None, "--mismatch": a.mismatch, "--fast": not a.realtime,
+                "--dynamics": a.dynamics, "--plant-damping-ratio": a.plant_damping_ratio is not None}
+    if a.plant_damping_ratio is not None and not a.dynamics:
         raise InputError("--plant-damping-ratio is the dynamic plant's: it needs --dynamics")
-    if mismatch and dynamics:
+    if a.mismatch and a.dynamics:
         raise InputError("--mismatch includes tendon friction, which the dynamic plant does not model: use one "
                          "of --mismatch, --dynamics")
     if not simulated and any(sim_only.values()):
         raise InputError(f"{', '.join(k for k, v in sim_only.items() if v)}: only for a simulated rig "
                          f"(the rig file says backend = 'hardware')")
-    overrides = {}
-    if simulated:
-        kw = {} if load_mass_g is None else {"mass": load_mass_g * 1e-3}
-        if load_mass_g is not None and load_profile in ("none", "stochastic"):
-            raise InputError(f"--load-mass-g does not apply to --load-profile {load_profile} "
-                             f"(stochastic draws 20–60 g)")
-        overrides["load"] = make_profile(load_profile, seed=cfg.simulation.get("seed", 0) if seed is None else seed,
-                                         **kw)
-        if seed is not None:
-            overrides["seed"] = seed
-        if mismatch:
-            from hardware.simulated import PlantOptions
-            mm = PlantOptions.mismatched(base=cfg.actuator_params())
-            overrides.update({k: getattr(mm, k) for k in ("params", "noise_std", "length_resolution", "length_rate",
-                                                          "tendon_friction", "tendon_stiffness")})
-    if simulated and dynamics:
+    if simulated and a.load_mass_g is not None and a.load_profile in ("none", "stochastic"):
+        raise InputError(f"--load-mass-g does not apply to --load-profile {a.load_profile} "
+                         f"(stochastic draws 20–60 g)")
+
+
+def _sim_overrides(a: SimpleNamespace, cfg) -> dict:
+    """What the simulated rig's options change in the rig file's simulation: load profile, seed, mismatched
+    plant, dynamics (keyword arguments of :func:`hardware.build.build_rig`)."""
+    from hardware.loads import load_profile as make_profile
+    kw = {} if a.load_mass_g is None else {"mass": a.load_mass_g * 1e-3}
+    seed = cfg.simulation.get("seed", 0) if a.seed is None else a.seed
+    overrides = {"load": make_profile(a.load_profile, seed=seed, **kw)}
+    if a.seed is not None:
+        overrides["seed"] = a.seed
+    if a.mismatch:
+        from hardware.simulated import PlantOptions
+        mm = PlantOptions.mismatched(base=cfg.actuator_params())
+        overrides.update({k: getattr(mm, k) for k in ("params", "noise_std", "length_resolution", "length_rate",
+                                                      "tendon_friction", "tendon_stiffness")})
+    if a.dynamics:
         overrides["dynamics"] = True
-        if plant_damping_ratio is not None:
-            overrides["damping"] = plant_damping_ratio
-    # the loop's kernels, before the rig is built (and a real one powered) and before the run log exists
+        if a.plant_damping_ratio is not None:
+            overrides["damping"] = a.plant_damping_ratio
+    return overrides
+
+
+def _built_rig(a: SimpleNamespace, cfg):
+    """Compile (or load) the loop's kernels, then build the rig — a real one is powered only now, after every
+    check and before the run log exists."""
+    from hardware.build import build_rig
+    simulated = cfg.backend == "sim"
+    overrides = _sim_overrides(a, cfg) if simulated else {}
     typer.echo("loading the model's compiled kernels (compiling them on the first run of an install) …", err=True)
-    compile_loop_kernels(cfg.actuator_params(), controller, compliance, dynamics=simulated and dynamics)
+    compile_loop_kernels(cfg.actuator_params(), a.controller, a.compliance, dynamics=simulated and a.dynamics)
     the_rig = build_rig(cfg, **overrides)
-    if simulated and realtime:
+    if simulated and a.realtime:
         the_rig.pace = 1.0
+    return the_rig
+
+
+def _built_controller(a: SimpleNamespace, cfg, target: np.ndarray):
+    """The controller (LACC or VF-CC at the pressure and tolerance asked) and the ZV shaper of every move
+    (None without --shaping-damping-ratio).  Returns (controller, shaper)."""
+    from ancf import Model
+    from controller import LACC, VFCC
     model = Model(cfg.actuator_params())
-    p = pressure_kpa * 1e3
-    ctrl = (LACC(model, p, compliance=compliance or "exact", tolerance=tolerance_mm * 1e-3) if controller == "lacc"
-            else VFCC(model, p, tolerance=tolerance_mm * 1e-3))
+    p, tol = a.pressure_kpa * 1e3, a.tolerance_mm * 1e-3
+    ctrl = (LACC(model, p, compliance=a.compliance or "exact", tolerance=tol) if a.controller == "lacc"
+            else VFCC(model, p, tolerance=tol))
     shaper = None
-    if shaping_damping_ratio is not None:
+    if a.shaping_damping_ratio is not None:
         from controller import zv_shaper
         start = model.ik(target, p)                          # the mode of the start state, tendons locked
         locked = model.fk_locked(start.tendon_lengths, p, q0=start.q, tensions0=start.tensions)
         f1 = float(model.modes(locked, 1).frequencies_hz[0])
-        shaper = zv_shaper(f1, shaping_damping_ratio)
-    duration = duration_s if duration_s is not None else (None if max_iterations is not None else math.inf)
-    where = f"; run log: {log}" if log else ""
+        shaper = zv_shaper(f1, a.shaping_damping_ratio)
+    return ctrl, shaper
+
+
+def _run(a: SimpleNamespace, ctrl, the_rig, target: np.ndarray, shaper):
+    """The run itself (:func:`controller.run_on_rig`): Ctrl-C is its normal end; SIGTERM or a fault aborts it
+    (one ``error:`` line, the rig made safe, the log closed).  Returns the :class:`controller.RunResult`."""
+    from controller import RunOptions, run_on_rig
+    from hardware.errors import RunAborted
+    simulated = bool(getattr(the_rig, "simulated", False))
+    duration = a.duration_s if a.duration_s is not None else (None if a.max_iterations is not None else math.inf)
+    where = f"; run log: {a.log}" if a.log else ""
     typer.echo(f"{ctrl.name} on {the_rig.name} ({'simulated' if simulated else 'hardware'}): target "
-               f"{vector(target, 'mm', 1e3, 3)} at {pressure_kpa:g} kPa"
-               + (f", load profile {load_profile}" if simulated else "")
-               + ("; Ctrl-C stops" if duration == math.inf else "") + where, err=True)
-    t0 = time.monotonic()
-    try:
-        res = run_on_rig(ctrl, the_rig, target, log=log, force=force, duration=duration,
-                         max_iterations=max_iterations, status=_status_printer(),
+               f"{vector(target, 'mm', 1e3, 3)} at {a.pressure_kpa:g} kPa"
+               + (f", load profile {a.load_profile}" if simulated else "")
+               + ("; Ctrl-C ends the run" if duration == math.inf else "") + where, err=True)
+    options = RunOptions(log=a.log, force=a.force, duration=duration, max_iterations=a.max_iterations,
+                         status=_status_printer(), on_ctrl_c="end",
                          # the simulated experiment knows the load it applies: its static states record it
                          applied_load=the_rig.load if simulated else None,
-                         run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": load_profile},
-                         shaper=shaper, recover=_ask_recovery if on_drive_fault == "ask" else None)
+                         run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": a.load_profile},
+                         shaper=shaper, recover=_ask_recovery if a.on_drive_fault == "ask" else None)
+    try:
+        res = run_on_rig(ctrl, the_rig, target, options)
     except RunAborted as exc:
         _end_status_line()
         raise RunAborted(f"{exc}") from None
     _end_status_line()
-    out = res.to_dict()
-    out["wall_s"] = time.monotonic() - t0
+    return res
+
+
+def _exit_status(res) -> int:
+    """0 when the run met its goal (converged; held with every judged load period within tolerance), else 1."""
     sm = res.summary
     missed = res.status == "held" and sm is not None and not sm.met
-    out["exit_status"] = 1 if (res.status == "not converged" or missed) else 0
-    if json_out:
+    return 1 if (res.status == "not converged" or missed) else 0
+
+
+def _headline(res, tolerance: float) -> str:
+    """The last line: how the run ended — held (the verdict of its load periods) or converged / not — with the
+    corrections, rig time, the reason and where the log is.  ``tolerance`` [m]."""
+    sm = res.summary
+    tol = f"{tolerance * 1e3:.3f} mm"
+    if res.status == "held" and sm is not None:
+        n_oor = len(sm.out_of_reach)
+        oor = (f"{n_oor} load period(s) out of reach (saturated: the nearest reachable state held)"
+               if n_oor else "")
+        if sm.met and not sm.judged:
+            head = f"held: {oor}; none judged"
+        else:
+            head = (f"held: all {len(sm.judged)} judged load periods settled below {tol}" if sm.met else
+                    f"held, but {len(sm.judged) - sm.periods_within_tolerance} of {len(sm.judged)} judged load "
+                    f"periods did not settle below {tol}" if sm.judged else
+                    "held, but no load period could be judged (run too short?)")
+            head += (f" (settled tip error median {sm.settled_error_median * 1e3:.4f} mm, max "
+                     f"{sm.settled_error_max * 1e3:.4f} mm)" if sm.judged else "") + (f"; {oor}" if oor else "")
+        head += f"; last sample {res.final_error * 1e3:.4f} mm"
+    else:
+        head = f"{res.status}: tip error {res.final_error * 1e3:.4f} mm"
+    return (head + f", {res.iterations} corrections, {res.duration:.2f} s rig time"
+            + (f"; {res.reason}" if res.reason else "")
+            + (f"; run log {res.log_path}" if res.log_path else ""))
+
+
+def _print_result(a: SimpleNamespace, ctrl, res, wall_s: float) -> int:
+    """The summary (or the JSON of the result with ``wall_s`` [s] and ``exit_status``); returns the exit status."""
+    import json
+    status = _exit_status(res)
+    if a.json_out:
+        out = res.to_dict()
+        out["wall_s"] = wall_s
+        out["exit_status"] = status
         typer.echo(json.dumps(out))
     else:
-        for line in (sm.lines() if sm is not None else []):
+        for line in (res.summary.lines() if res.summary is not None else []):
             typer.echo(line)
-        tol = f"{ctrl.tolerance * 1e3:.3f} mm"
-        if res.status == "held" and sm is not None:
-            n_oor = len(sm.out_of_reach)
-            oor = (f"{n_oor} load period(s) out of reach (saturated: the nearest reachable state held)"
-                   if n_oor else "")
-            if sm.met and not sm.judged:
-                head = f"held: {oor}; none judged"
-            else:
-                head = (f"held: all {len(sm.judged)} judged load periods settled below {tol}" if sm.met else
-                        f"held, but {len(sm.judged) - sm.periods_within_tolerance} of {len(sm.judged)} judged load "
-                        f"periods did not settle below {tol}" if sm.judged else
-                        "held, but no load period could be judged (run too short?)")
-                head += (f" (settled tip error median {sm.settled_error_median * 1e3:.4f} mm, max "
-                         f"{sm.settled_error_max * 1e3:.4f} mm)" if sm.judged else "") + (f"; {oor}" if oor else "")
-            head += f"; last sample {res.final_error * 1e3:.4f} mm"
-        else:
-            head = f"{res.status}: tip error {res.final_error * 1e3:.4f} mm"
-        typer.echo(head + f", {res.iterations} corrections, {res.duration:.2f} s rig time"
-                   + (f"; {res.reason}" if res.reason else "")
-                   + (f"; run log {res.log_path}" if res.log_path else ""))
-    if out["exit_status"]:
-        raise typer.Exit(1)
+        typer.echo(_headline(res, ctrl.tolerance))
+    return status

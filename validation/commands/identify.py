@@ -33,6 +33,7 @@ from validation.identification.calibrate import GEOMETRY_PARAMETERS, MATERIAL_PA
 from validation.reference.designs import PRESETS as DESIGN_PRESETS
 from validation.reference.experiments import default_design
 from validation.identification.forms import FORMS
+from validation.report.pipeline import QUICK_FORMS
 
 # every list of choices below is built from the code's own registry, so that --help cannot drift from it
 DESIGN_HELP = f"FEM design: a preset {one_of(DESIGN_PRESETS)} or a design .toml file."
@@ -41,7 +42,6 @@ WORKERS_HELP = "Parallel FEM processes (default: all cores)."
 SCHEDULER_HELP = "dask scheduler address (tcp://host:8786) to run the FEM cases on a cluster."
 FORMS_HELP = f"Model forms to compare, comma separated, from {one_of(FORMS)} (default: all)."
 DEFAULT_CACHE = pathlib.Path("bellows_out/fem_cache")
-QUICK_FORMS = ("paper", "separate", "pressure_ei", "pressure_ei_shear")
 N_FEM_CASES = len(default_design().cases)
 QUICK_HELP = (f"Only the model forms {one_of(QUICK_FORMS)}, no stiffness-vs-tension study and no FEM modes (the "
               f"Dynamics section shows the rod's). The FEM solves still dominate a run with an empty --cache: the "
@@ -314,23 +314,9 @@ def validate_cmd(
 
 
 def _report_modes(res, fem, mesh, cache, quick: bool) -> dict:
-    """The report's Dynamics data (validation/checks/modes_compare.py): the identified rod's first bending and axial
-    modes per pressure, tendons slack, beside the FEM's (computed and cached here, not with --quick)."""
-    from validation.reference.fem_sweep import FemSpec, run_modes
-    from validation.checks.modes_compare import MEASURED_NOTE, QUICK_NOTE, compare_modes, report_pressures
-    p = res.params
-    slack = [0.0] * len(p.tendons)
-    if fem is None:
-        return compare_modes(p, report_pressures(p.pressure_max), slack, fem_note=MEASURED_NOTE, gravity=True)
-    _, geo, mat, limits = fem
-    pressures = report_pressures(limits["pressure_max"])
-    if quick:
-        return compare_modes(p, pressures, slack, fem_note=QUICK_NOTE)
-    console.print(f"FEM modes at {', '.join(f'{x / 1e3:g}' for x in pressures)} kPa …")
-    t0 = time.perf_counter()
-    fem_rows = run_modes(FemSpec(geo, mat, mesh), pressures, slack, cache_dir=cache)
-    console.print(f"FEM modes: {time.perf_counter() - t0:.1f} s")
-    return compare_modes(p, pressures, slack, fem=fem_rows)
+    """The report's Dynamics data (:func:`validation.report.pipeline.report_modes`), progress on the console."""
+    from validation.report.pipeline import report_modes
+    return report_modes(res.params, fem, mesh, cache, quick, log=console.print)
 
 
 def _print_modes(modes: Optional[dict]) -> None:
@@ -347,9 +333,6 @@ def _print_modes(modes: Optional[dict]) -> None:
                   f(r["fem_axial_frequency_hz"], ".2f"), f(r["rod_axial_frequency_hz"], ".2f"),
                   f(r["axial_difference_pct"], "+.1f"))
     console.print(t)
-
-
-REPORT_FILES = ("report.html", "actuator.toml", "fit.json", "validation.json", "stiffness.json", "figures")
 
 
 def report_cmd(
@@ -373,59 +356,26 @@ def report_cmd(
     """Identify, validate and write one HTML report.
 
     report.html is self-contained; beside it: the actuator file, the fit data and the figures."""
-    from validation.checks.compare import compare_records, stiffness_vs_tension
-    from validation.reference.fem_sweep import FemSpec
-    from validation.report.build import write_report
+    from validation.report.pipeline import run_report
     _source_check(design, measurements)
     names = _forms(forms, quick)
     _cases_check(cases)
     _base_check(measurements, base)
     fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
-    d = prepare_output_dir(out, REPORT_FILES, force=force)
-    t0 = time.perf_counter()
-    val = stiff = None
-    if measurements is not None:
-        res = _identify_measured(measurements, base, names, fit_distance, 0.25, True)
-    else:
-        _, geo, mat, _ = fem
-        from validation.checks.fem_error import FULL_CASES, QUICK_CASES, estimate_for_heldout, for_validation
-        n_fe = QUICK_CASES if quick else FULL_CASES
-        fe_kw = dict(workers=workers, scheduler=scheduler, cache_dir=cache)
-
-        def fem_error_beside(records):     # the refined solves run while the forms are fitted (identify.from_fem)
-            console.print(f"FEM discretisation error: {n_fe} held-out states on a mesh refined 2× along the profile, "
-                          "beside the fits …")
-            return estimate_for_heldout(FemSpec(geo, mat, mesh), records, n_fe, **fe_kw)
-
-        res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance, cases,
-                            after_sweep=fem_error_beside if fem_error else None)
-        val = compare_records(res.params, [r for r in res.records if r.case.role == "heldout"])
-        if fem_error:
-            for_validation(val, FemSpec(geo, mat, mesh), res.records, n_fe, estimate=res.after_sweep, **fe_kw)
-            val.fem_error["seconds"] = float(val.fem_error.get("estimate", {}).get("seconds") or 0.0)
-        else:
-            from validation.checks.fem_error import assess
-            val.fem_error = assess(val, None, reason="--no-fem-error")
-        if not quick:
-            console.print("stiffness vs tension (Fig. 9 protocol) on the FEM …")
-            stiff = stiffness_vs_tension(res.params, FemSpec(geo, mat, mesh), workers=workers, scheduler=scheduler,
-                                         cache_dir=cache)
-    res.modes = _report_modes(res, fem, mesh, cache, quick)
-    res.meta["command"] = _command_line()
-    res.to_toml(d / "actuator.toml", force=force)
-    res.save(d / "fit.json", force=force)
-    if val is not None:
-        atomic_write_text(d / "validation.json", json.dumps(val.to_dict(), indent=1))
-    if stiff is not None:
-        atomic_write_text(d / "stiffness.json", json.dumps(to_jsonable(stiff), indent=1))
-    path = write_report(d / "report.html", res, val, stiff, force=force, figures_dir=d / "figures",
-                        command=_command_line(), modes=res.modes)
+    limits = {} if fem is None else fem[3]         # checked with the CLI's option names (--tension-max-n, …)
+    run = run_report(out, design=None if fem is None else fem[0], measurements=measurements, base=base, quick=quick,
+                     fem_error=fem_error, tension_max=limits.get("tension_max"),
+                     pressure_max=limits.get("pressure_max"), mesh=mesh, forms=names,
+                     fit_distance=fit_distance, cases=cases, workers=workers, scheduler=scheduler, cache_dir=cache,
+                     force=force, command=_command_line(), log=console.print)
+    res, val, stiff = run.identification, run.validation, run.stiffness
     _print_identification(res)
     if val is not None:
         _print_validation(val)
     _print_modes(res.modes)
-    console.print(f"{time.perf_counter() - t0:.0f} s; wrote {path} (open it in a browser), actuator.toml, "
-                  f"fit.json{', validation.json' if val else ''}{', stiffness.json' if stiff else ''} and figures/ in {d}")
+    console.print(f"{run.seconds:.0f} s; wrote {run.report} (open it in a browser), actuator.toml, "
+                  f"fit.json{', validation.json' if val else ''}{', stiffness.json' if stiff else ''} and figures/ in "
+                  f"{run.out}")
 
 
 def calibrate_cmd(

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import typer
 
+import ancf
 from ancf import cli as ancf_cli
 from ancf import clitools
 from ancf.dynamics import cli as dynamics_cli
@@ -24,6 +25,20 @@ app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM refe
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
                   rich_markup_mode=None,   # help texts state units as "[kPa]": no markup parsing
                   context_settings=clitools.HELP_SETTINGS)   # whole command summaries in --help
+
+
+def _print_version(value: bool) -> None:
+    if value:
+        typer.echo(f"bellows {ancf.distribution_version()}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_print_version, is_eager=True,
+                                       help="Print the installed version (bellows <version>) and exit.")) -> None:
+    pass      # no docstring: the help text is the app's own
+
+
 ancf_cli.register(app)                                       # demo | fk | ik | locked | compliance | params
 dynamics_cli.register(app)                                   # modes | simulate
 app.add_typer(paper_app, name="paper", help="Reproduce the paper's studies, beside the paper's numbers.")

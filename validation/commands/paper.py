@@ -7,7 +7,9 @@ each key) instead.  ``compare`` prints every headline number for several presets
 errors give one ``error:`` line and exit status 2; Ctrl-C exits 130 and says where the finished work is.
 The controller studies (``table1``, ``ablation``, ``loading``) come from
 :mod:`validation.paper.control`; when it is missing they say so and exit with status 2 (``all`` skips
-them with a note).  ``convergence`` and ``loads`` print the element convergence and the loading checks.
+them with a note).  ``convergence`` (convergence.json and a log-log figure with the fitted slope) and ``loads``
+(loads.json) write and print the element convergence and the loading checks, and say which solves failed,
+why, and what that does to the numbers.  ``table1 --mismatch`` runs Table I on the imperfect simulated rig.
 """
 
 from __future__ import annotations
@@ -163,12 +165,17 @@ def stiffness(pressures_kpa: str = typer.Option("0,25,50",
     con.print(f"wrote {out}/stiffness.json, stiffness.png, stiffness.svg")
 
 
-def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper", force: bool = False) -> None:
+def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper", force: bool = False,
+             mismatch: bool = False) -> None:
     con = _console(as_json)
     with _scheduler_errors(None):
         params = paper.resolve_params(preset)
         out = prepare_output_dir(out, paper.study_files(name), force=force)     # before the study runs
-        res = {**paper.CONTROL_STUDIES, **paper.RIG_STUDIES}[name](out=out, params=params)
+        extra = {}
+        if mismatch:      # the simulated rig of ``bellows control --rig sim --mismatch`` around this preset
+            from controller import PlantOptions
+            extra["plant_options"] = PlantOptions.mismatched(base=params)
+        res = {**paper.CONTROL_STUDIES, **paper.RIG_STUDIES}[name](out=out, params=params, **extra)
     path = paper.write_json(out / paper.study_files(name)[0], res)
     if as_json:
         _echo_json(res)
@@ -199,7 +206,24 @@ def _control_command(name: str, summary: str):
 
 
 for _name, _summary in CONTROL_COMMANDS.items():
-    app.command(_name)(_control_command(_name, _summary))
+    if _name != "table1":
+        app.command(_name)(_control_command(_name, _summary))
+
+
+@app.command("table1")
+def table1(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+           preset: str = typer.Option("paper", help=PRESET_HELP),
+           mismatch: bool = typer.Option(False, "--mismatch", help="Run on an imperfect simulated rig instead of the "
+                                         "controllers' own noise-free model: +15 % line mass, stiffness × 0.95, +5 g "
+                                         "tip, 0.05 mm tracker noise, 1 µm motor steps, 0.1 N tendon friction "
+                                         "(PlantOptions.mismatched, as bellows control --rig sim --mismatch)."),
+           force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+           as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Table I: VF-CC vs LACC residual error after five iterations (up / horizontal / down).
+
+    The plant is simulated (locked-length FK with the load hidden); by default it is the controllers' own model
+    without noise, with --mismatch an imperfect rig.  The paper's numbers are measurements on its physical rig."""
+    _control("table1", out, as_json, preset, force, mismatch=mismatch)
 
 
 @app.command("dynamic", short_help="Cyclic loads 0.125–2 Hz: quasi-static LACC on a static vs a dynamic plant.")
@@ -271,20 +295,39 @@ def convergence(n_values: str = typer.Option("1,2,3,4,5,6,8", help="Numbers of e
                                              f"{N_ELEMENTS_MIN} to {N_ELEMENTS_MAX}."),
                 n_ref: int = typer.Option(16, **N_ELEMENTS, help="Elements of the reference solution."),
                 preset: str = typer.Option("paper", help=PRESET_HELP),
+                out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+                force: bool = typer.Option(False, "--force", help=FORCE_HELP),
                 as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Tip error vs the number of elements n (paper: 6.1 -> 0.3 mm from n = 1 to 6)."""
-    from validation.paper.convergence import element_convergence
+    """Tip error vs the number of elements n (paper: 6.1 -> 0.3 mm from n = 1 to 6).
+
+    Writes convergence.json and a log-log figure of the error vs n with the fitted slope (convergence.png, .svg)."""
+    from validation.paper import convergence as cv
+    from validation.paper.plots import plot_convergence
     ns = clitools.parse_numbers(n_values, "--n-values", low=N_ELEMENTS_MIN, high=N_ELEMENTS_MAX, integer=True)
     con = _console(as_json)
     with _scheduler_errors(None):
-        res = element_convergence(preset, n_values=ns, n_ref=n_ref)
+        out = prepare_output_dir(out, cv.FILES, force=force)        # before the study runs
+        res = cv.element_convergence(preset, n_values=ns, n_ref=n_ref)
+        paper.write_json(out / cv.FILES[0], res)
+        plot_convergence(res, out)
     if as_json:
         _echo_json(res)
-        return
-    for n, e in zip(res["n"], res["tip_error_m"]):
-        con.print(f"n = {n:2d}: tip error {e * 1e3:8.3f} mm")
-    con.print(f"rate {res['rate']:.2f} (log-log slope from n = 2); paper: 6.1 mm at n = 1, 0.3 mm at n = 6; "
-              f"{len(res['failures'])} failed solves")
+    else:
+        for n, e, ok in zip(res["n"], res["tip_error_m"], res["complete"]):
+            con.print(f"n = {n:2d}: tip error {e * 1e3:8.3f} mm" + ("" if ok else "  (some state failed: lower bound)"))
+        fit = ", ".join(map(str, res["rate_n"])) or "none"
+        con.print(f"rate {res['rate']:.2f} (log-log slope over n = {fit}); paper: 6.1 mm at n = 1, 0.3 mm at n = 6")
+        _print_notes(con, res["notes"], f"{len(res['failures'])} failed solves")
+    con.print(f"wrote {out}/{', '.join(cv.FILES)}")
+
+
+def _print_notes(con: Console, notes, title: str) -> None:
+    """``title:`` and one bullet per note (yellow; the text escaped from rich markup)."""
+    from rich.markup import escape
+    if notes:
+        con.print(f"[yellow]{escape(title)}:[/yellow]")
+        for note in notes:
+            con.print(f"[yellow]  - {escape(note)}[/yellow]")
 
 
 @app.command()
@@ -293,24 +336,36 @@ def loads(mass_kg: float = typer.Option(0.110, callback=MASS_KG,
           hold_mass_kg: float = typer.Option(0.100, callback=MASS_KG,
                                              help=f"Payload to hold in each configuration, {MASS_KG.text}."),
           preset: str = typer.Option("paper", help=PRESET_HELP),
+          out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+          force: bool = typer.Option(False, "--force", help=FORCE_HELP),
           as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Locked drift under a payload, holding a payload in the Table I configurations, and the IK time."""
-    from validation.paper.loads import hold_payload, ik_time, locked_drift
+    """Locked drift under a payload, holding a payload in the Table I configurations, and the IK time.
+
+    Writes loads.json ({"drift", "hold", "ik_time"}, SI units, the unit in each key)."""
+    from validation.paper.loads import FILES, hold_notes, hold_payload, ik_time, locked_drift
     con = _console(as_json)
     with _scheduler_errors(None):
+        out = prepare_output_dir(out, FILES, force=force)           # before the study runs
         res = {"drift": locked_drift(preset, mass=mass_kg), "hold": hold_payload(preset, mass=hold_mass_kg),
                "ik_time": ik_time(preset)}
+        res["notes"] = hold_notes(res["hold"])
+        paper.write_json(out / FILES[0], res)
     if as_json:
         _echo_json(res)
-        return
-    d = res["drift"]
-    con.print(f"locked drift under {mass_kg * 1e3:g} g: {d['drift_m'] * 1e3:.2f} mm (tip {d['tip_angle_deg']:.1f}°; "
-              "paper: over 10 mm at 110 g)")
-    for name, row in res["hold"]["configurations"].items():
-        con.print(f"holds {hold_mass_kg * 1e3:g} g {name} (tip {row['tip_angle_deg']:.1f}°): "
-                  f"{'yes' if row['held'] else 'no'}, max tension needed {row['max_tension_needed_N']:.2f} N")
-    t = res["ik_time"]
-    con.print(f"IK time: cold {t['cold_s'] * 1e3:.2f} ms, warm {t['warm_s'] * 1e3:.2f} ms (paper: 2.95 s)")
+    else:
+        d = res["drift"]
+        con.print(f"locked drift under {mass_kg * 1e3:g} g: {d['drift_m'] * 1e3:.2f} mm (tip {d['tip_angle_deg']:.1f}°; "
+                  "paper: over 10 mm at 110 g)")
+        for name, row in res["hold"]["configurations"].items():
+            need = row["max_tension_needed_N"]
+            need_text = (f"{need:.2f} N" if row["tensions_needed_N"] is not None
+                         else f"none ≤ {res['hold']['relaxed_tension_max_N']:g} N (see below)")
+            con.print(f"holds {hold_mass_kg * 1e3:g} g {name} (tip {row['tip_angle_deg']:.1f}°): "
+                      f"{'yes' if row['held'] else 'no'}, max tension needed {need_text}")
+        t = res["ik_time"]
+        con.print(f"IK time: cold {t['cold_s'] * 1e3:.2f} ms, warm {t['warm_s'] * 1e3:.2f} ms (paper: 2.95 s)")
+        _print_notes(con, res["notes"], "why")
+    con.print(f"wrote {out}/{FILES[0]}")
 
 
 @app.command()

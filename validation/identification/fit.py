@@ -371,7 +371,56 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     ``scale`` — typical size of each parameter (default :meth:`ModelForm.typical_scale` of ``theta0``): the
     column scaling of the identifiability test and the optimiser's step scale.
     Raises :class:`~ancf.errors.InputError` on inconsistent inputs, :class:`~ancf.errors.ConvergenceError`
-    when an equilibrium cannot be solved along the way."""
+    when an equilibrium cannot be solved along the way.
+
+    Steps: check the inputs (:func:`_checked_start`), minimise (:func:`_optimise`), then at the optimum either
+    claim nothing (too few data, :func:`_too_few_data`), or test identifiability and hold the parameters the data
+    do not determine (:func:`_refit_holding`), or report every interval (:func:`_full_result`)."""
+    theta0, lo, hi, typical = _checked_start(form, obs, base, theta0, fixed, scale)
+    absolute = obs.has_sigma if absolute_sigma is None else bool(absolute_sigma)
+    free = np.array([nm not in fixed for nm in form.names])
+    w = obs.weights().ravel()
+    ev = _Evaluator(form, obs, base)
+    if _warm is not None:           # the refit: from the first pass's equilibria (a cold start may not reach them)
+        ev.q = list(_warm)
+    if free.sum() > w.size:
+        raise InputError(f"form {form.name}: {free.sum()} free parameters but only {w.size} observations")
+    res, theta = _optimise(ev, _observed(obs).ravel(), w, theta0, free, lo, hi, typical, max_nfev)
+    params, pred, J3 = ev.evaluate(theta, jacobian=True)
+    r = pred - _observed(obs)
+    Jw = J3.reshape(-1, form.n) * w[:, None]
+    rw = r.ravel() * w
+    rss = float(rw @ rw)
+    n_obs = rw.size
+    n_free = int(free.sum())
+    short = _too_few_data(obs.n, n_obs, n_free)
+    if short:       # no spare degrees of freedom: a CI from such a fit is meaningless, claim nothing
+        return _claim_nothing(form, theta, r, params, rss, n_obs - n_free, ev, str(res.message),
+                              "too few data: " + "; ".join(short))
+    # identifiability 1: rank of the Jacobian over the free parameters, columns scaled by the parameters'
+    # fixed typical sizes (not by their values: a signed parameter near 0 would look undetermined)
+    idx_free = np.flatnonzero(free)
+    share, sv = null_share(Jw[:, idx_free] * typical[idx_free], singular_values=True)
+    ident = np.zeros(form.n, bool)
+    ident[idx_free] = share <= NULL_SHARE
+    dof = max(n_obs - int(ident.sum()), 1)
+    s2 = 1.0 if absolute else rss / dof
+    cov = _covariance(Jw, ident, s2, _marginal)
+    q = st.norm.ppf(0.975) if absolute else st.t.ppf(0.975, dof)
+    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
+    # identifiability 2: CI wider than the value
+    signed = np.array([nm in SIGNED for nm in form.names])
+    wide = ident & ~signed & (q * sd > np.abs(theta))
+    if _refit and (wide.any() or (~ident & free).any()):
+        return _refit_holding(form, obs, base, theta, ident, wide, free, cov, q, ev, absolute=absolute,
+                              fixed=fixed, max_nfev=max_nfev, typical=typical)
+    return _full_result(form, theta, cov, sd, q, ident & ~wide, r, params, rss, dof, s2, sv, ev, str(res.message),
+                        fixed)
+
+
+def _checked_start(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, fixed: Sequence[str], scale):
+    """(θ₀ clipped into the bounds, lower (n,), upper (n,), typical sizes (n,)) of a fit, after checking its
+    inputs (:class:`~ancf.errors.InputError` naming the inconsistent one)."""
     theta0 = np.asarray(theta0, float)
     if theta0.shape != (form.n,) or not np.all(np.isfinite(theta0)):
         raise InputError(f"initial parameters for form {form.name} must be {form.n} finite values, got {theta0}")
@@ -381,21 +430,21 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     unknown = set(fixed) - set(form.names)
     if unknown:
         raise InputError(f"cannot fix unknown parameter(s) {sorted(unknown)} of form {form.name}")
-    absolute = obs.has_sigma if absolute_sigma is None else bool(absolute_sigma)
     lo, hi = np.array(form.lower, float), np.array(form.upper, float)
     typical = form.typical_scale(theta0) if scale is None else np.asarray(scale, float)
     if typical.shape != (form.n,) or not np.all(np.isfinite(typical) & (typical > 0)):
         raise InputError(f"typical sizes of the parameters of form {form.name} must be {form.n} positive values, "
                          f"got {typical}")
     theta0 = np.clip(theta0, lo + 1e-12 * np.abs(lo), hi - 1e-12 * np.abs(hi))
-    free = np.array([nm not in fixed for nm in form.names])
-    w = obs.weights().ravel()
-    y = _observed(obs).ravel()
-    ev = _Evaluator(form, obs, base)
-    if _warm is not None:           # the refit: from the first pass's equilibria (a cold start may not reach them)
-        ev.q = list(_warm)
-    if free.sum() > w.size:
-        raise InputError(f"form {form.name}: {free.sum()} free parameters but only {w.size} observations")
+    return theta0, lo, hi, typical
+
+
+def _optimise(ev: _Evaluator, y: np.ndarray, w: np.ndarray, theta0: np.ndarray, free: np.ndarray, lo: np.ndarray,
+              hi: np.ndarray, typical: np.ndarray, max_nfev: int):
+    """(scipy's result, θ at the optimum (n,)): trust-region reflective least squares of the weighted residuals
+    (prediction − ``y``) · ``w`` over the ``free`` parameters, the others held at ``theta0``.  With signed and
+    unsigned free parameters, a continuation first fits the magnitudes with the signed ones held at their start."""
+    form = ev.form
 
     def full(x):
         th = theta0.copy()
@@ -444,44 +493,47 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         x0[keep] = pre.x
     res = so.least_squares(fun, x0, jac=jac, bounds=(lo[free], hi[free]), method="trf",
                            x_scale=typical[free], xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=max_nfev)
-    theta = full(res.x)
-    params, pred, J3 = ev.evaluate(theta, jacobian=True)
-    r = pred - _observed(obs)
-    Jw = J3.reshape(-1, form.n) * w[:, None]
-    rw = r.ravel() * w
-    rss = float(rw @ rw)
-    n_obs = rw.size
-    n_free = int(free.sum())
+    return res, full(res.x)
+
+
+def _too_few_data(n_states: int, n_obs: int, n_free: int) -> list[str]:
+    """Why a fit of ``n_free`` parameters to ``n_states`` states (``n_obs`` weighted residuals) can claim nothing
+    (:data:`MIN_SPARE_STATES`, :data:`MIN_DOF`); empty when it has data to spare."""
     short = []
-    if obs.n < n_free + MIN_SPARE_STATES:
-        short.append(f"{obs.n} state(s) for {n_free} free parameter(s) (at least {n_free + MIN_SPARE_STATES} "
+    if n_states < n_free + MIN_SPARE_STATES:
+        short.append(f"{n_states} state(s) for {n_free} free parameter(s) (at least {n_free + MIN_SPARE_STATES} "
                      f"needed: free parameters + {MIN_SPARE_STATES})")
     if n_obs - n_free < MIN_DOF:
         short.append(f"{n_obs - n_free} residual degree(s) of freedom ({n_obs} residuals − {n_free} free "
                      f"parameters; at least {MIN_DOF} needed)")
-    if short:       # no spare degrees of freedom: a CI from such a fit is meaningless, claim nothing
-        why = "too few data: " + "; ".join(short)
-        nan2 = (float("nan"), float("nan"))
-        names = form.names
-        keys = list(form.derived(theta))
-        return FitResult(form, theta, np.full((form.n, form.n), np.nan), {nm: nan2 for nm in names},
-                         {nm: False for nm in names}, np.full((form.n, form.n), np.nan), {k: None for k in keys},
-                         {k: nan2 for k in keys}, {k: False for k in keys}, r, params,
-                         float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, n_obs - n_free, float("nan"),
-                         np.zeros(0), ev.nfev, str(res.message), ev.rejected,
-                         reasons={nm: why for nm in names} | {k: why for k in keys},
-                         intervals="none: " + why)
-    # identifiability 1: rank of the Jacobian over the free parameters, columns scaled by the parameters'
-    # fixed typical sizes (not by their values: a signed parameter near 0 would look undetermined)
-    idx_free = np.flatnonzero(free)
-    share, sv = null_share(Jw[:, idx_free] * typical[idx_free], singular_values=True)
-    ident = np.zeros(form.n, bool)
-    ident[idx_free] = share <= NULL_SHARE
-    k_id = int(ident.sum())
-    dof = max(n_obs - k_id, 1)
-    s2 = 1.0 if absolute else rss / dof
-    cov = np.full((form.n, form.n), np.nan)
-    if k_id:
+    return short
+
+
+def _rms_tip(r: np.ndarray) -> float:
+    """RMS of the tip errors [m] of residuals ``r`` (N, 3 + 3k)."""
+    return float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1))))
+
+
+def _claim_nothing(form: ModelForm, theta, r, params, rss: float, dof: int, ev: _Evaluator, message: str,
+                   why: str) -> FitResult:
+    """The result of a fit with too few data: every parameter and derived value not identifiable (reason
+    ``why``), no covariance, no interval."""
+    nan2 = (float("nan"), float("nan"))
+    names = form.names
+    keys = list(form.derived(theta))
+    return FitResult(form, theta, np.full((form.n, form.n), np.nan), {nm: nan2 for nm in names},
+                     {nm: False for nm in names}, np.full((form.n, form.n), np.nan), {k: None for k in keys},
+                     {k: nan2 for k in keys}, {k: False for k in keys}, r, params, _rms_tip(r), rss, dof, float("nan"),
+                     np.zeros(0), ev.nfev, message, ev.rejected,
+                     reasons={nm: why for nm in names} | {k: why for k in keys}, intervals="none: " + why)
+
+
+def _covariance(Jw: np.ndarray, ident: np.ndarray, s2: float, marginal: Optional[np.ndarray]) -> np.ndarray:
+    """Cov(θ) (n, n) = s² (JᵀJ)⁻¹ over the identifiable parameters ``ident`` (NaN rows and columns for the
+    others); with ``marginal`` (the first pass's covariance), its block of the identifiable parameters instead."""
+    n = ident.size
+    cov = np.full((n, n), np.nan)
+    if ident.any():
         ii = np.flatnonzero(ident)
         A = Jw[:, ii]
         try:
@@ -489,50 +541,57 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         except np.linalg.LinAlgError:
             cov_id = s2 * np.linalg.pinv(A.T @ A)
         cov[np.ix_(ii, ii)] = cov_id
-        if _marginal is not None:
+        if marginal is not None:
             # after holding parameters whose interval was wider than their value: the others' covariance is
             # their marginal block of the first pass (the held parameter's uncertainty included), not the
             # narrower covariance conditional on the held value
-            blk = np.asarray(_marginal)[np.ix_(ii, ii)]
+            blk = np.asarray(marginal)[np.ix_(ii, ii)]
             if np.all(np.isfinite(blk)):
                 cov[np.ix_(ii, ii)] = blk
-    q = st.norm.ppf(0.975) if absolute else st.t.ppf(0.975, dof)
-    sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-    # identifiability 2: CI wider than the value
-    signed = np.array([nm in SIGNED for nm in form.names])
-    wide = ident & ~signed & (q * sd > np.abs(theta))
-    if _refit and (wide.any() or (~ident & free).any()):
-        newly = [nm for nm, bad in zip(form.names, (~ident | wide) & free) if bad]
-        why = {nm: ("the data do not determine it (a direction of the scaled Jacobian with singular value "
-                    f"< {RANK_TOL:g} × the largest)" if not ident[j] else
-                    "its 95 % confidence interval is wider than its value")
-               for j, nm in enumerate(form.names) if nm in newly}
-        out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
-                  max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov, _warm=ev.q)
-        out.rejected += ev.rejected
-        for nm in newly:
-            out.identifiable[nm] = False
-            out.ci95[nm] = (float("nan"), float("nan"))
-            out.reasons.setdefault(nm, why[nm])
-            out.held[nm] = float(out.theta[form.names.index(nm)])
-            out.held_at[nm] = "first-pass optimum"
-        rank_held = [nm for nm in newly if not ident[form.names.index(nm)]]
-        out.intervals = ("conditional on the held value(s) of " + ", ".join(rank_held)) if rank_held else \
-            "marginal (first-pass covariance; the held parameters' uncertainty included)"
-        out.values_identifiable, out.values_ci95 = _derived_identifiability(form, out.theta, out.cov,
-                                                                            out.identifiable, q)
-        out.values = {k: (v if out.values_identifiable[k] else None) for k, v in form.derived(out.theta).items()}
-        return out
-    ident_map = {nm: bool(ident[j]) and not wide[j] for j, nm in enumerate(form.names)}
+    return cov
+
+
+def _refit_holding(form: ModelForm, obs: Observations, base: ActuatorParams, theta, ident, wide, free, cov, q: float,
+                   ev: _Evaluator, *, absolute: bool, fixed: Sequence[str], max_nfev: int, typical) -> FitResult:
+    """The fit again with the parameters the data do not determine (``~ident``: rank; ``wide``: CI wider than
+    the value) held at this first-pass optimum ``theta``, from its equilibria; they are reported as not
+    identifiable, and the intervals of the others say how they were made (module docstring)."""
+    newly = [nm for nm, bad in zip(form.names, (~ident | wide) & free) if bad]
+    why = {nm: ("the data do not determine it (a direction of the scaled Jacobian with singular value "
+                f"< {RANK_TOL:g} × the largest)" if not ident[j] else
+                "its 95 % confidence interval is wider than its value")
+           for j, nm in enumerate(form.names) if nm in newly}
+    out = fit(form, obs, base, theta, absolute_sigma=absolute, fixed=tuple(fixed) + tuple(newly),
+              max_nfev=max_nfev, scale=typical, _refit=False, _marginal=cov, _warm=ev.q)
+    out.rejected += ev.rejected
+    for nm in newly:
+        out.identifiable[nm] = False
+        out.ci95[nm] = (float("nan"), float("nan"))
+        out.reasons.setdefault(nm, why[nm])
+        out.held[nm] = float(out.theta[form.names.index(nm)])
+        out.held_at[nm] = "first-pass optimum"
+    rank_held = [nm for nm in newly if not ident[form.names.index(nm)]]
+    out.intervals = ("conditional on the held value(s) of " + ", ".join(rank_held)) if rank_held else \
+        "marginal (first-pass covariance; the held parameters' uncertainty included)"
+    out.values_identifiable, out.values_ci95 = _derived_identifiability(form, out.theta, out.cov,
+                                                                        out.identifiable, q)
+    out.values = {k: (v if out.values_identifiable[k] else None) for k, v in form.derived(out.theta).items()}
+    return out
+
+
+def _full_result(form: ModelForm, theta, cov, sd, q: float, ok, r, params, rss: float, dof: int, s2: float, sv,
+                 ev: _Evaluator, message: str, fixed: Sequence[str]) -> FitResult:
+    """The result with every interval: θ ± q sd for the identifiable parameters ``ok`` (n,), the derived values
+    by the delta method; parameters given as ``fixed`` recorded as held at the value given."""
+    ident_map = {nm: bool(ok[j]) for j, nm in enumerate(form.names)}
     ci = {nm: ((float(theta[j] - q * sd[j]), float(theta[j] + q * sd[j])) if ident_map[nm]
                else (float("nan"), float("nan"))) for j, nm in enumerate(form.names)}
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(sd, sd)
     vid, vci = _derived_identifiability(form, theta, cov, ident_map, q)
     values = {k: (v if vid[k] else None) for k, v in form.derived(theta).items()}
-    return FitResult(form, theta, cov, ci, ident_map, corr, values, vci, vid, r, params,
-                     float(np.sqrt(np.mean(np.sum(r[:, :3] ** 2, axis=1)))), rss, dof, s2, sv, ev.nfev,
-                     str(res.message), ev.rejected,
+    return FitResult(form, theta, cov, ci, ident_map, corr, values, vci, vid, r, params, _rms_tip(r), rss, dof, s2,
+                     sv, ev.nfev, message, ev.rejected,
                      held={nm: float(theta[form.names.index(nm)]) for nm in fixed},
                      held_at={nm: "value given to the fit" for nm in fixed},
                      intervals=("conditional on the held value(s) of " + ", ".join(fixed)) if fixed else "full")

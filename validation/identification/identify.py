@@ -36,8 +36,8 @@ from typing import Any, Callable, Optional, Sequence
 
 import numpy as np
 
-from ancf import ActuatorParams, presets
-from ancf.errors import BellowsError, ConfigError, ConvergenceError, InputError
+from ancf import ActuatorParams
+from ancf.errors import BellowsError, ConfigError, InputError
 from ancf.export import to_jsonable
 from ancf.outputs import atomic_write_text, prepare_output_file
 
@@ -209,6 +209,42 @@ class IdentificationResult:
     def heldout_errors(self) -> Optional[np.ndarray]:
         row = next(r for r in self.comparison if r["form"] == self.form)
         return None if row.get("heldout_tip_errors_m") is None else np.asarray(row["heldout_tip_errors_m"])
+
+    # -------------------------------------------------------------------- display
+    def _value_text(self, key: str) -> str:
+        """A reported value with its unit (lengths in mm), or "not identifiable"."""
+        v = self.values.get(key)
+        if v is None:
+            return "not identifiable"
+        unit = REPORTED.get(key, "")
+        scale, unit = (1e3, "mm") if unit == "m" else (1.0, unit.replace("^2", "²"))
+        return f"{v * scale:.4g} {unit}".rstrip(" -")
+
+    def _ci_text(self, key: str) -> str:
+        lo, hi = self.ci95.get(key, (float("nan"), float("nan")))
+        if self.values.get(key) is None or not (math.isfinite(lo) and math.isfinite(hi)):
+            return ""
+        scale = 1e3 if REPORTED.get(key) == "m" else 1.0
+        return f"{lo * scale:.4g} … {hi * scale:.4g}"
+
+    def _heldout_rms_text(self) -> str:
+        row = next((r for r in self.comparison if r.get("form") == self.form), {})
+        v = row.get("heldout_rms_tip_m")
+        return "–" if v is None else f"{1e3 * v:.3f} mm"
+
+    def __repr__(self) -> str:
+        """One line: the chosen form, the source, the identified values (lengths in mm) and the held-out tip RMS."""
+        vals = ", ".join(f"{k}={self._value_text(k)}" for k in self.values)
+        return (f"IdentificationResult(form={self.form!r}, source={self.source!r}, {vals}, "
+                f"held-out tip RMS={self._heldout_rms_text()})")
+
+    def _repr_html_(self) -> str:
+        from ancf.htmlrepr import table
+        rows = [(k, self._value_text(k), self._ci_text(k)) for k in self.values]
+        rows += [("held-out tip RMS", self._heldout_rms_text(), ""),
+                 ("states", f"{self.train.n} training, {0 if self.heldout is None else self.heldout.n} held out", "")]
+        return table(f"Identified parameters, form '{self.form}' (from {self.source})", rows,
+                     header=("parameter", "value", "95 % CI"))
 
     # -------------------------------------------------------------------- output
     def to_toml(self, path=None, *, force: bool = False) -> str:

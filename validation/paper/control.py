@@ -17,11 +17,13 @@ Set-up shared by the studies (flagged choices — the paper does not give them):
 * "Stochastic tip load": per configuration a seeded draw, mass m ~ U(20, 60) g along gravity plus
   horizontal components ~ N(0, 0.03 N); a draw the IK cannot compensate within [0, 5] N is re-drawn.
 * The plant is the locked-length FK with the load hidden (:class:`controller.SimulatedPlant`); by default
-  perfect, optionally mismatched (``plant_options``).
+  perfect (the controllers' own model, no noise), optionally mismatched and noisy (``plant_options``, e.g.
+  ``PlantOptions.mismatched``; ``bellows paper table1 --mismatch``).  :func:`plant_summary` states which, in
+  each result's ``settings``.  The paper's numbers are measurements on its physical rig.
 * VF-CC with χ = 10 N/m per axis (proportional law, :mod:`controller.vfcc`).
 * LACC as Algorithm 1 with the exact locked compliance (the product's default) and, beside it, with the
   paper's IK-derived compliance (eq. 15/16): with the exact one Table I comes out ≈ 1e-5 mm instead of
-  0.2–0.44 mm.
+  0.2–0.44 mm on the perfect plant, and 0.1–0.4 mm on the mismatched one with 0.05 mm tracker noise.
 
 Paper numbers: Table I VF-CC 9.054 / 10.23 / 2.090 mm, LACC 0.020 / 0.028 / 0.006 mm (≥ 99.71 %
 reduction); IK-derived compliance converges ≈ 50 % faster than the FK-derived one; loading: continuous
@@ -110,6 +112,26 @@ def _draw_load(model: Model, target, pressure, rng, mass_range, lateral_std, q0,
 
 def _plant(model, pressure, load, plant_options: Optional[PlantOptions]):
     return SimulatedPlant(model, pressure, load=load, options=plant_options or PlantOptions())
+
+
+def plant_summary(params, plant_options: Optional[PlantOptions]) -> dict:
+    """What the simulated plant of a study is, beside the controllers' model ``params``: ``text`` (one sentence),
+    ``model_mismatch`` (the actuator parameters in which the plant differs from the controllers' model),
+    ``tracker_noise_std_m`` [m] per axis, ``length_resolution_m``, ``tendon_friction_N``, ``seed``.  The paper's
+    numbers come from its physical rig (motion-capture tracker, real actuator); ours from this plant."""
+    opts = plant_options or PlantOptions()
+    truth = opts.params or params
+    skip = ("name", "description")
+    mismatch = [k for k in type(params).model_fields if k not in skip and getattr(params, k) != getattr(truth, k)]
+    parts = ["simulated plant (locked-length FK, the tip load hidden from the controllers)"]
+    parts.append(f"model mismatch in {', '.join(mismatch)}" if mismatch else "no model mismatch (the controllers' own "
+                 "model)")
+    parts.append(f"tracker noise σ = {opts.noise_std * 1e3:g} mm per axis" if opts.noise_std > 0 else "no tracker noise")
+    if opts.length_resolution > 0 or opts.tendon_friction > 0:
+        parts.append(f"motor resolution {opts.length_resolution * 1e6:g} µm, tendon friction {opts.tendon_friction:g} N")
+    return {"text": ", ".join(parts), "model_mismatch": mismatch, "tracker_noise_std_m": opts.noise_std,
+            "length_resolution_m": opts.length_resolution, "tendon_friction_N": opts.tendon_friction,
+            "seed": opts.seed}
 
 
 def tip_elevation_deg(eq) -> float:
@@ -269,11 +291,12 @@ def table1(*, iterations: int = 5, seed: int = 0, pressure: float = PRESSURE,
     for name in configs:
         for k, msg in res[name]["failures"].items():
             table += f"\n{name} {k} stopped early: {msg[:200]}"
-    res["table"] = table
+    res["table"] = table + f"\nplant: {plant_summary(params, plant_options)['text']}"
     res["settings"] = {"iterations": iterations, "seed": seed, "pressure_Pa": pressure, "mass_range_kg": mass_range,
                        "lateral_std_N": lateral_std, "compliance": compliance, "compare": compare,
                        "chi_N_per_m": chi, "vfcc_law": vfcc_law, "actuator": params.name,
-                       "plant": "perfect" if plant_options is None else repr(plant_options)}
+                       "plant": plant_summary(params, plant_options)["text"],
+                       "plant_summary": plant_summary(params, plant_options)}
     fig = None
     if out is not None:
         plt = _pyplot()
@@ -425,6 +448,145 @@ def _carryable_mass(params, pressure, direction, wanted: float, steps: int = 5):
     return lo
 
 
+def _loading_masses(params, pressure, tensions, peak_mass, cyclic_mass) -> tuple[float, float, str]:
+    """(peak, cyclic [kg], note): the paper's 110 g / 80 g when neither is given, scaled down (with a note) if the
+    preset cannot carry them within its tension limits; the given masses otherwise (both or neither)."""
+    if peak_mass is not None and cyclic_mass is not None:
+        return peak_mass, cyclic_mass, ""
+    if peak_mass is not None or cyclic_mass is not None:
+        from ancf.errors import InputError
+        raise InputError("give both peak_mass and cyclic_mass [kg], or neither (the paper's 110 g / 80 g)")
+    peak_mass, cyclic_mass = PAPER_PEAK_MASS, PAPER_CYCLIC_MASS
+    if tensions is not None:
+        return peak_mass, cyclic_mass, ""
+    try:            # the paper's masses, scaled down if this preset cannot carry them
+        configurations(params, pressure=pressure, directions={"loading": LOADING_DIRECTION}, max_load_mass=peak_mass)
+        return peak_mass, cyclic_mass, ""
+    except BellowsError:
+        scale = 0.9 * _carryable_mass(params, pressure, LOADING_DIRECTION, peak_mass) / peak_mass
+        if scale <= 0:
+            raise
+    peak_mass, cyclic_mass = peak_mass * scale, cyclic_mass * scale
+    return peak_mass, cyclic_mass, (f"this actuator cannot carry the paper's {PAPER_PEAK_MASS * 1e3:.0f} g within its "
+                                    f"tension limits: masses scaled by {scale:.3f} ({peak_mass * 1e3:.1f} g peak, "
+                                    f"{cyclic_mass * 1e3:.1f} g cyclic)")
+
+
+def _loading_plant_options(plant_options: Optional[PlantOptions], motor_rate: float) -> PlantOptions:
+    """The plant of the loading study: ``plant_options`` with motors at ``motor_rate`` [m/s] unless it sets a rate."""
+    if plant_options is None:
+        return PlantOptions(length_rate=motor_rate)
+    if math.isinf(plant_options.length_rate):
+        return PlantOptions(**{**plant_options.__dict__, "length_rate": motor_rate})
+    return plant_options
+
+
+def _loading_run(model, pressure, target, opts, timing: dict, profile, duration, compliance, fixed_compute=None):
+    """One timed LACC episode under the load ``profile``: (TimedResult, summary dict with SI and mm keys).
+    ``timing``: compute_scale, actuation_latency, settle_time, sample_dt (run_timed's keywords)."""
+    ctrl = LACC(model, pressure, compliance=compliance)
+    plant = SimulatedPlant(model, pressure, load=profile, options=opts)
+    t0 = time.perf_counter()
+    r = run_timed(ctrl, plant, target, duration=duration,
+                  compute_time="measured" if fixed_compute is None else fixed_compute, **timing)
+    wall = time.perf_counter() - t0
+    en = r.error_norm
+    cyc = [c[1] + c[2] + c[3] for c in r.cycle_times]
+    return r, {"max_error": float(en.max()), "rms_error": float(np.sqrt(np.mean(en ** 2))),
+               "max_error_mm": float(en.max() * 1e3), "corrections": r.corrections,
+               "median_cycle_s": float(np.median(cyc)) if cyc else None,
+               "median_compute_ms": 1e3 * float(np.median(r.compute_times)) if r.compute_times else None,
+               "peak_estimate_N": float(np.max(np.linalg.norm(r.estimate, axis=1))), "wall_s": wall}
+
+
+def _loading_cases(run, model, pressure, lengths0, opts, cases: dict, compliance, compare) -> tuple[dict, dict]:
+    """The continuous and cyclic episodes (``cases``: {key: (profile, duration [s])}) with LACC(``compliance``),
+    the uncontrolled drift of the locked tendons beside each, and LACC(``compare``) when it differs.
+    Returns (results {key: summary and time series}, {key: TimedResult})."""
+    res, series = {}, {}
+    for key, (prof, dur) in cases.items():
+        r, s = run(prof, dur, compliance)
+        s["uncontrolled_max_drift"] = float(_uncontrolled_drift(model, pressure, lengths0, prof, r.t, opts).max())
+        s["uncontrolled_max_drift_mm"] = s["uncontrolled_max_drift"] * 1e3
+        if compare and compare != compliance:
+            _, sx = run(prof, dur, compare)
+            s["compare_max_error"] = sx["max_error"]
+            s["compare_max_error_mm"] = sx["max_error_mm"]
+        s["t"] = r.t
+        s["error"] = r.error
+        s["load_N"] = r.load
+        s["estimate_N"] = r.estimate
+        res[key] = s
+        series[key] = r
+    return res, series
+
+
+def _loading_bandwidth(run, cyclic, duration, cyclic_summary: dict, loop_periods, compliance, compare) -> list:
+    """The cyclic case with a slower loop: a fixed compute time [s] stands in for a slower solver, chosen so that
+    one correction cycle lasts each of ``loop_periods`` [s]."""
+    band = []
+    base_cycle = cyclic_summary["median_cycle_s"] or 0.0
+    for T_loop in loop_periods:
+        fixed = max(T_loop - (base_cycle - (cyclic_summary["median_compute_ms"] or 0) / 1e3), 0.0)
+        _, s = run(cyclic, duration, compliance, fixed_compute=fixed)
+        row = {"loop_period_s": T_loop, "compute_s": fixed, "max_error": s["max_error"],
+               "max_error_mm": s["max_error_mm"], "corrections": s["corrections"],
+               "median_cycle_s": s["median_cycle_s"]}
+        if compare and compare != compliance:
+            _, sx = run(cyclic, duration, compare, fixed_compute=fixed)
+            row["compare_max_error_mm"] = sx["max_error_mm"]
+        band.append(row)
+    return band
+
+
+def _loading_table(res: dict, compliance, compare, load_note: str) -> str:
+    """The printed comparison of the loading study with the paper's numbers."""
+    c, y, band = res["continuous"], res["cyclic"], res["bandwidth"]
+    rows = [["continuous max error [mm]", f"{c['max_error_mm']:.3f}", f"{c.get('compare_max_error_mm', float('nan')):.3f}",
+             f"{PAPER_LOADING['continuous_max_error_mm']:.3f}"],
+            ["continuous uncontrolled drift [mm]", f"{c['uncontrolled_max_drift_mm']:.2f}", "", "> 10"],
+            ["cyclic max error [mm]", f"{y['max_error_mm']:.3f}", f"{y.get('compare_max_error_mm', float('nan')):.3f}",
+             f"{PAPER_LOADING['cyclic_max_error_mm']:.3f}"],
+            ["cyclic uncontrolled drift [mm]", f"{y['uncontrolled_max_drift_mm']:.2f}", "", "> 7"],
+            ["loop period (median) [s]", f"{y['median_cycle_s']:.3f}", "", "≈ 0.5"],
+            ["LACC compute per step [ms]", f"{res['compute_ms_median']:.2f}", "", "(MATLAB IK 2.95 s)"]]
+    for b in band:
+        rows.append([f"cyclic, loop period {b['loop_period_s']:g} s [mm]", f"{b['max_error_mm']:.3f}",
+                     f"{b.get('compare_max_error_mm', float('nan')):.3f}", "3.573" if b["loop_period_s"] == 0.5 else ""])
+    table = _fmt_table(["loading (horizontal)", f"LACC({compliance})", f"LACC({compare})", "paper"], rows)
+    return table + ("\n" + load_note if load_note else "")
+
+
+def _loading_figure(res: dict, series: dict, compliance, compare, frequency):
+    """Loads and estimates, tip errors over time, and the cyclic error vs the loop period (2 × 3 axes)."""
+    plt = _pyplot()
+    band, y = res["bandwidth"], res["cyclic"]
+    fig, axs = plt.subplots(2, 3, figsize=(15, 6))
+    lp = [b["loop_period_s"] for b in band]
+    axs[0, 2].plot(lp, [b["max_error_mm"] for b in band], "o-", label=f"LACC ({compliance})")
+    if band and "compare_max_error_mm" in band[0]:
+        axs[0, 2].plot(lp, [b["compare_max_error_mm"] for b in band], "^-", label=f"LACC ({compare})")
+    axs[0, 2].axhline(PAPER_LOADING["cyclic_max_error_mm"], color="k", ls="--", lw=0.8, label="paper (≈ 0.5 s loop)")
+    axs[0, 2].axhline(y["uncontrolled_max_drift_mm"], color="gray", ls=":", lw=0.8, label="uncontrolled")
+    axs[0, 2].set_xlabel("loop period [s]")
+    axs[0, 2].set_ylabel("cyclic max tip error [mm]")
+    axs[0, 2].set_title(f"bandwidth at {frequency:g} Hz")
+    axs[0, 2].legend(fontsize=8)
+    axs[1, 2].axis("off")
+    for j, key in enumerate(("continuous", "cyclic")):
+        r = series[key]
+        axs[0, j].plot(r.t, -r.load[:, 2] / G * 1e3, "k-", label="true load")
+        axs[0, j].plot(r.t, -r.estimate[:, 2] / G * 1e3, "C0--", label="LACC estimate")
+        axs[0, j].set_ylabel("load [g]")
+        axs[0, j].set_title(key)
+        axs[0, j].legend(fontsize=8)
+        axs[1, j].plot(r.t, r.error_norm * 1e3, "C0-", label=f"LACC ({compliance})")
+        axs[1, j].set_ylabel("tip error [mm]")
+        axs[1, j].set_xlabel("t [s]")
+    fig.tight_layout()
+    return fig
+
+
 def loading(*, pressure: float = PRESSURE, tensions=None, peak_mass: Optional[float] = None,
             ramp_up: float = 35.0, ramp_down: float = 15.0, cyclic_mass: Optional[float] = None,
             frequency: float = 0.125,
@@ -442,107 +604,39 @@ def loading(*, pressure: float = PRESSURE, tensions=None, peak_mass: Optional[fl
     lasts ``loop_periods`` [s] (the paper's ≈ 0.5 s among them).  ``cyclic_mass`` 80 g: the paper's
     uncontrolled cyclic drift ("over 7 mm") is ≈ 0.7× its ramp drift ("over 10 mm" at 110 g).
 
+    Steps: the masses (:func:`_loading_masses`), the configuration, the continuous and cyclic episodes with
+    the uncontrolled drift (:func:`_loading_cases`), the slower loops (:func:`_loading_bandwidth`), the
+    table and the figure.
+
     Returns ``{"continuous": {...}, "cyclic": {...}, "bandwidth": [...], "compute_ms_median", "table", ...}``
     with ``max_error`` [m], ``rms_error`` [m], ``uncontrolled_max_drift`` [m], ``corrections`` and the
     time series.
     """
     params = params or presets.paper()
     model = Model(params)
-    load_note = ""
-    if peak_mass is None and cyclic_mass is None:
-        peak_mass, cyclic_mass = PAPER_PEAK_MASS, PAPER_CYCLIC_MASS
-        if tensions is None:        # the paper's masses, scaled down if this preset cannot carry them
-            try:
-                configurations(params, pressure=pressure, directions={"loading": LOADING_DIRECTION},
-                               max_load_mass=peak_mass)
-            except BellowsError:
-                scale = 0.9 * _carryable_mass(params, pressure, LOADING_DIRECTION, peak_mass) / peak_mass
-                if scale <= 0:
-                    raise
-                peak_mass, cyclic_mass = peak_mass * scale, cyclic_mass * scale
-                load_note = (f"this actuator cannot carry the paper's {PAPER_PEAK_MASS * 1e3:.0f} g within its tension "
-                             f"limits: masses scaled by {scale:.3f} ({peak_mass * 1e3:.1f} g peak, "
-                             f"{cyclic_mass * 1e3:.1f} g cyclic)")
-    elif peak_mass is None or cyclic_mass is None:
-        from ancf.errors import InputError
-        raise InputError("give both peak_mass and cyclic_mass [kg], or neither (the paper's 110 g / 80 g)")
+    peak_mass, cyclic_mass, load_note = _loading_masses(params, pressure, tensions, peak_mass, cyclic_mass)
     if tensions is None:        # near-horizontal, with headroom for the peak load (derived from the preset)
         tensions = configurations(params, pressure=pressure, directions={"loading": LOADING_DIRECTION},
                                   max_load_mass=max(peak_mass, cyclic_mass))["loading"]["tensions"]
     tensions = [float(t) for t in tensions]
     target = model.fk(tensions, pressure, (0, 0, 0)).tip
     continuous, cyclic = _profiles(peak_mass, ramp_up, ramp_down, cyclic_mass, frequency)
-    opts = plant_options or PlantOptions(length_rate=motor_rate)
-    if plant_options is not None and math.isinf(plant_options.length_rate):
-        opts = PlantOptions(**{**plant_options.__dict__, "length_rate": motor_rate})
+    opts = _loading_plant_options(plant_options, motor_rate)
     lengths0 = model.ik(target, pressure, (0, 0, 0)).tendon_lengths
+    timing = {"compute_scale": compute_scale, "actuation_latency": actuation_latency, "settle_time": settle_time,
+              "sample_dt": sample_dt}
 
     def run(profile, duration, comp, fixed_compute=None):
-        ctrl = LACC(model, pressure, compliance=comp)
-        plant = SimulatedPlant(model, pressure, load=profile, options=opts)
-        t0 = time.perf_counter()
-        r = run_timed(ctrl, plant, target, duration=duration,
-                      compute_time="measured" if fixed_compute is None else fixed_compute,
-                      compute_scale=compute_scale, actuation_latency=actuation_latency, settle_time=settle_time,
-                      sample_dt=sample_dt)
-        wall = time.perf_counter() - t0
-        en = r.error_norm
-        cyc = [c[1] + c[2] + c[3] for c in r.cycle_times]
-        return r, {"max_error": float(en.max()), "rms_error": float(np.sqrt(np.mean(en ** 2))),
-                   "max_error_mm": float(en.max() * 1e3), "corrections": r.corrections,
-                   "median_cycle_s": float(np.median(cyc)) if cyc else None,
-                   "median_compute_ms": 1e3 * float(np.median(r.compute_times)) if r.compute_times else None,
-                   "peak_estimate_N": float(np.max(np.linalg.norm(r.estimate, axis=1))), "wall_s": wall}
+        return _loading_run(model, pressure, target, opts, timing, profile, duration, comp, fixed_compute)
 
-    res: dict = {}
-    series = {}
-    duration_c, duration_y = ramp_up + ramp_down, cycles / frequency
-    for key, prof, dur in (("continuous", continuous, duration_c), ("cyclic", cyclic, duration_y)):
-        r, s = run(prof, dur, compliance)
-        s["uncontrolled_max_drift"] = float(_uncontrolled_drift(model, pressure, lengths0, prof, r.t, opts).max())
-        s["uncontrolled_max_drift_mm"] = s["uncontrolled_max_drift"] * 1e3
-        if compare and compare != compliance:
-            _, sx = run(prof, dur, compare)
-            s["compare_max_error"] = sx["max_error"]
-            s["compare_max_error_mm"] = sx["max_error_mm"]
-        s["t"] = r.t
-        s["error"] = r.error
-        s["load_N"] = r.load
-        s["estimate_N"] = r.estimate
-        res[key] = s
-        series[key] = r
-    ctimes = series["continuous"].compute_times + series["cyclic"].compute_times
-    busy = [c for c in ctimes if c > 0]
+    duration_y = cycles / frequency
+    res, series = _loading_cases(run, model, pressure, lengths0, opts,
+                                 {"continuous": (continuous, ramp_up + ramp_down), "cyclic": (cyclic, duration_y)},
+                                 compliance, compare)
+    busy = [c for c in series["continuous"].compute_times + series["cyclic"].compute_times if c > 0]
     res["compute_ms_median"] = 1e3 * float(np.median(busy)) if busy else None
-    # bandwidth: the cyclic case with a slower loop (fixed compute time stands in for a slower solver)
-    band = []
-    base_cycle = res["cyclic"]["median_cycle_s"] or 0.0
-    for T_loop in loop_periods:
-        fixed = max(T_loop - (base_cycle - (res["cyclic"]["median_compute_ms"] or 0) / 1e3), 0.0)
-        _, s = run(cyclic, duration_y, compliance, fixed_compute=fixed)
-        row = {"loop_period_s": T_loop, "compute_s": fixed, "max_error": s["max_error"],
-               "max_error_mm": s["max_error_mm"], "corrections": s["corrections"],
-               "median_cycle_s": s["median_cycle_s"]}
-        if compare and compare != compliance:
-            _, sx = run(cyclic, duration_y, compare, fixed_compute=fixed)
-            row["compare_max_error_mm"] = sx["max_error_mm"]
-        band.append(row)
-    res["bandwidth"] = band
-    c, y = res["continuous"], res["cyclic"]
-    rows = [["continuous max error [mm]", f"{c['max_error_mm']:.3f}", f"{c.get('compare_max_error_mm', float('nan')):.3f}",
-             f"{PAPER_LOADING['continuous_max_error_mm']:.3f}"],
-            ["continuous uncontrolled drift [mm]", f"{c['uncontrolled_max_drift_mm']:.2f}", "", "> 10"],
-            ["cyclic max error [mm]", f"{y['max_error_mm']:.3f}", f"{y.get('compare_max_error_mm', float('nan')):.3f}",
-             f"{PAPER_LOADING['cyclic_max_error_mm']:.3f}"],
-            ["cyclic uncontrolled drift [mm]", f"{y['uncontrolled_max_drift_mm']:.2f}", "", "> 7"],
-            ["loop period (median) [s]", f"{y['median_cycle_s']:.3f}", "", "≈ 0.5"],
-            ["LACC compute per step [ms]", f"{res['compute_ms_median']:.2f}", "", "(MATLAB IK 2.95 s)"]]
-    for b in band:
-        rows.append([f"cyclic, loop period {b['loop_period_s']:g} s [mm]", f"{b['max_error_mm']:.3f}",
-                     f"{b.get('compare_max_error_mm', float('nan')):.3f}", "3.573" if b["loop_period_s"] == 0.5 else ""])
-    res["table"] = _fmt_table(["loading (horizontal)", f"LACC({compliance})", f"LACC({compare})", "paper"], rows)
-    if load_note:
-        res["table"] += "\n" + load_note
+    res["bandwidth"] = _loading_bandwidth(run, cyclic, duration_y, res["cyclic"], loop_periods, compliance, compare)
+    res["table"] = _loading_table(res, compliance, compare, load_note)
     res["load_note"] = load_note
     res["paper"] = PAPER_LOADING
     res["settings"] = {"pressure_Pa": pressure, "tensions_N": list(tensions), "target_m": target,
@@ -552,32 +646,7 @@ def loading(*, pressure: float = PRESSURE, tensions=None, peak_mass: Optional[fl
                        "actuation_latency_s": actuation_latency, "settle_time_s": settle_time,
                        "compute_scale": compute_scale, "sample_dt_s": sample_dt, "compare": compare,
                        "actuator": params.name}
-    fig = None
-    if out is not None:
-        plt = _pyplot()
-        fig, axs = plt.subplots(2, 3, figsize=(15, 6))
-        lp = [b["loop_period_s"] for b in band]
-        axs[0, 2].plot(lp, [b["max_error_mm"] for b in band], "o-", label=f"LACC ({compliance})")
-        if band and "compare_max_error_mm" in band[0]:
-            axs[0, 2].plot(lp, [b["compare_max_error_mm"] for b in band], "^-", label=f"LACC ({compare})")
-        axs[0, 2].axhline(PAPER_LOADING["cyclic_max_error_mm"], color="k", ls="--", lw=0.8, label="paper (≈ 0.5 s loop)")
-        axs[0, 2].axhline(y["uncontrolled_max_drift_mm"], color="gray", ls=":", lw=0.8, label="uncontrolled")
-        axs[0, 2].set_xlabel("loop period [s]")
-        axs[0, 2].set_ylabel("cyclic max tip error [mm]")
-        axs[0, 2].set_title(f"bandwidth at {frequency:g} Hz")
-        axs[0, 2].legend(fontsize=8)
-        axs[1, 2].axis("off")
-        for j, key in enumerate(("continuous", "cyclic")):
-            r = series[key]
-            axs[0, j].plot(r.t, -r.load[:, 2] / G * 1e3, "k-", label="true load")
-            axs[0, j].plot(r.t, -r.estimate[:, 2] / G * 1e3, "C0--", label="LACC estimate")
-            axs[0, j].set_ylabel("load [g]")
-            axs[0, j].set_title(key)
-            axs[0, j].legend(fontsize=8)
-            axs[1, j].plot(r.t, r.error_norm * 1e3, "C0-", label=f"LACC ({compliance})")
-            axs[1, j].set_ylabel("tip error [mm]")
-            axs[1, j].set_xlabel("t [s]")
-        fig.tight_layout()
+    fig = _loading_figure(res, series, compliance, compare, frequency) if out is not None else None
     _write(out, "loading", res, fig)
     return res
 
@@ -743,7 +812,7 @@ def loading_replay(*, params=None, profile: str = "continuous", duration: Option
     continuous | cyclic (:mod:`hardware.loads`); default durations: step 10 s, stochastic 30 s, continuous
     50 s, cyclic 4 periods.  Returns the true maximum tip error after the first correction [m], the
     uncontrolled drift is not part of this (see :func:`loading`)."""
-    from controller import run_on_rig
+    from controller import RunOptions, run_on_rig
     from hardware.loads import load_profile
     params = params or presets.paper()
     model = Model(params)
@@ -757,8 +826,8 @@ def loading_replay(*, params=None, profile: str = "continuous", duration: Option
     target = model.fk(tensions, pressure, (0, 0, 0)).tip
     opts = plant_options or PlantOptions(length_rate=5e-3, seed=seed)
     rig = SimulatedPlant(model, options=opts, load=prof)
-    r = run_on_rig(LACC(model, pressure, compliance=compliance), rig, target, log=log, force=force, duration=dur,
-                   idle_period=0.1, sim_compute_time=sim_compute_time)
+    r = run_on_rig(LACC(model, pressure, compliance=compliance), rig, target,
+                   RunOptions(log=log, force=force, duration=dur, idle_period=0.1, sim_compute_time=sim_compute_time))
     te = np.array(r.true_errors)
     return {"profile": profile, "status": r.status, "corrections": r.iterations, "max_error": float(te.max()),
             "max_error_mm": float(te.max() * 1e3), "rms_error_mm": float(np.sqrt(np.mean(te ** 2)) * 1e3),

@@ -12,7 +12,12 @@ and is rebuilt from the committed data in ``docs/data/``:
     ``bellows paper compare`` (its compare.json without the figure paths and the holding details).
 ``paper_control.json``
     the controller studies ``bellows paper table1 | ablation | loading | tracking --preset P`` for the
-    presets of the README, reduced to the numbers the tables show.
+    presets of the README, reduced to the numbers the tables show.  Their plant is simulated: the
+    controllers' own model, without noise.
+``paper_table1_rig.json``
+    ``bellows paper table1 --mismatch --preset P``: Table I on the imperfect simulated rig (model mismatch,
+    tracker noise, motor resolution, tendon friction: ``PlantOptions.mismatched``), so that Table I sets a
+    noisy, mismatched plant beside the noise-free one and the paper's physical rig.
 
 Usage (from the repository root)::
 
@@ -20,6 +25,8 @@ Usage (from the repository root)::
     python -m validation.paper.doc_tables --check         # exit 2 with one error line if a block is out of date
     python -m validation.paper.doc_tables extract --compare OUT/compare.json --control DIR [--control DIR ...]
                                                     # refresh docs/data/ from fresh runs (--force to replace)
+    python -m validation.paper.doc_tables extract-rig --table1 DIR [--table1 DIR ...]
+                                                    # refresh paper_table1_rig.json (table1 --mismatch runs)
 
 ``tests/test_validation/test_doc_tables.py`` checks that the blocks equal what this module makes of the
 committed data and that the data is what the program computes today.  Numbers are shown with 3
@@ -46,6 +53,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 DATA = pathlib.Path("docs/data")
 COMPARE_JSON = DATA / "paper_compare.json"
 CONTROL_JSON = DATA / "paper_control.json"
+TABLE1_RIG_JSON = DATA / "paper_table1_rig.json"
 #: presets of the README's tables (the default reading first)
 README_PRESETS = ("paper_scaled", "paper_unscaled")
 CONTROL_FILES = {"table1": "table1.json", "ablation": "compliance_ablation.json", "loading": "loading.json",
@@ -194,8 +202,9 @@ COMPARE_ROWS: dict[str, tuple[str, str, Callable[[dict], str]]] = {
     "drift": ("110 g locked drift", "> 10 mm", _drift),
     "loading_drift": ("loading, uncontrolled drift continuous / cyclic", "> 10 / > 7 mm", _loading_drift),
     "loading_error": ("loading, LACC max error continuous / cyclic", "0.722 / 3.573 mm", _loading_error),
-    "vfcc": ("Table I VF-CC up / horiz. / down", "9.05 / 10.2 / 2.09 mm", _vfcc),
-    "lacc": ("Table I LACC (exact compliance) up / horiz. / down", "0.020 / 0.028 / 0.006 mm", _lacc),
+    "vfcc": ("Table I VF-CC (noise-free simulated plant) up / horiz. / down", "9.05 / 10.2 / 2.09 mm", _vfcc),
+    "lacc": ("Table I LACC (exact compliance; noise-free simulated plant) up / horiz. / down", "0.020 / 0.028 / 0.006 mm",
+             _lacc),
     "ablation": ("IK- vs FK-derived compliance, fewer iterations", "≈ 50 %", _ablation),
     "hold": ("holds 100 g up / horiz. / down (max T needed)", "—", _hold),
     "ik_time": ("IK time, cold, n = 6 (measured)", "2.95 s (MATLAB)", _ik_time),
@@ -254,8 +263,40 @@ def compare_table(data: dict, presets: Optional[Sequence[str]], rows: Sequence[s
 
 
 # ------------------------------------------------------------------------------------------- control rows
-def control_table(control: dict, presets: Sequence[str] = README_PRESETS) -> list[str]:
-    """Markdown lines of the controller studies' details (docs/data/paper_control.json)."""
+def _table1_cell(t1: Optional[dict], keys: Sequence[str]) -> str:
+    """``a / b / c mm; d / e / f mm`` of Table I's ``keys`` (per configuration; VF-CC with 3 significant figures,
+    LACC with 2), or ``not run``."""
+    if not t1:
+        return "not run"
+    return "; ".join(joined([t1["configurations"][c][k] for c in TABLE1], 3 if k == "vfcc_mm" else 2, unit="mm")
+                     for k in keys)
+
+
+def table1_rows(control: dict, rig: Optional[dict], presets: Sequence[str]) -> list[list[str]]:
+    """Table I rows that set like beside like: the noise-free simulated plant (the controllers' own model,
+    docs/data/paper_control.json), the simulated rig with model mismatch and tracker noise
+    (docs/data/paper_table1_rig.json) and the paper's measurements on its physical rig."""
+    free = [control["presets"][p]["table1"] for p in presets]
+    noisy = [((rig or {}).get("presets") or {}).get(p) for p in presets]
+    comp = free[0]["compare"]
+    noise = {f"{t['plant']['tracker_noise_std_m'] * 1e3:g}" for t in noisy if t}
+    paper = "9.05 / 10.2 / 2.09 mm; 0.020 / 0.028 / 0.006 mm (physical rig)"
+    return [
+        ["Table I, noise-free simulated plant (the controllers' own model): VF-CC; LACC exact compliance",
+         paper, *[_table1_cell(t, ("vfcc_mm", "lacc_mm")) for t in free]],
+        [f"the same, LACC with the paper's eq. (15) compliance (`{comp}`)", "0.020 / 0.028 / 0.006 mm",
+         *[_table1_cell(t, ("compare_mm",)) for t in free]],
+        [f"Table I, simulated rig with model mismatch and {'/'.join(sorted(noise)) or '–'} mm tracker noise "
+         "(`table1 --mismatch`): VF-CC; LACC exact compliance", paper,
+         *[_table1_cell(t, ("vfcc_mm", "lacc_mm")) for t in noisy]],
+        [f"the same, LACC eq. (15) (`{comp}`)", "0.020 / 0.028 / 0.006 mm",
+         *[_table1_cell(t, ("compare_mm",)) for t in noisy]],
+    ]
+
+
+def control_table(control: dict, presets: Sequence[str] = README_PRESETS, rig: Optional[dict] = None) -> list[str]:
+    """Markdown lines of the controller studies' details (docs/data/paper_control.json; Table I also on the
+    mismatched, noisy simulated rig of docs/data/paper_table1_rig.json when ``rig`` is given)."""
     need = ("table1", "ablation", "loading")
     missing = [p for p in presets if any(k not in control["presets"].get(p, {}) for k in need)]
     if missing:
@@ -285,13 +326,11 @@ def control_table(control: dict, presets: Sequence[str] = README_PRESETS) -> lis
 
     per = " / ".join(f"{t:g}" for t in periods)
     t1 = P[0]["table1"]
-    comp = t1["compare"]
     lo, hi = (num(m * 1e3, 2) for m in t1["mass_range_kg"])
     rows = [
         [f"Table I: tip load up / horiz. / down (seed {t1['seed']}, mass drawn from {lo}–{hi} g)", "stochastic",
          *[joined([c["table1"]["configurations"][k]["load_mass_g"] for k in TABLE1], unit="g") for c in P]],
-        [f"Table I: LACC with the paper's eq. (15) compliance (`{comp}`), after 5 iterations", "0.020 / 0.028 / 0.006 mm",
-         *[joined([c["table1"]["configurations"][k]["compare_mm"] for k in TABLE1], 2, unit="mm") for c in P]],
+        *table1_rows(control, rig, presets),
         ["ablation: mean iterations to 0.2 mm, eq. (13) FK / eq. (15) IK / exact compliance",
          "IK ≈ 50 % fewer than FK",
          *[joined([c["ablation"]["methods"][m]["mean_iterations"] for m in ("paper", "ik", "exact")]) for c in P]],
@@ -315,12 +354,13 @@ def control_table(control: dict, presets: Sequence[str] = README_PRESETS) -> lis
 
 # ------------------------------------------------------------------------------------------------ blocks
 #: (file, block name) → (data files it reads, lines maker)
-BLOCKS: dict[tuple[str, str], tuple[tuple[pathlib.Path, ...], Callable[[dict, dict], list[str]]]] = {
+BLOCKS: dict[tuple[str, str], tuple[tuple[pathlib.Path, ...], Callable[[dict, dict, dict], list[str]]]] = {
     ("README.md", "paper-compare"): (
-        (COMPARE_JSON, CONTROL_JSON), lambda d, c: compare_table(d, README_PRESETS, README_ROWS, c)),
-    ("README.md", "paper-control"): ((CONTROL_JSON,), lambda d, c: control_table(c, README_PRESETS)),
+        (COMPARE_JSON, CONTROL_JSON), lambda d, c, r: compare_table(d, README_PRESETS, README_ROWS, c)),
+    ("README.md", "paper-control"): ((CONTROL_JSON, TABLE1_RIG_JSON),
+                                     lambda d, c, r: control_table(c, README_PRESETS, r)),
     ("docs/paper-readings.md", "paper-compare-all"): (
-        (COMPARE_JSON, CONTROL_JSON), lambda d, c: compare_table(d, None, READINGS_ROWS, c)),
+        (COMPARE_JSON, CONTROL_JSON), lambda d, c, r: compare_table(d, None, READINGS_ROWS, c)),
 }
 
 
@@ -332,15 +372,24 @@ def _markers(name: str, sources: Sequence[pathlib.Path]) -> tuple[str, str]:
 
 def load_data(root: pathlib.Path = ROOT) -> tuple[dict, dict]:
     """The committed compare and control data."""
+    return _load(root, (COMPARE_JSON, CONTROL_JSON))
+
+
+def load_rig(root: pathlib.Path = ROOT) -> dict:
+    """The committed Table I on the mismatched, noisy simulated rig (docs/data/paper_table1_rig.json)."""
+    return _load(root, (TABLE1_RIG_JSON,))[0]
+
+
+def _load(root: pathlib.Path, paths: Sequence[pathlib.Path]) -> tuple:
     out = []
-    for p in (COMPARE_JSON, CONTROL_JSON):
+    for p in paths:
         try:
             out.append(json.loads((root / p).read_text()))
         except FileNotFoundError:
             raise InputError(f"{p} is missing; make it with python -m validation.paper.doc_tables extract") from None
         except json.JSONDecodeError as exc:
             raise InputError(f"{p} is not valid JSON: {exc}") from None
-    return out[0], out[1]
+    return tuple(out)
 
 
 def render(text: str, name: str, lines: Sequence[str], sources: Sequence[pathlib.Path], where: str = "") -> str:
@@ -360,11 +409,12 @@ def render(text: str, name: str, lines: Sequence[str], sources: Sequence[pathlib
 def generate(root: pathlib.Path = ROOT) -> dict[str, str]:
     """``{file: new text}`` of every file with a generated block, from the committed data."""
     data, control = load_data(root)
+    rig = load_rig(root)
     texts: dict[str, str] = {}
     for (fname, name), (sources, make) in BLOCKS.items():
         if fname not in texts:
             texts[fname] = (root / fname).read_text()
-        texts[fname] = render(texts[fname], name, make(data, control), sources, fname)
+        texts[fname] = render(texts[fname], name, make(data, control, rig), sources, fname)
     return texts
 
 
@@ -399,10 +449,7 @@ def _trim_control(folder: pathlib.Path) -> tuple[str, dict]:
         raise InputError(f"{folder}: the studies were run on different presets ({', '.join(sorted(names))})")
     out: dict = {}
     if t1 is not None:
-        out["table1"] = {"configurations": {c: {k: t1[c][k] for k in ("load_mass_g", "vfcc_mm", "lacc_mm",
-                                                                       "compare_mm")} for c in TABLE1},
-                         "compliance": t1["settings"]["compliance"], "compare": t1["settings"]["compare"],
-                         "seed": t1["settings"]["seed"], "mass_range_kg": t1["settings"]["mass_range_kg"]}
+        out["table1"] = _trim_table1(t1)
     if ab is not None:
         out["ablation"] = {"ik_faster_percent": ab["ik_faster_percent"],
                            "methods": {m: {k: v[k] for k in ("mean_iterations", "converged_fraction")}
@@ -420,6 +467,39 @@ def _trim_control(folder: pathlib.Path) -> tuple[str, dict]:
         out["tracking"] = {"shapes": {k: {"rmse_mm": v["rmse_mm"], "rmse_percent_length": v["rmse_percent_length"],
                                           "scale": v["scale"]} for k, v in tr["shapes"].items()}}
     return names.pop(), out
+
+
+def _trim_table1(t1: dict, plant: bool = False) -> dict:
+    """The numbers of a table1.json the tables show (and, with ``plant``, what its plant was)."""
+    out = {"configurations": {c: {k: t1[c][k] for k in ("load_mass_g", "vfcc_mm", "lacc_mm", "compare_mm")}
+                              for c in TABLE1},
+           "compliance": t1["settings"]["compliance"], "compare": t1["settings"]["compare"],
+           "seed": t1["settings"]["seed"], "mass_range_kg": t1["settings"]["mass_range_kg"]}
+    if plant:
+        out["plant"] = t1["settings"]["plant_summary"]
+    return out
+
+
+def extract_rig(table1: Sequence[pathlib.Path], root: pathlib.Path = ROOT, force: bool = False) -> pathlib.Path:
+    """Write docs/data/paper_table1_rig.json from folders of ``bellows paper table1 --mismatch --preset P``."""
+    from ancf.export import write_json
+    target = root / TABLE1_RIG_JSON
+    if target.exists() and not force:
+        raise OutputExistsError(f"{TABLE1_RIG_JSON} exists; pass --force to replace it")
+    presets: dict = {}
+    for folder in table1:
+        path = pathlib.Path(folder) / CONTROL_FILES["table1"]
+        try:
+            t1 = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise InputError(f"cannot read {path}: {exc}") from None
+        summary = t1["settings"].get("plant_summary") or {}
+        if not (summary.get("model_mismatch") and summary.get("tracker_noise_std_m", 0) > 0):
+            raise InputError(f"{path} was not run on the mismatched, noisy rig (bellows paper table1 --mismatch)")
+        presets[t1["settings"]["actuator"]] = _trim_table1(t1, plant=True)
+    return write_json(target, {"presets": presets, "provenance": {
+        "commands": {p: f"bellows paper table1 --mismatch --preset {p}" for p in presets},
+        "date": datetime.date.today().isoformat(), "machine": _machine()}})
 
 
 def _machine() -> str:
@@ -475,11 +555,18 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     ex.add_argument("--control", type=pathlib.Path, action="append", default=[],
                     help="folder with table1.json, compliance_ablation.json, loading.json [, trajectories.json]")
     ex.add_argument("--force", action="store_true", help="replace the existing docs/data files")
+    rx = sub.add_parser("extract-rig", help="refresh docs/data/paper_table1_rig.json from table1 --mismatch folders")
+    rx.add_argument("--table1", type=pathlib.Path, action="append", required=True,
+                    help="folder with the table1.json of bellows paper table1 --mismatch --preset P")
+    rx.add_argument("--force", action="store_true", help="replace the existing file")
     args = ap.parse_args(argv)
     try:
         if args.cmd == "extract":
             for p in extract(args.compare, args.control, args.root, args.force):
                 print(f"wrote {p}")
+            return 0
+        if args.cmd == "extract-rig":
+            print(f"wrote {extract_rig(args.table1, args.root, args.force)}")
             return 0
         if args.check:
             bad = stale(args.root)

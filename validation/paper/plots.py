@@ -1,4 +1,5 @@
-"""Figures of the paper's studies (no computation): Fig. 4 and Fig. 9 look-alikes and the comparison."""
+"""Figures of the paper's studies (no computation): Fig. 4 and Fig. 9 look-alikes, the element convergence
+and the comparison."""
 
 from __future__ import annotations
 
@@ -166,3 +167,36 @@ def plot_comparison(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Pa
 
 def _number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
+def plot_convergence(res: dict, out: Union[str, pathlib.Path]) -> list[pathlib.Path]:
+    """Tip error [mm] vs the number of elements n on log-log axes (``element_convergence``'s result): the error
+    per n (open markers where some state failed: a lower bound), the fitted slope −rate through the n it was
+    fitted on, and the paper's two points.  Writes convergence.png and convergence.svg."""
+    plt = _pyplot()
+    n = np.asarray(res["n"], float)
+    e = np.asarray(res["tip_error_m"], float) * 1e3
+    ok = np.asarray(res["complete"], bool) & np.isfinite(e) & (e > 0)
+    part = ~np.asarray(res["complete"], bool) & np.isfinite(e) & (e > 0)
+    fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    ax.loglog(n[ok], e[ok], "o", color="C0", label=f"max over the states (reference n = {res['n_ref']})")
+    if part.any():
+        ax.loglog(n[part], e[part], "o", mfc="none", color="C0", label="some state failed (lower bound)")
+    fit_n = np.asarray(res["rate_n"], float)
+    if fit_n.size >= 2 and np.isfinite(res["rate"]):
+        fit_e = e[np.isin(n, fit_n)]
+        c = np.exp(np.mean(np.log(fit_e) + res["rate"] * np.log(fit_n)))     # least-squares intercept at the slope
+        xs = np.array([fit_n.min(), fit_n.max()])
+        ax.loglog(xs, c * xs ** -res["rate"], "-", color="C1", label=f"fit: slope −{res['rate']:.2f}")
+    pp = res["paper"]
+    ax.loglog(pp["n"], pp["tip_error_mm"], "k^", label="paper (Sec. V-A)")
+    from matplotlib.ticker import FixedLocator, NullFormatter, ScalarFormatter
+    ax.xaxis.set_major_locator(FixedLocator(sorted(set(n) | set(pp["n"]))))
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("number of elements n")
+    ax.set_ylabel("tip error [mm]")
+    ax.set_title(f"{res['preset']}: tip error vs n")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _save_figure(fig, out, "convergence")

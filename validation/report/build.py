@@ -350,7 +350,7 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "parsimony_pct": round(100 * (PARSIMONY - 1)), "form_rows": _form_rows(ident), "figures": b64,
         "validation": validation, "validation_rows": [] if validation is None else _validation_rows(validation),
         "ratio_rows": [] if validation is None else _ratio_rows(validation),
-        "fem_error": None if validation is None else (validation.checks.fem_error or None),
+        "fem_error": None if validation is None else (validation.fem_error or None),
         "fem_error_rows": [] if validation is None else _fem_error_rows(validation),
         "validation_failures": "" if validation is None else "; ".join(
             f"{f['label']} ({f['model']}): {f['error']}" for f in validation.failures),
