@@ -45,7 +45,7 @@ SHORTER = [
     (r"^(bellows paper dynamic)(?!.*--frequencies-hz)", r"\1 --frequencies-hz 2"),  # one load frequency
     # one model form instead of all nine (~30 s instead of 3–8 min on 2 cores; each form goes through the same
     # fit, and tests/test_identification/ fits several forms to measured states)
-    (r"^(bellows identify --measurements)(?!.*--forms)", r"\1 --forms paper"),
+    (r"^(bellows identify --measurements\b(?!.*--forms).*)$", r"\1 --forms paper"),
 ]
 # FEM sweeps: slow
 FEM_SWEEP = re.compile(r"^bellows (report|validate|calibrate)\b|^bellows identify\b(?!.*--measurements)")
