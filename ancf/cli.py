@@ -63,6 +63,26 @@ def parse_vector(text: str, n: Optional[int], what: str) -> np.ndarray:
     return v
 
 
+#: what a preset's parameters are, for the line that says which model produced a result (other presets: their
+#: ``description``)
+PRESET_NOTES = {"paper": "the paper's stiffness law"}
+
+
+def model_info(preset: str, params) -> dict:
+    """Which model and which parameter set produced a result: ``{"kind": "ANCF rod", "parameters": name,
+    "source": "preset" | "file", "path": the file (absolute) or None, "description": one line}`` — the
+    description, e.g. "ANCF rod model, actuator preset 'paper' (the paper's stiffness law)", is the title of the
+    printed table; the dict is the JSON's ``model`` field.  ``preset``: the --preset option as given."""
+    is_file = str(preset).endswith(".toml")
+    note = PRESET_NOTES.get(params.name) if not is_file else None
+    note = note or params.description
+    where = (f"actuator file {pathlib.Path(preset).resolve()} (name '{params.name}')" if is_file
+             else f"actuator preset '{params.name}'")
+    return {"kind": "ANCF rod", "parameters": params.name, "source": "file" if is_file else "preset",
+            "path": str(pathlib.Path(preset).resolve()) if is_file else None,
+            "description": f"ANCF rod model, {where}" + (f" ({note})" if note else "")}
+
+
 def _table(rows: list[dict], title: str) -> Table:
     t = Table(title=title)
     cols = ["case", "T [N]", "p [kPa]", "F [N]", "tip x,y,z [mm]", "slack [mm]", "its", "time [ms]"]
@@ -77,9 +97,11 @@ def _table(rows: list[dict], title: str) -> Table:
     return t
 
 
-def _emit(rows, title, as_json):
+def _emit(rows, title, as_json, model: dict):
+    """The rows as a table titled ``title`` — the model's description (:func:`model_info`) — or as JSON, one
+    entry per case, each with the ``model`` field."""
     if as_json:
-        typer.echo(json.dumps({r["case"]: _summary(r) for r in rows}, indent=2))
+        typer.echo(json.dumps({r["case"]: dict(_summary(r), model=model) for r in rows}, indent=2))
     else:
         console.print(_table(rows, title))
         for r in rows:
@@ -121,7 +143,8 @@ def fk(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N], comma 
     eq, s = _timed(model.fk, T, pressure_kpa * 1e3, F, check_limits=not no_limits)
     if vtu:
         save_vtu(vtu, model, eq)
-    _emit([{"case": "fk", "eq": eq, "seconds": s}], f"FK on '{model.params.name}'", as_json)
+    info = model_info(preset, model.params)
+    _emit([{"case": "fk", "eq": eq, "seconds": s}], f"FK — {info['description']}", as_json, info)
 
 
 def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z'."),
@@ -144,7 +167,8 @@ def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z
     eq, s = _timed(model.ik, pd, pressure_kpa * 1e3, F, check_limits=not no_limits)
     if vtu:
         save_vtu(vtu, model, eq)
-    _emit([{"case": "ik", "eq": eq, "seconds": s}], f"IK on '{model.params.name}'", as_json)
+    info = model_info(preset, model.params)
+    _emit([{"case": "ik", "eq": eq, "seconds": s}], f"IK — {info['description']}", as_json, info)
 
 
 def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm], comma separated."),
@@ -173,7 +197,8 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
         eq.require_within_limits()
     if vtu:
         save_vtu(vtu, model, eq)
-    _emit([{"case": "locked", "eq": eq, "seconds": s}], f"locked FK on '{model.params.name}'", as_json)
+    info = model_info(preset, model.params)
+    _emit([{"case": "locked", "eq": eq, "seconds": s}], f"locked FK — {info['description']}", as_json, info)
 
 
 def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] at the state."),
@@ -200,11 +225,12 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
     data = {name: {"C_p_m_per_N": c.C_p.tolist(), "active": list(c.active),
                    "stiffness_N_per_m": {a: cp.directional_stiffness(c.C_p, v) for a, v in axes.items()}}
             for name, c in forms.items()}
+    info = model_info(preset, model.params)
     if as_json:
-        typer.echo(json.dumps({"tip_m": eq.tip.tolist(), "forms": data}, indent=2))
+        typer.echo(json.dumps({"tip_m": eq.tip.tolist(), "forms": data, "model": info}, indent=2))
         return
     t = Table(title=escape(f"tip compliance at T = {vector(T, 'N', digits=2)}, p = {number(pressure_kpa, 'kPa')} "
-                           f"(tip {vector(eq.tip, 'mm', 1e3, 2)})"))
+                           f"(tip {vector(eq.tip, 'mm', 1e3, 2)}) — {info['description']}"))
     for c in ("form", "active", "C_p [mm/N] rows", "k_x [N/m]", "k_y [N/m]", "k_z [N/m]"):
         t.add_column(escape(c))
     for name, d in data.items():
@@ -256,8 +282,10 @@ def demo(out: pathlib.Path = typer.Option(pathlib.Path("bellows_out"), help="Out
     png = save_png(out / "demo.png", model, [(f"{r['case']}: {r['note']}", r["eq"]) for r in rows],
                    title=f"bellows demo — preset '{model.params.name}'")
     summary = {r["case"]: dict(equilibrium_summary(r["eq"], r["seconds"]), note=r["note"]) for r in rows}
-    write_json(out / "demo.json", {"preset": model.params.name, "warm_up_s": warm_up_s, "cases": summary})
-    _emit(rows, f"bellows demo on '{model.params.name}' (n = {model.n})", as_json)
+    info = model_info(preset, model.params)
+    write_json(out / "demo.json", {"preset": model.params.name, "model": info, "warm_up_s": warm_up_s,
+                                   "cases": summary})
+    _emit(rows, f"bellows demo — {info['description']}, n = {model.n} elements", as_json, info)
     if not as_json:
         console.print(f"wrote {png}, {out / 'demo.json'} and {len(rows)} .vtu files in {out}/")
 

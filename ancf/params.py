@@ -72,7 +72,9 @@ TENDON_FIELDS = {"distance": "length", "angle": "angle"}
 
 # Plausible magnitudes (SI) for a soft bellows actuator: (low, high, zero allowed).  A value outside is
 # almost always a unit mistake (160 written under length_m, 0.16 under length_mm) and is rejected with the
-# range in the unit the value was given in.  Fields not listed are checked by their own validators.
+# range in the unit the value was given in.  Fields not listed are checked by their own validators.  The
+# table is docs/data-formats.md's "Plausible ranges" (tests/test_reliability/test_actuator_file_checks.py
+# checks the two agree).  For a list (coefficients), the range applies to each entry.
 PLAUSIBLE: dict[str, tuple[float, float, bool]] = {
     "length": (1e-3, 10.0, False),             # 1 mm … 10 m
     "D_eff": (1e-3, 1.0, False),               # 1 mm … 1 m
@@ -93,13 +95,45 @@ PLAUSIBLE: dict[str, tuple[float, float, bool]] = {
     "rayleigh_alpha": (1e-6, 1e4, True),       # 0, or 1e-6 … 1e4 1/s
     "rayleigh_beta": (1e-9, 1.0, True),        # 0, or 1 ns … 1 s
     "axial_damping": (1e-6, 1e6, True),        # 0, or 1e-6 … 1e6 N s
-    "shear_compliance_coeffs": (-1.0, 1.0, True),   # each s_j within ±1 m/N (the sum is checked ≥ 0)
+    "shear_compliance_coeffs": (-0.1, 0.1, True),   # each s_j within ±0.1 m/N = ±100 mm/N (a bellows: ~1–10 mm/N)
+    "tendon_stiffness": (1.0, 1e10, False),         # N/m (a rope with its load cell: ~1e3 … 1e5 N/m)
+    "EA_pressure_coeffs": (-100.0, 100.0, True),    # per (p/100 kPa)^j: each c_j within ±100
+    "EI_pressure_coeffs": (-100.0, 100.0, True),
 }
 INT_FIELDS = ("n_elements", "quadrature_points")
 #: the number of elements an actuator may have (``n_elements``; the CLI's ``--n-elements``, ``--n-ref`` share it)
 N_ELEMENTS_MIN, N_ELEMENTS_MAX = 1, 200
+#: Gauss points per element
+QUADRATURE_MIN, QUADRATURE_MAX = 4, 20
+#: tendons an actuator may have
+TENDONS_MIN, TENDONS_MAX = 3, 16
+#: the smallest angle between two tendons' directions about the axis [rad] (1°): closer, they are one tendon
+TENDON_SEPARATION_MIN = math.pi / 180
+#: the fields whose value is a list, with its allowed lengths (checked before anything is converted)
+LIST_FIELDS = {"base_axis": (3, 3), "reference_direction": (3, 3), "gravity": (3, 3),
+               "shear_compliance_coeffs": (1, 6), "EA_coeffs": (1, 8), "EI_coeffs": (1, 8),
+               "EA_pressure_coeffs": (1, 4), "EI_pressure_coeffs": (1, 4)}
 BOOL_FIELDS = ("free_base_stretch",)
 TEXT_FIELDS = ("name", "description", "law")
+
+
+def plausible_ranges() -> list[tuple[str, str, str]]:
+    """The checks on an actuator file's values as rows (key, SI unit, accepted range): :data:`PLAUSIBLE`
+    and the counts.  docs/data-formats.md shows this table (a test compares the two)."""
+    dims = {**TOP_FIELDS, **STIFFNESS_FIELDS, **TENDON_FIELDS}
+    rows = []
+    for f, (lo, hi, zero_ok) in PLAUSIBLE.items():
+        unit = next(u for u, fac in UNITS[dims[f]].items() if fac == 1.0)
+        each = "each entry " if f in LIST_FIELDS else ""
+        rows.append((f, unit or "—",
+                     f"{each}{lo:g} … {hi:g}" + (" or 0" if zero_ok and lo > 0 else "")))
+    rows += [("n_elements", "—", f"{N_ELEMENTS_MIN} … {N_ELEMENTS_MAX}"),
+             ("quadrature_points", "—", f"{QUADRATURE_MIN} … {QUADRATURE_MAX}"),
+             ("[[tendons]] tables", "—", f"{TENDONS_MIN} … {TENDONS_MAX}, angles at least "
+                                         f"{math.degrees(TENDON_SEPARATION_MIN):g}° apart")]
+    rows += [(f, "—", f"a list of {lo} … {hi} numbers" if lo != hi else f"a list of {lo} numbers")
+             for f, (lo, hi) in LIST_FIELDS.items()]
+    return rows
 
 
 def _implausible(field: str, si_value: float) -> str | None:
@@ -110,7 +144,7 @@ def _implausible(field: str, si_value: float) -> str | None:
     lo, hi, zero_ok = rng
     if (zero_ok and si_value == 0.0) or lo <= si_value <= hi:
         return None
-    return f"{lo:g} … {hi:g}" + (" (or 0)" if zero_ok else "")
+    return f"{lo:g} … {hi:g}" + (" (or 0)" if zero_ok and lo > 0 else "")
 
 
 def _parse_table(table, fields: dict[str, str | None], where: str) -> dict[str, Any]:
@@ -154,28 +188,52 @@ def _typed_value(value, field: str, fac: float, unit: str, dim: str | None, wher
         return value
     if field in INT_FIELDS:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where}: expected a whole number (no quotes, no decimal point), got {value!r}")
+            raise ConfigError(f"{where}: expected a whole number (no quotes, no decimal point), got {_short(value)}")
+        lo, hi = (N_ELEMENTS_MIN, N_ELEMENTS_MAX) if field == "n_elements" else (QUADRATURE_MIN, QUADRATURE_MAX)
+        if not lo <= value <= hi:
+            raise ConfigError(f"{where} = {_short(value)} is outside the plausible range {lo} … {hi}")
         return value
     if dim is None:
         return value
-    if isinstance(value, list):
+    if field in LIST_FIELDS:
+        lo, hi = LIST_FIELDS[field]
+        size = f"{lo}" if lo == hi else f"{lo} to {hi}"
+        if not isinstance(value, list):
+            raise ConfigError(f"{where}: expected a list of {size} numbers in brackets, got {_short(value)}")
+        if not lo <= len(value) <= hi:
+            raise ConfigError(f"{where}: expected a list of {size} numbers, got {len(value)}")
         return [_number(v, fac, field, unit, f"{where}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, list):
+        raise ConfigError(f"{where}: expected one number, got a list {_short(value)}")
     return _number(value, fac, field, unit, where)
+
+
+def _located(message: str, where: str) -> str:
+    """``message`` prefixed with ``where`` (the file and table) unless it already starts with it."""
+    return message if message.startswith(where) else f"{where}: {message}"
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _number(value, fac: float, field: str, unit: str, where: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         what = "quoted text" if isinstance(value, str) else type(value).__name__
-        raise ConfigError(f"{where}: expected a number without quotes, got {what} {value!r} (a value of the "
+        raise ConfigError(f"{where}: expected a number without quotes, got {what} {_short(value)} (a value of the "
                           "wrong type is never converted)")
-    v = float(value) * fac
+    try:
+        v = float(value) * fac
+    except OverflowError:                                   # an integer beyond any float
+        v = math.inf
     if not math.isfinite(v):
-        raise ConfigError(f"{where}: value must be finite, got {value!r}")
+        raise ConfigError(f"{where}: value must be a finite number, got {_short(value)}")
     rng = _implausible(field, v)
     if rng is not None:
         lo, hi, zero_ok = PLAUSIBLE[field]
-        shown = f"{lo / fac:g} … {hi / fac:g}{' ' + unit if unit else ''}" + (" (or 0)" if zero_ok else "")
-        raise ConfigError(f"{where} = {value!r} is implausible for this unit: expected {shown}; check the unit "
+        shown = f"{lo / fac:g} … {hi / fac:g}{' ' + unit if unit else ''}" + (" (or 0)" if zero_ok and lo > 0 else "")
+        raise ConfigError(f"{where} = {_short(value)} is implausible for this unit: expected {shown}; check the unit "
                           "in the key name")
     return v
 
@@ -301,9 +359,10 @@ class ActuatorParams(BaseModel):
         out = tuple(_real_number(x, "shear_compliance") for x in v)
         if len(out) > 6:
             raise ValueError(f"shear_compliance takes at most 6 coefficients (s₀ … s₅), got {len(out)}")
+        lo, hi, _ = PLAUSIBLE["shear_compliance_coeffs"]
         for x in out:
-            if not (isinstance(x, float) and math.isfinite(x) and abs(x) <= 1.0):
-                raise ValueError(f"shear_compliance coefficient {x!r} must be finite and within ±1 m/N "
+            if not (isinstance(x, float) and math.isfinite(x) and lo <= x <= hi):
+                raise ValueError(f"shear_compliance coefficient {x!r} must be finite and within {lo:g} … {hi:g} m/N "
                                  "(SI units in the Python API: 4 mm/N = 0.004)")
         return out
 
@@ -312,6 +371,9 @@ class ActuatorParams(BaseModel):
     def _ks(cls, v):
         if v is not None and not (math.isfinite(v) and v > 0):
             raise ValueError(f"tendon_stiffness {v} N/m must be finite and > 0 (omit it for inextensible tendons)")
+        if v is not None and _implausible("tendon_stiffness", v):
+            raise ValueError(f"tendon_stiffness = {v:g} N/m is implausible: expected "
+                             f"{_implausible('tendon_stiffness', v)} N/m (omit it for inextensible tendons)")
         return v
 
     @field_validator("length", "D_eff", "pressure_area_slope", "line_mass", "tip_mass", "tool_offset",
@@ -368,8 +430,8 @@ class ActuatorParams(BaseModel):
     @field_validator("quadrature_points")
     @classmethod
     def _ng(cls, v):
-        if not (4 <= v <= 20):
-            raise ValueError("quadrature_points must be in [4, 20]")
+        if not (QUADRATURE_MIN <= v <= QUADRATURE_MAX):
+            raise ValueError(f"quadrature_points must be in [{QUADRATURE_MIN}, {QUADRATURE_MAX}]")
         return v
 
     @field_validator("pressure_area_slope")
@@ -391,8 +453,18 @@ class ActuatorParams(BaseModel):
     @field_validator("tendons")
     @classmethod
     def _tendons(cls, v):
-        if len(v) < 3:
-            raise ValueError(f"need at least 3 tendons, got {len(v)}")
+        if len(v) < TENDONS_MIN:
+            raise ValueError(f"need at least {TENDONS_MIN} tendons, got {len(v)}")
+        if len(v) > TENDONS_MAX:
+            raise ValueError(f"at most {TENDONS_MAX} tendons, got {len(v)}")
+        for i in range(len(v)):
+            for j in range(i):
+                gap = abs(math.remainder(v[i].angle - v[j].angle, 2 * math.pi))
+                if gap < TENDON_SEPARATION_MIN:
+                    raise ValueError(f"tendons {j + 1} and {i + 1} are at the same angle about the axis "
+                                     f"({math.degrees(v[j].angle):g}° and {math.degrees(v[i].angle):g}°, "
+                                     f"{math.degrees(gap):.3g}° apart); tendons must be at least "
+                                     f"{math.degrees(TENDON_SEPARATION_MIN):g}° apart")
         return v
 
     @model_validator(mode="after")
@@ -410,6 +482,11 @@ class ActuatorParams(BaseModel):
             raise ValueError("tension_max must exceed tension_min")
         if not (self.pressure_max >= self.pressure_min):
             raise ValueError("pressure_max must be >= pressure_min")
+        for which, coeffs in (("EA", self.stiffness.EA_pressure), ("EI", self.stiffness.EI_pressure)):
+            lo, hi, _ = PLAUSIBLE[f"{which}_pressure_coeffs"]
+            if any(not lo <= c <= hi for c in coeffs):
+                raise ValueError(f"{which}_pressure_coeffs {list(coeffs)} per (p/100 kPa)^j: each coefficient must "
+                                 f"be within {lo:g} … {hi:g}")
         if self.stiffness.pressure_dependent:
             f, p, which = self.stiffness.pressure_factor_minimum(self.pressure_min, self.pressure_max)
             if not f > 0:
@@ -502,6 +579,10 @@ class ActuatorParams(BaseModel):
         raw = dict(raw)
         stiff = raw.pop("stiffness", None)
         tendons = raw.pop("tendons", None)
+        # [provenance]: where the parameters came from (written by `bellows identify`); a record for people and
+        # run logs, not a parameter: accepted as a table and otherwise ignored
+        if not isinstance(raw.pop("provenance", {}), dict):
+            raise ConfigError(f"{where}: 'provenance' must be a table ([provenance])")
         if stiff is None:
             raise ConfigError(f"{where}: missing [stiffness] table")
         if not isinstance(stiff, dict):
@@ -509,7 +590,10 @@ class ActuatorParams(BaseModel):
         if not tendons:
             raise ConfigError(f"{where}: missing [[tendons]] entries")
         if not isinstance(tendons, list) or not all(isinstance(t, dict) for t in tendons):
-            raise ConfigError(f"{where}: 'tendons' must be [[tendons]] tables, got {tendons!r}")
+            raise ConfigError(f"{where}: 'tendons' must be [[tendons]] tables, got {_short(tendons)}")
+        if not TENDONS_MIN <= len(tendons) <= TENDONS_MAX:
+            raise ConfigError(f"{where}: {len(tendons)} [[tendons]] tables; an actuator has {TENDONS_MIN} … "
+                              f"{TENDONS_MAX} tendons")
         top = _parse_table(raw, TOP_FIELDS, where)
         s = _parse_table(stiff, STIFFNESS_FIELDS, f"{where}[stiffness]")
         law = s.pop("law", None)
@@ -530,11 +614,18 @@ class ActuatorParams(BaseModel):
             else:
                 raise ConfigError(f"{where}[stiffness]: law must be 'linear', 'constant' or 'polynomial', "
                                   f"got {law!r}")
+            if p_ea or p_ei:
+                stiffness = stiffness.with_pressure(EA=p_ea or (), EI=p_ei or ())
         except TypeError as exc:
             raise ConfigError(f"{where}[stiffness]: wrong keys for law '{law}': {exc}") from None
-        if p_ea or p_ei:
-            stiffness = stiffness.with_pressure(EA=p_ea or (), EI=p_ei or ())
-        tl = [Tendon(**_parse_table(t, TENDON_FIELDS, f"{where}[[tendons]][{i}]")) for i, t in enumerate(tendons)]
+        except ConfigError as exc:
+            raise ConfigError(_located(str(exc), f"{where}[stiffness]")) from None
+        tl = []
+        for i, t in enumerate(tendons):
+            try:
+                tl.append(Tendon(**_parse_table(t, TENDON_FIELDS, f"{where}[[tendons]][{i}]")))
+            except ConfigError as exc:
+                raise ConfigError(_located(str(exc), f"{where}[[tendons]][{i}]")) from None
         for k in ("base_axis", "reference_direction", "gravity"):
             if k in top:
                 if not isinstance(top[k], list) or len(top[k]) != 3:
@@ -549,7 +640,10 @@ class ActuatorParams(BaseModel):
                 raise ConfigError(f"{where}.shear_compliance_coeffs_mm_per_N_per_100kPa: expected a list of numbers "
                                   f"(coefficients of (p/100 kPa)^0, ^1, ^2, …), got {v!r}")
             top["shear_compliance"] = tuple(v)
-        return cls(stiffness=stiffness, tendons=tuple(tl), **top)
+        try:
+            return cls(stiffness=stiffness, tendons=tuple(tl), **top)
+        except ConfigError as exc:
+            raise ConfigError(_located(str(exc), where)) from None
 
     def to_toml(self) -> str:
         """Serialise to the TOML format read by :meth:`from_toml` (SI units spelled out)."""

@@ -186,7 +186,7 @@ def solve(
                           locked_lengths=locked, progress=cb, check_limits=not no_limits,
                           time_limit_s=max_time_s)
     summary = res.summary()
-    summary["element"] = element.value
+    summary.update(element=element.value, model=model_info(getattr(preset, "value", preset), mu_mpa, kappa_mpa))
     if compliance:
         summary["tip_compliance_tension_m_per_N"] = model.tip_compliance(res, "tension").tolist()
         summary["tip_compliance_locked_m_per_N"] = model.tip_compliance(res, "locked").tolist()
@@ -201,8 +201,21 @@ def solve(
     if json_out:
         typer.echo(json.dumps(summary))
     else:
-        for line in summary_lines(res):
-            console.print(line, markup=False, highlight=False)
+        for line in [summary["model"]["description"], *summary_lines(res)]:
+            console.print(line, markup=False, highlight=False, soft_wrap=True)     # a log line is not cut
+
+
+def model_info(design: str, mu_mpa: float | None = None, kappa_mpa: float | None = None) -> dict:
+    """Which model and which parameter set produced a result: ``{"kind": "FEM reference", "parameters": the
+    bellows design, "source": "design preset", "material": "preset" | the moduli given, "description": one
+    line}``, e.g. "FEM reference (3-D hyperelastic), bellows design 'paper' (wall geometry and material)" — the
+    first line of ``bellows fem solve``'s text and its JSON's ``model`` field."""
+    given = [f"{nm} = {v:g} MPa" for nm, v in (("shear modulus", mu_mpa), ("bulk modulus", kappa_mpa))
+             if v is not None]
+    material = "and material" if not given else f"and material, {', '.join(given)} given"
+    return {"kind": "FEM reference", "parameters": design, "source": "design preset",
+            "material": "preset" if not given else {"mu_MPa": mu_mpa, "kappa_MPa": kappa_mpa},
+            "description": f"FEM reference (3-D hyperelastic), bellows design '{design}' (wall geometry {material})"}
 
 
 def summary_lines(res) -> list[str]:

@@ -29,8 +29,17 @@ the reference direction ``+z`` (right-handed about ``+x``):
 
 The offset is along the exact profile normal, so the wall thickness is exactly ``t``; the offset is
 free of self-intersection when the smallest radius of curvature of the mid-profile,
-:math:`1/\max|r_m''|`, exceeds ``t/2`` (checked in validation).  ``profile="sine"`` is the only
-shape implemented; a straight tube is the limit ``r_crest = r_root + t`` (zero convolution depth).
+:math:`1/\max|r_m''|`, exceeds ``t/2`` (checked in validation).  A straight tube is the limit
+``r_crest = r_root + t`` (zero convolution depth).
+
+**A profile given as data.**  ``profile`` may instead be a :class:`~fem_reference.profile.TableProfile`
+(the inner and outer outline as point tables; :meth:`BellowsGeometry.from_profile`).  The lattice row ``ζ``
+is then the mid-wall axial coordinate of the through-wall segment along the inner outline's normal, and
+``τ`` the position along it, ``X = P_i + (τ/t + ½)(P_o − P_i)`` (``t = wall_thickness``, the thinnest wall):
+for the sine profile's own outlines this is the map above, so the mesh, the caps, the pressure faces and the
+tendon guides follow unchanged.  ``length``, ``root_radius`` (smallest inner radius), ``crest_radius``
+(largest outer radius) and ``wall_thickness`` are then read off the table; ``n_convolutions`` and
+``collar_length`` still split the axis into mesh blocks and place the roots (tendon guides).
 
 Tendons are routed at distance ``tendon_radius`` from the axis at angles ``tendon_angles`` (same
 convention as θ): they leave the base cap, pass through one guide point at every *interior* root
@@ -48,8 +57,16 @@ import numpy as np
 from ancf.errors import ConfigError
 
 from ._checks import validated
+from .profile import TableProfile
 
-__all__ = ["BellowsGeometry", "e_radial"]
+__all__ = ["N_CONVOLUTIONS_MAX", "N_TENDONS_MAX", "BellowsGeometry", "e_radial"]
+
+#: most convolutions a bellows may have (a larger count is a typing or unit mistake, and its mesh would not fit)
+N_CONVOLUTIONS_MAX = 100
+#: most tendons a bellows may carry
+N_TENDONS_MAX = 16
+#: smallest angular distance between two tendons [rad] (coincident tendons make the tension → tip map singular)
+_MIN_TENDON_GAP = 1e-3
 
 _trapezoid = getattr(np, "trapezoid", None) or np.trapz  # numpy < 2 fallback
 
@@ -78,8 +95,9 @@ class BellowsGeometry:
         Wall thickness ``t`` measured along the profile normal [m].
     collar_length : float
         Straight collar at each end (at the root radius) where the wall is bonded to the cap [m].
-    profile : {"sine"}
-        Shape of the convolution profile.
+    profile : "sine" or TableProfile
+        Shape of the convolution profile: the built-in sine, or the outlines as data (module docstring;
+        build such a geometry with :meth:`from_profile`).
     tendon_radius : float
         Routing distance ``d`` of the tendons from the axis [m].
     tendon_angles : tuple of float
@@ -98,7 +116,7 @@ class BellowsGeometry:
     crest_radius: float
     wall_thickness: float
     collar_length: float = 0.0
-    profile: Literal["sine"] = "sine"
+    profile: Literal["sine"] | TableProfile = "sine"
     tendon_radius: float = 0.0275
     tendon_angles: tuple[float, ...] = (0.0, 2 * np.pi / 3, 4 * np.pi / 3)
     cap_mass: float = 0.0
@@ -109,7 +127,11 @@ class BellowsGeometry:
         validated(self, "BellowsGeometry")
 
     def _validate(self):
-        object.__setattr__(self, "tendon_angles", tuple(float(a) for a in self.tendon_angles))
+        try:
+            angles = tuple(float(a) for a in self.tendon_angles)
+        except TypeError:
+            raise ConfigError(f"tendon_angles must be a list of angles in rad, got {self.tendon_angles!r}") from None
+        object.__setattr__(self, "tendon_angles", angles)
         pos = dict(length=self.length, root_radius=self.root_radius, crest_radius=self.crest_radius,
                    wall_thickness=self.wall_thickness, tendon_radius=self.tendon_radius)
         for k, v in pos.items():
@@ -119,14 +141,36 @@ class BellowsGeometry:
             v = getattr(self, k)
             if not np.isfinite(v) or v < 0:
                 raise ConfigError(f"BellowsGeometry.{k} must be finite and >= 0, got {v!r}")
-        if int(self.n_convolutions) != self.n_convolutions or self.n_convolutions < 1:
-            raise ConfigError(f"n_convolutions must be a positive integer, got {self.n_convolutions!r}")
-        if self.profile != "sine":
-            raise ConfigError(f"profile {self.profile!r} not implemented (available: 'sine')")
+        if (isinstance(self.n_convolutions, bool) or int(self.n_convolutions) != self.n_convolutions
+                or not 1 <= self.n_convolutions <= N_CONVOLUTIONS_MAX):
+            raise ConfigError(f"n_convolutions must be an integer in 1 … {N_CONVOLUTIONS_MAX}, "
+                              f"got {self.n_convolutions!r}")
+        self._validate_tendons()
         if self.length > 5.0 or self.root_radius > 1.0:
             raise ConfigError("BellowsGeometry takes metres: length/radii look like millimetres")
         if 2 * self.collar_length >= self.length:
             raise ConfigError("2 * collar_length must be < length")
+        if isinstance(self.profile, TableProfile):
+            self._validate_table()
+        elif self.profile != "sine":
+            raise ConfigError(f"profile {self.profile!r} not implemented (available: 'sine' or a TableProfile)")
+        else:
+            self._validate_sine()
+
+    def _validate_tendons(self):
+        a = np.array(self.tendon_angles)
+        if a.size > N_TENDONS_MAX or not np.all(np.isfinite(a)):
+            raise ConfigError(f"tendon_angles: at most {N_TENDONS_MAX} finite angles, got {self.tendon_angles!r}")
+        for i in range(a.size):
+            for j in range(i):
+                gap = abs((a[i] - a[j] + np.pi) % (2 * np.pi) - np.pi)
+                if gap < _MIN_TENDON_GAP:
+                    raise ConfigError(
+                        f"tendon_angles: tendons {j + 1} and {i + 1} coincide ({np.degrees(a[j]):g}° and "
+                        f"{np.degrees(a[i]):g}°, {np.degrees(gap):.3g}° apart; at least "
+                        f"{np.degrees(_MIN_TENDON_GAP):.3g}° needed): their tensions could not be told apart")
+
+    def _validate_sine(self):
         if self.crest_radius < self.root_radius + self.wall_thickness - 1e-12:
             raise ConfigError("crest_radius (outer, at a crest) must be >= root_radius + wall_thickness")
         kmax = self.max_curvature()
@@ -134,6 +178,13 @@ class BellowsGeometry:
             raise ConfigError(
                 f"convolutions too tight for the wall: min profile radius {1 / kmax:.4g} m "
                 f"<= t/2 = {self.wall_thickness / 2:.4g} m (offset surface would self-intersect)")
+
+    def _validate_table(self):
+        derived = self.profile.summary()
+        off = [k for k, v in derived.items() if abs(getattr(self, k) - v) > 1e-12 * max(abs(v), 1e-300)]
+        if off:
+            raise ConfigError(f"{', '.join(off)} of a design with a profile table are read off the table "
+                              f"({self.profile.source or 'TableProfile'}); build it with BellowsGeometry.from_profile")
 
     # ---------------------------------------------------------------- constructors
     @classmethod
@@ -148,6 +199,21 @@ class BellowsGeometry:
                    root_radius=mean_radius - wall_thickness / 2,
                    crest_radius=mean_radius + wall_thickness / 2,
                    wall_thickness=wall_thickness, **kw)
+
+    @classmethod
+    def from_profile(cls, profile: TableProfile, n_convolutions: int, collar_length: float = 0.0,
+                     **kw) -> BellowsGeometry:
+        """Bellows whose wall is the table ``profile``; ``length``, ``root_radius``, ``crest_radius`` and
+        ``wall_thickness`` are read off the table (module docstring), the other fields as in the constructor."""
+        if not isinstance(profile, TableProfile):
+            raise ConfigError(f"profile must be a TableProfile, got {type(profile).__name__}")
+        return cls(n_convolutions=n_convolutions, collar_length=collar_length, profile=profile,
+                   **profile.summary(), **kw)
+
+    @property
+    def is_table(self) -> bool:
+        """True when the wall profile is given as data (a :class:`TableProfile`)."""
+        return isinstance(self.profile, TableProfile)
 
     def replace(self, **changes) -> BellowsGeometry:
         """Copy with some fields changed (validated again)."""
@@ -171,12 +237,12 @@ class BellowsGeometry:
 
     @property
     def is_straight(self) -> bool:
-        return abs(self.r_crest_mid - self.r_root_mid) < 1e-15
+        return not self.is_table and abs(self.r_crest_mid - self.r_root_mid) < 1e-15
 
     @property
     def cap_inner_radius(self) -> float:
-        """Inner radius where the wall meets a cap [m] (the cap's pressurised disc)."""
-        return self.root_radius
+        """Inner radius where the wall meets the distal cap [m] (the cap's pressurised disc)."""
+        return self.profile.cap_inner_radius if self.is_table else self.root_radius
 
     def root_positions(self) -> np.ndarray:
         """Axial positions ζ of all roots, ends included, shape ``(n_convolutions + 1,)`` [m]."""
@@ -190,7 +256,10 @@ class BellowsGeometry:
         return abs(a) * k * k
 
     def profile_mid(self, zeta) -> tuple[np.ndarray, np.ndarray]:
-        """Mid-wall radius ``r_m(ζ)`` [m] and slope ``dr_m/dζ`` [-] at axial positions ``zeta``."""
+        """Mid-wall radius ``r_m(ζ)`` [m] and slope ``dr_m/dζ`` [-] of the sine profile at axial positions
+        ``zeta`` (a table profile has no single mid-curve formula: :meth:`map_points` serves both)."""
+        if self.is_table:
+            raise ConfigError("profile_mid is the sine profile's formula; a table profile maps through map_points")
         z = np.asarray(zeta, float)
         c, p = self.collar_length, self.pitch
         phi = 2 * np.pi * (z - c) / p
@@ -203,6 +272,8 @@ class BellowsGeometry:
     def map_points(self, zeta, tau, theta) -> np.ndarray:
         """Map lattice coordinates (broadcast arrays) to reference positions, shape ``(3,) + shape``."""
         zeta, tau, theta = np.broadcast_arrays(*(np.asarray(a, float) for a in (zeta, tau, theta)))
+        if self.is_table:
+            return self._map_table(zeta, tau, theta)
         r, dr = self.profile_mid(zeta)
         s = np.sqrt(1 + dr * dr)
         nr, nz = 1 / s, -dr / s
@@ -210,6 +281,19 @@ class BellowsGeometry:
         X[0] = zeta + tau * nz
         er = e_radial(theta)
         X[1:] = (r + tau * nr) * er[1:]
+        return X
+
+    def _map_table(self, zeta, tau, theta) -> np.ndarray:
+        """map_points of a table profile: ``P_i + (τ/t + ½)(P_o − P_i)`` on the segment of row ζ."""
+        flat = np.unique(zeta)
+        pi, po = self.profile.wall_points(flat)
+        k = np.searchsorted(flat, zeta)
+        s = tau / self.wall_thickness + 0.5
+        z = pi[0][k] + s * (po[0][k] - pi[0][k])
+        r = pi[1][k] + s * (po[1][k] - pi[1][k])
+        X = np.empty((3,) + zeta.shape)
+        X[0] = z
+        X[1:] = r * e_radial(theta)[1:]
         return X
 
     def wall_volume(self, n: int = 40001) -> float:

@@ -33,8 +33,15 @@ import numpy as np
 from ancf.errors import ConfigError, InputError
 
 from .geometry import BellowsGeometry
+from .profile import check_resolution
 
-__all__ = ["MESH_LEVELS", "BellowsMesh", "MeshLevel", "build_mesh", "check_jacobians"]
+__all__ = ["MAX_ELEMENTS", "MESH_LEVELS", "BellowsMesh", "MeshLevel", "build_mesh", "check_jacobians"]
+
+#: Bounds of the element counts of a :class:`MeshLevel` (inclusive) and of the whole mesh.  The largest
+#: mesh, MAX_ELEMENTS Hex2 elements (≈ 36 DOFs each: ≈ 1.4 M DOFs), is about the most a 24 GiB machine can
+#: factorise (the 5 376-element mesh, 194 k DOFs, needs ≈ 2 GiB); counts beyond these are typing mistakes.
+LEVEL_BOUNDS = {"n_per_conv": (1, 64), "n_thick": (1, 16), "n_theta": (3, 256), "n_collar": (0, 32)}
+MAX_ELEMENTS = 40_000
 
 
 @dataclass(frozen=True)
@@ -50,6 +57,12 @@ class MeshLevel:
     n_thick: int
     n_theta: int
     n_collar: int = 1
+
+    def __post_init__(self):
+        for k, (lo, hi) in LEVEL_BOUNDS.items():
+            v = getattr(self, k)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+                raise ConfigError(f"MeshLevel.{k} must be an integer in {lo} … {hi}, got {v!r}")
 
 
 MESH_LEVELS: dict[str, MeshLevel] = {
@@ -255,6 +268,9 @@ def build_mesh(geo: BellowsGeometry, level: str | MeshLevel = "coarse") -> Bello
     n_t, n_th = level.n_thick, level.n_theta
     if min(npc, n_t) < 1 or n_th < 3:
         raise ConfigError(f"invalid mesh level {level}")
+    if n_s * n_t * n_th > MAX_ELEMENTS:
+        raise ConfigError(f"mesh of {n_s} × {n_t} × {n_th} = {n_s * n_t * n_th} elements (this design at {level}) "
+                          f"exceeds {MAX_ELEMENTS}: it would not fit in memory; choose a coarser level")
 
     # fine-lattice axial coordinates (2 n_s + 1 points: vertices and mid-nodes)
     segs = []
@@ -268,6 +284,8 @@ def build_mesh(geo: BellowsGeometry, level: str | MeshLevel = "coarse") -> Bello
         segs.append(np.linspace(geo.length - c, geo.length, 2 * nc + 1))
     zeta = np.concatenate([segs[0]] + [s[1:] for s in segs[1:]])
     assert zeta.size == 2 * n_s + 1
+    if geo.is_table:
+        check_resolution(geo.profile, zeta[::2], n_t)
     tau = np.linspace(-geo.wall_thickness / 2, geo.wall_thickness / 2, 2 * n_t + 1)
     nth2 = 2 * n_th
     theta = 2 * np.pi * np.arange(nth2) / nth2

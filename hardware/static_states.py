@@ -85,7 +85,9 @@ class StaticStates:
         self.pressure = _arr("pressure", self.pressure, 1, (N,))
         self.tip_position = _arr("tip_position", self.tip_position, 2, (N, 3))
         if np.any(T < 0):
-            raise InputError("static states: tensions must be >= 0 N (a tendon cannot push)")
+            r, c = np.argwhere(T < 0)[0]
+            raise InputError(f"static states: tensions must be >= 0 N (a tendon cannot push); state {r} (row {r} "
+                             f"of the dataset, counted from 0), tendon {c + 1}: {T[r, c]:g} N")
         if self.tip_force is not None:
             self.tip_force = _arr("tip_force", self.tip_force, 2, (N, 3), allow_nan=True)
         if self.markers is not None:
@@ -151,7 +153,10 @@ def _arr(name, v, ndim, shape=None, allow_nan=False) -> np.ndarray:
     if allow_nan:
         bad &= ~np.isnan(a)
     if np.any(bad):
-        raise InputError(f"static states: {name} contains {'inf' if allow_nan else 'NaN or inf'}")
+        first = tuple(int(i) for i in np.argwhere(bad)[0])
+        where = (f" (state {first[0]} — row {first[0]} of the dataset, counted from 0"
+                 + (f", column {first[1]}" if len(first) > 1 else "") + f": {a[first]})") if first else ""
+        raise InputError(f"static states: {name} contains {'inf' if allow_nan else 'NaN or inf'}{where}")
     return a
 
 
@@ -193,12 +198,67 @@ def _write_group(g, states: StaticStates):
     return g
 
 
-def read_static_states(path, *, group: Optional[str] = None) -> StaticStates:
-    """Read static states from an HDF5 file (``/static_states`` of a run log, or a file whose root has the
-    format attributes) or from a CSV file (by suffix).  Raises :class:`ConfigError` on a malformed file."""
+def check_data_file(path, what: str = "data file") -> pathlib.Path:
+    """``path`` as a Path if it names an existing regular file; :class:`InputError` if nothing is there,
+    :class:`ConfigError` naming the path if it is a folder (or another non-file)."""
     path = pathlib.Path(path)
     if not path.exists():
-        raise InputError(f"static-states file {path} does not exist")
+        raise InputError(f"{what} {path} does not exist")
+    if path.is_dir():
+        raise ConfigError(f"{path}: is a folder; expected a file ({what})")
+    if not path.is_file():
+        raise ConfigError(f"{path}: is not a regular file; expected a file ({what})")
+    return path
+
+
+def read_csv_rows(path, what: str = "CSV file") -> list[tuple[int, list[str]]]:
+    """(line number in the file, 1-based; cells) of each row of a text CSV file (UTF-8, a byte-order mark
+    allowed), comment lines (``#``) and empty rows dropped.  :class:`ConfigError` naming the file — and the
+    byte or line — when it is not text (binary content, a NUL byte, an encoding other than UTF-8) or not
+    readable as CSV."""
+    path = check_data_file(path, what)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read the {what} ({exc.strerror or exc})") from None
+    nul = raw.find(b"\x00")
+    if nul >= 0:
+        raise ConfigError(f"{path}: not a text {what}: binary content (a NUL byte at byte {nul})")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not a text {what}: byte {exc.start} is not UTF-8 text (binary content, or "
+                          "a file saved in another encoding)") from None
+    out = []
+    reader = csv.reader(text.splitlines())
+    try:
+        for r in reader:
+            if r and any(c.strip() for c in r) and not r[0].lstrip().startswith("#"):
+                out.append((reader.line_num, r))
+    except csv.Error as exc:
+        raise ConfigError(f"{path}: line {reader.line_num}: not a readable {what} ({exc})") from None
+    return out
+
+
+def csv_number(path, text: str, row: int, column: str, fac: float = 1.0, *, nan_ok: bool = False) -> float:
+    """The finite number in one CSV cell (``row``: the line number in the file, 1-based, header = 1) times
+    ``fac``; :class:`ConfigError` naming file, row and column for text or a non-finite value (nan, inf;
+    ``nan_ok``: NaN, an unknown value, is returned)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise ConfigError(f"{path}: row {row}, column {column}: not a number: {text!r}") from None
+    if not (math.isfinite(v) or (nan_ok and math.isnan(v))):
+        raise ConfigError(f"{path}: row {row}, column {column}: {text!r} is not a finite number")
+    return v * fac
+
+
+def read_static_states(path, *, group: Optional[str] = None) -> StaticStates:
+    """Read static states from an HDF5 file (``/static_states`` of a run log, or a file whose root has the
+    format attributes) or from a CSV file (by suffix).  Raises :class:`ConfigError` on a malformed file: one
+    that is not what its name says (binary content in a .csv, a folder, a truncated HDF5 file), a value that
+    is not a finite number (naming its row and column), a missing or unknown column."""
+    path = check_data_file(path, "static-states file")
     if path.suffix.lower() == ".csv":
         return _read_csv(path)
     f = open_hdf5(path)
@@ -244,7 +304,7 @@ def open_hdf5(path) -> "h5py.File":  # noqa: F821
     does not check it, and blocks inside the first read of a truncated file)."""
     import re
     import h5py
-    path = pathlib.Path(path)
+    path = check_data_file(path, "HDF5 file")
     try:
         return h5py.File(path, "r")
     except OSError as exc:
@@ -409,30 +469,31 @@ def _parse_header(header: list[str]) -> dict:
 
 
 def _read_csv(path: pathlib.Path) -> StaticStates:
-    with open(path, newline="") as fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
-    if len(rows) < 2:
+    numbered = read_csv_rows(path, "static-states CSV file")
+    if len(numbered) < 2:
         raise ConfigError(f"{path}: needs a header row and at least one state")
-    header = [h.strip() for h in rows[0]]
-    body = rows[1:]
+    header = [h.strip() for h in numbered[0][1]]
+    lines = [n for n, _ in numbered[1:]]
+    body = [r for _, r in numbered[1:]]
     try:
         cols = _parse_header(header)
     except ConfigError as exc:
         raise ConfigError(f"{path}: {exc}") from None
 
-    def col(stem, required=False):
+    def col(stem, required=False, empty_ok=False):
+        """The column's values in SI (NaN for an empty or ``nan`` cell where ``empty_ok``: an unknown load)."""
         if stem not in cols:
             if required:
                 raise ConfigError(f"{path}: missing column '{stem}_<unit>'")
             return None
         i, fac = cols[stem]
         out = []
-        for r, row in enumerate(body):
+        for line, row in zip(lines, body):
             txt = row[i].strip() if i < len(row) else ""
-            try:
-                out.append(float(txt) * fac if txt else math.nan)
-            except ValueError:
-                raise ConfigError(f"{path}: row {r + 2}, column {header[i]}: not a number: {txt!r}") from None
+            if not txt and not empty_ok:
+                raise ConfigError(f"{path}: row {line}, column {header[i]}: empty cell (give every state a value"
+                                  + (")" if required else " or drop the column)"))
+            out.append(csv_number(path, txt, line, header[i], fac, nan_ok=empty_ok) if txt else math.nan)
         return np.array(out)
 
     idx = sorted(int(_TENSION.match(k).group(1)) for k in cols if _TENSION.match(k))
@@ -445,26 +506,21 @@ def _read_csv(path: pathlib.Path) -> StaticStates:
                           f"{', '.join(header[cols[f'tension{k}'][0]] for k in idx)} "
                           f"(out of sequence: {', '.join(extra)})")
     T = np.column_stack([col(f"tension{i + 1}", True) for i in range(m)])
+    neg = np.argwhere(T < 0)
+    if len(neg):
+        r, c = neg[0]
+        raise ConfigError(f"{path}: row {lines[r]}, column {header[cols[f'tension{c + 1}'][0]]}: a tension must "
+                          "be >= 0 (a tendon cannot push)")
     p = col("pressure", True)
     tip = np.column_stack([col(f"tip_{c}", True) for c in "xyz"])
-    fcols = [col(f"force_{c}") for c in "xyz"]
+    fcols = [col(f"force_{c}", empty_ok=True) for c in "xyz"]
     F = None if all(c is None for c in fcols) else np.column_stack(
         [c if c is not None else np.zeros(len(body)) for c in fcols])
-    tip_std = col("tip_std")
-    t_std = col("tension_std")
-    p_std = col("pressure_std")
-    time = col("time")
+    tip_std, t_std, p_std, time = (col(k) for k in ("tip_std", "tension_std", "pressure_std", "time"))
     labels = None
     if "label" in header:
         i = header.index("label")
         labels = [row[i] if i < len(row) else "" for row in body]
-    for name, v in (("tensions", T), ("pressure", p), ("tip_position", tip)):
-        if np.any(np.isnan(v)):
-            raise ConfigError(f"{path}: empty cells in the required {name} columns")
-    for name, v in (("tip_std", tip_std), ("tension_std", t_std), ("pressure_std", p_std), ("time", time)):
-        if v is not None and np.any(np.isnan(v)):
-            raise ConfigError(f"{path}: empty cells in the {name} column (give every state a value or drop "
-                              "the column)")
     try:
         return StaticStates(tensions=T, pressure=p, tip_position=tip, tip_force=F,
                             tip_position_std=None if tip_std is None else np.repeat(tip_std[:, None], 3, 1),

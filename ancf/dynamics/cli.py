@@ -26,7 +26,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from .. import clitools
-from ..cli import FORCE_HELP, NO_LIMITS_HELP, PRESET_HELP, PRESSURE_HELP, _model, console, parse_vector, warm_up
+from ..cli import (FORCE_HELP, NO_LIMITS_HELP, PRESET_HELP, PRESSURE_HELP, _model, console, model_info, parse_vector,
+                   warm_up)
 from ..errors import InputError
 from ..export import write_json
 from .damping import UndampedWarning, states_damping, undamped_message
@@ -79,7 +80,8 @@ def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of t
                              check_limits=not no_limits)
     r = model.modes(eq, count, damping=damping_ratio)   # None: the actuator file's coefficients
     rows = mode_rows(r)
-    summary = {"preset": model.params.name, "tensions_N": T.tolist(), "pressure_kPa": pressure_kpa,
+    info = model_info(preset, model.params)
+    summary = {"preset": model.params.name, "model": info, "tensions_N": T.tolist(), "pressure_kPa": pressure_kpa,
                "tip_force_N": F.tolist(), "tendons": "locked" if locked else "tensions held",
                "damping": r.damping, "damping_source": r.damping_source, "tip_mm": (eq.tip * 1e3).tolist(),
                "modes": rows}
@@ -99,7 +101,7 @@ def modes(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] of t
         typer.echo(json.dumps(summary, indent=2))
         return
     console.print(modes_table(rows, f"modes at T = {tensions_n} N, p = {pressure_kpa:g} kPa — "
-                                    f"{summary['tendons']} ('{model.params.name}')"))
+                                    f"{summary['tendons']} — {info['description']}"))
     if folder is not None:
         console.print(f"wrote {folder / 'modes.png'} and {folder / 'modes.json'}")
     if pvd:
@@ -238,7 +240,8 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
     if pvd:
         paraview.write_pvd(folder / "simulation.pvd", paraview.simulation_frames(model, sim, pvd_frames))
     final = settled
-    summary = {"preset": model.params.name, "start_tensions_N": T0.tolist(), "tensions_N": T1.tolist(),
+    info = model_info(preset, model.params)
+    summary = {"preset": model.params.name, "model": info, "start_tensions_N": T0.tolist(), "tensions_N": T1.tolist(),
                "ramp_ms": ramp_ms, "pressure_kPa": pressure_kpa, "tip_force_N": F.tolist(),
                "t_end_s": float(sim.t[-1]), "dt_s": sim.dt, "steps": len(sim.t) - 1, "damping": sim.damping,
                "damping_source": sim.damping_source,
@@ -254,6 +257,7 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
     save_simulation_png(folder / "simulation.png", sim, None if final is None else final.tip,
                         f"'{model.params.name}': T {start_tensions_n} → {tensions_n} N at {pressure_kpa:g} kPa")
     state = ("interrupted at" if sim.interrupted else "done:") + (" (UNDAMPED)" if undamped else "")
+    console.print(escape(info["description"]))
     console.print(escape(f"{state} {sim.t[-1]:.3f} s simulated in {sim.wall_time:.2f} s "
                          f"({sim.real_time_factor:.1f}× real time, step {sim.dt * 1e3:g} ms)"))
     if final is not None:

@@ -81,3 +81,110 @@ def test_operating_limits_from_presets_and_files(tmp_path):
             design_limits(p)
         with pytest.raises(ConfigError):
             load_design(p)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("wall_thickness_mm = 1.6", "wall_thickness_mm = 5000"), r"wall_thickness_mm = 5000 is implausible: expected 0.05 … 50 mm"),
+    (("mu_MPa = 0.8", "mu_Pa = 1e15"), r"mu_Pa = 1000000000000000.0 is implausible: expected 1000 … 1e\+09 Pa"),
+    (("n_convolutions = 8", "n_convolutions = 1000000000"), r"n_convolutions must be a whole number in 1 … 100"),
+    (("tendon_angles_deg = [0, 120, 240]", "tendon_angles_deg = 0"), "tendon_angles_deg must be a list"),
+    (("length_mm = 160", "length_mm = [160]"), "length_mm: expected one number|length_mm must be a single number"),
+    (("tendon_angles_deg = [0, 120, 240]", "tendon_angles_deg = [0, 120, 120]"), "tendons 2 and 3 coincide"),
+    (("tendon_angles_deg = [0, 120, 240]", "tendon_angles_deg = [0, 360]"), "tendons 1 and 2 coincide"),
+    (('name = "my bellows"', "name = 3"), "name: expected text"),
+])
+def test_implausible_values_are_refused_at_load_naming_the_key(tmp_path, edit, message):
+    p = tmp_path / "bad.toml"
+    p.write_text(DOC_EXAMPLE.replace(*edit))
+    with pytest.raises(ConfigError, match=message):
+        load_design(p)
+
+
+def _profile_design(tmp_path):
+    from fem_reference import presets
+    from fem_reference.profile import TableProfile, write_profile_csv
+    sub = tmp_path / "walls"
+    sub.mkdir()
+    write_profile_csv(TableProfile.from_geometry(presets.paper_bellows("stiff"), 401), sub / "wall.csv")
+    text = DOC_EXAMPLE
+    for k in ("length_mm = 160\n", "root_radius_mm = 10.0", "crest_radius_mm = 19.5", "wall_thickness_mm = 1.6"):
+        text = text.replace(k, "", 1)
+    text = text.replace('name = "my bellows"', 'name = "my bellows"\nprofile_file = "walls/wall.csv"')
+    return text
+
+
+def test_design_with_a_profile_file(tmp_path):
+    """The path is relative to the TOML; the table's numbers replace the sine's; the design round-trips."""
+    from fem_reference import presets
+    p = tmp_path / "d.toml"
+    p.write_text(_profile_design(tmp_path))
+    g, m = load_design(p)
+    ref = presets.paper_bellows("stiff")
+    assert g.is_table and g.length == pytest.approx(0.16) and g.n_convolutions == 8
+    assert g.wall_thickness == pytest.approx(ref.wall_thickness, rel=1e-4)
+    back = tmp_path / "elsewhere.toml"
+    back.write_text(design_to_toml(g, m, 'a "quoted" name'))
+    g2, m2 = load_design(back)
+    assert g2 == g and m2 == m
+    bad = tmp_path / "bad.toml"
+    for edit, message in ((("n_convolutions = 8", "n_convolutions = 8\nwall_thickness_mm = 2"),
+                           "wall_thickness must not be given with profile_file"),
+                          (("walls/wall.csv", "walls/nope.csv"), "cannot read profile file .*nope.csv"),
+                          (("n_convolutions = 8\n", ""), "missing n_convolutions")):
+        bad.write_text(p.read_text().replace(*edit))
+        with pytest.raises(ConfigError, match=message):
+            load_design(bad)
+
+
+# --------------------------------------------------------------------------- any file: a design or a ConfigError
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_KEYS = ["name", "length_mm", "length", "n_convolutions", "root_radius_mm", "crest_radius_mm", "wall_thickness_mm",
+         "collar_length_mm", "tendon_radius_mm", "tendon_angles_deg", "tendon_angles_rad", "cap_mass_g",
+         "cap_com_offset_mm", "tip_offset_mm", "profile_file", "colour", "length_m"]
+_MAT_KEYS = ["model", "mu_MPa", "kappa_MPa", "c10_MPa", "c01_MPa", "density_kg_per_m3", "formulation", "mu"]
+_scalars = st.one_of(st.integers(-10**12, 10**12), st.floats(allow_nan=True, allow_infinity=True),
+                     st.booleans(), st.text(st.characters(codec="ascii", exclude_characters='"\\\n\r'), max_size=8),
+                     st.sampled_from(["neo_hookean", "mooney_rivlin", "nope.csv", "", "displacement"]))
+_values = st.one_of(_scalars, st.lists(_scalars, max_size=4))
+
+
+def _toml_value(v) -> str:
+    import json
+    import math
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float) and not math.isfinite(v):
+        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf")
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    return json.dumps(v) if isinstance(v, str) else repr(v)
+
+
+def _example_values() -> dict:
+    import tomllib
+    return tomllib.loads(DOC_EXAMPLE)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(top=st.dictionaries(st.sampled_from(_KEYS), _values, max_size=6),
+       mat=st.dictionaries(st.sampled_from(_MAT_KEYS), _values, max_size=4),
+       drop=st.sets(st.sampled_from(_KEYS + _MAT_KEYS), max_size=3))
+def test_any_design_file_gives_a_design_or_a_config_error(tmp_path, top, mat, drop):
+    base = _example_values()
+    base_mat = base.pop("material")
+    base.update(top)
+    base_mat.update(mat)
+    for k in drop:
+        base.pop(k, None)
+        base_mat.pop(k, None)
+    lines = [f"{k} = {_toml_value(v)}" for k, v in base.items()] + ["[material]"]
+    lines += [f"{k} = {_toml_value(v)}" for k, v in base_mat.items()]
+    p = tmp_path / "h.toml"
+    p.write_text("\n".join(lines) + "\n")
+    try:
+        g, m = load_design(p)
+    except ConfigError:
+        return
+    assert g.length > 0 and m.mu > 0 and len(set(g.tendon_angles)) == len(g.tendon_angles)

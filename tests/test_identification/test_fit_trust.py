@@ -75,7 +75,9 @@ def test_intervals_after_freezing_cover_the_truth():
 
 
 def test_the_held_value_is_reported_as_held_at_the_first_pass_optimum(tmp_path):
-    """A design without pressure: D_eff is held; fit.json and the actuator file say at which value and why."""
+    """A design without pressure: D_eff is held; fit.json and the actuator file say at which value and why.
+    From rig data the information check finds it before the fit (no information on it: rank) and holds it at
+    the base actuator's value; the fit's own rank rule holds it at the first-pass optimum otherwise."""
     import json
 
     from hardware.static_states import StaticStates
@@ -87,13 +89,19 @@ def test_the_held_value_is_reported_as_held_at_the_first_pass_optimum(tmp_path):
                           tip_force=obs.tip_force, tip_position_std=obs.tip_std, label=obs.labels)
     res = identify.from_measurements(states, BASE, forms=("paper",), gravity=False, heldout_fraction=0.0)
     held = res.fit.held["D_eff"]
+    assert held == BASE.D_eff
     text = res.to_toml()
     assert "starting value" not in text
-    assert f"D_eff held at the first-pass optimum {held:.6g} m" in text
+    assert f"D_eff held at the given value {held:.6g} m" in text
     data = json.loads(res.save(tmp_path / "fit.json").read_text())
     entry = data["fits"]["paper"]["held"]["D_eff"]
-    assert entry["held_at"] == "first-pass optimum" and entry["value"] == pytest.approx(held)
-    assert "do not determine" in data["fits"]["paper"]["not_identifiable_reasons"]["D_eff"]
+    assert entry["held_at"].startswith("prior") and entry["value"] == pytest.approx(held)
+    assert "no information" in data["fits"]["paper"]["not_identifiable_reasons"]["D_eff"]
+    assert "D_eff" in data["information"]["forms"]["paper"]["held_at_prior"]
+    # the fit's own rule, without the check (the FEM's path): held at the first-pass optimum
+    from validation.identification.identify import observations_from_states
+    f = identify.identify(observations_from_states(states, gravity=False), BASE, forms=("paper",)).fit
+    assert f.held_at["D_eff"] == "first-pass optimum" and "do not determine" in f.reasons["D_eff"]
 
 
 def test_a_form_with_too_few_data_is_not_chosen_over_one_that_identifies_something():

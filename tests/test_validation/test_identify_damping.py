@@ -104,3 +104,90 @@ def test_the_command_reads_a_simulate_csv(tmp_path, model):
     assert out["model_state"]["tendons"] == "held"
     bad = run("identify-damping", "s/simulation.json", cwd=tmp_path)
     assert bad.returncode == 2 and bad.stderr.count("error:") == 1
+
+
+# ----------------------------------------------------------------------- records of known truth
+T_SYN = np.linspace(0.0, 3.0, 1501)                   # 2 ms samples over 3 s
+
+
+def synthetic(zeta, f_hz, amplitude=1e-3, noise=0.0, seed=0):
+    """A free decay of known ζ and f_n (natural) along (0.2, 0, 1) about a tip at (0.16, 0, 0.01) m, with white
+    tracker noise of ``noise`` [m] RMS per axis."""
+    w = 2 * np.pi * f_hz
+    y = amplitude * np.exp(-zeta * w * T_SYN) * np.cos(w * np.sqrt(1 - zeta ** 2) * T_SYN + 0.3)
+    tip = np.array([0.16, 0.0, 0.01]) + np.column_stack([0.2 * y, 0 * y, y])
+    return tip + np.random.default_rng(seed).normal(0.0, noise, tip.shape)
+
+
+def test_a_clean_synthetic_decay_is_recovered_within_its_interval():
+    fit = fit_free_decay(T_SYN, synthetic(0.03, 5.0))
+    assert fit.damping_ratio_ci[0] <= 0.03 <= fit.damping_ratio_ci[1]
+    assert fit.frequency_ci[0] <= 5.0 <= fit.frequency_ci[1]
+    assert fit.damping_ratio == pytest.approx(0.03, rel=1e-9) and fit.frequency_hz == pytest.approx(5.0, rel=1e-9)
+    assert fit.alpha_per_s == pytest.approx(2 * 0.03 * 2 * np.pi * 5.0, rel=1e-9)
+    noisy = fit_free_decay(T_SYN, synthetic(0.03, 5.0, noise=2e-5))
+    assert noisy.damping_ratio == pytest.approx(0.03, rel=0.02) and noisy.frequency_hz == pytest.approx(5.0, rel=1e-3)
+    assert 30 < noisy.amplitude_to_noise < 70 and noisy.cycles_above_noise > 5    # 1 mm over ≈ 0.02 mm: ≈ 50×
+
+
+def test_a_growing_oscillation_is_not_a_free_decay():
+    from validation.identification.damping import DecayNotDeterminedError
+    for noise in (0.0, 2e-5):
+        with pytest.raises(DecayNotDeterminedError, match="not a free decay: the oscillation grows") as info:
+            fit_free_decay(T_SYN, synthetic(-0.02, 5.0, noise=noise))
+        assert info.value.reason == "growing" and info.value.damping_ratio_ci[1] < 0
+
+
+@pytest.mark.parametrize("amplitude", [0.0, 2e-5])              # pure noise; a decay as large as the noise
+def test_noise_is_no_oscillation_above_the_noise(amplitude):
+    from validation.identification.damping import MIN_AMPLITUDE_TO_NOISE, DecayNotDeterminedError
+    for seed in range(5):
+        with pytest.raises(DecayNotDeterminedError, match="no oscillation above the noise") as info:
+            fit_free_decay(T_SYN, synthetic(0.03, 5.0, amplitude=amplitude, noise=2e-5, seed=seed))
+        assert info.value.reason == "noise" and info.value.amplitude_to_noise < MIN_AMPLITUDE_TO_NOISE
+        assert isinstance(info.value, InputError)
+
+
+def test_an_oscillation_without_measurable_decay_does_not_determine_zeta():
+    from validation.identification.damping import DecayNotDeterminedError
+    for noise in (0.0, 2e-5):                     # an undamped sine: ζ = 0 is inside the interval
+        with pytest.raises(DecayNotDeterminedError, match="contains 0") as info:
+            fit_free_decay(T_SYN, synthetic(0.0, 5.0, noise=noise))
+        assert info.value.reason == "undetermined"
+
+
+def test_too_few_cycles_above_the_noise_are_refused():
+    """ζ = 0.3: the envelope of a 1 mm release falls below 5 × 0.05 mm within one period (0.7)."""
+    from validation.identification.damping import DecayNotDeterminedError
+    with pytest.raises(DecayNotDeterminedError, match="periods") as info:
+        fit_free_decay(T_SYN, synthetic(0.3, 5.0, noise=5e-5))
+    assert info.value.reason == "noise" and info.value.cycles_above_noise < 3
+
+
+def test_the_intervals_of_synthetic_decays_cover_the_truth():
+    """60 records of ζ = 0.03, f_n = 5 Hz with 0.05 mm noise: the nominal 95 % intervals of ζ and of f_n each
+    hold the truth in at least 90 % of them (and none is refused)."""
+    hits_z = hits_f = 0
+    for seed in range(60):
+        fit = fit_free_decay(T_SYN, synthetic(0.03, 5.0, noise=5e-5, seed=seed))
+        hits_z += fit.damping_ratio_ci[0] <= 0.03 <= fit.damping_ratio_ci[1]
+        hits_f += fit.frequency_ci[0] <= 5.0 <= fit.frequency_ci[1]
+    assert hits_z >= 54 and hits_f >= 54
+
+
+def _write_decay_csv(path, tip):
+    rows = ["t_s,tip_x_mm,tip_y_mm,tip_z_mm,T1_N,T2_N,T3_N,pressure_kPa"]
+    rows += [f"{t:.17g},{x * 1e3:.17g},{y * 1e3:.17g},{z * 1e3:.17g},2,0,0,30" for t, (x, y, z) in zip(T_SYN, tip)]
+    path.write_text("\n".join(rows) + "\n")
+
+
+@pytest.mark.parametrize("zeta, amplitude, match", [(-0.02, 1e-3, "not a free decay"),
+                                                    (0.03, 0.0, "no oscillation above the noise")])
+def test_the_command_refuses_a_record_without_a_decay(tmp_path, capsys, zeta, amplitude, match):
+    from ancf import clitools
+    from validation.commands.main import app
+    _write_decay_csv(tmp_path / "r.csv", synthetic(zeta, 5.0, amplitude=amplitude, noise=2e-5))
+    with pytest.raises(SystemExit) as info:
+        clitools.run(app, ["identify-damping", str(tmp_path / "r.csv")])
+    err = capsys.readouterr().err.strip()
+    assert info.value.code == 2 and err.startswith("error:") and err.count("\n") == 0 and match in err

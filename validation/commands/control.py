@@ -129,7 +129,13 @@ def _ask_recovery(exc) -> bool:
 
 
 def control(
-    rig: str = typer.Option("sim", "--rig", help="'sim' (simulated rig, paper preset) or a rig TOML file"),
+    rig: str = typer.Option("sim", "--rig", help="'sim' (simulated rig) or a rig TOML file"),
+    actuator: Optional[str] = typer.Option(None, "--actuator", help="the controller's model: an actuator preset "
+                                           "name or an actuator .toml file (e.g. from `bellows identify`); "
+                                           "default: the rig file's actuator (--rig sim: the paper preset)"),
+    plant: Optional[str] = typer.Option(None, "--plant", help="simulated rig: the plant's actuator (its truth), "
+                                        "a preset name or an actuator .toml file; default: the controller's "
+                                        "model (--mismatch perturbs it)"),
     target_mm: str = typer.Option(..., "--target-mm", help="desired tip position X,Y,Z [mm]"),
     pressure_kpa: float = typer.Option(..., "--pressure-kpa", help="chamber pressure [kPa], held constant"),
     controller: str = typer.Option("lacc", "--controller", help=f"controller {one_of(CONTROLLERS)}"),
@@ -186,19 +192,20 @@ def control(
     --max-iterations run exits 0 at convergence and 1 without (also when Ctrl-C ended it first); 2 on an error
     (a fault, a limit, SIGTERM: the rig is made safe first)."""
     args = SimpleNamespace(**locals())                    # the options, as given (checked in the steps below)
-    target, cfg = _checked_request(args)
+    target, cfg, models = _checked_request(args)
     the_rig = _built_rig(args, cfg)
     ctrl, shaper = _built_controller(args, cfg, target)
     t0 = time.monotonic()
-    res = _run(args, ctrl, the_rig, target, shaper)
-    exit_status = _print_result(args, ctrl, res, wall_s=time.monotonic() - t0)
+    res = _run(args, ctrl, the_rig, target, shaper, models)
+    exit_status = _print_result(args, ctrl, res, models, wall_s=time.monotonic() - t0)
     if exit_status:
         raise typer.Exit(exit_status)
 
 
 def _checked_request(a: SimpleNamespace):
     """Parse and check every option before any work or motion (the run log too: refused if it exists unless
-    --force).  Returns (target (3,) [m], the rig's :class:`hardware.config.RigConfig`)."""
+    --force).  Returns (target (3,) [m], the rig's :class:`hardware.config.RigConfig` with the --actuator and
+    --plant given, the record of the controller's model and the plant (:func:`_model_records`))."""
     from ancf.cli import parse_vector
     from ancf.outputs import prepare_output_file
     from hardware.config import RigConfig
@@ -210,7 +217,84 @@ def _checked_request(a: SimpleNamespace):
         prepare_output_file(a.log, force=a.force, suffixes=SUFFIXES)        # before any work or motion
     cfg = RigConfig(name="simulated rig") if a.rig == "sim" else RigConfig.from_toml(a.rig)
     _check_sim_only(a, simulated=cfg.backend == "sim")
-    return target, cfg
+    cfg = _with_models(a, cfg)
+    return target, cfg, _model_records(a, cfg)
+
+
+def _actuator_spec(text: str, option: str) -> str:
+    """An --actuator / --plant value as the rig file's ``actuator`` key takes it: a preset name as given, an
+    actuator file as an absolute path (the rig file's keys are relative to the rig file, options to the working
+    directory).  The file is read and checked here (ConfigError naming the option)."""
+    from ancf import presets
+    from ancf.errors import ConfigError
+    spec = str(pathlib.Path(text).resolve()) if text.endswith(".toml") else text
+    try:
+        presets.get(spec)
+    except ConfigError as exc:
+        raise ConfigError(f"{option}: {exc}") from None
+    return spec
+
+
+def _with_models(a: SimpleNamespace, cfg):
+    """The rig config with the controller's model (--actuator) and the simulated plant (--plant) given on the
+    command line; contradictions are refused: --plant on a hardware rig (the real actuator is the plant), a
+    plant or a rig whose tendon count differs from the model's."""
+    import dataclasses
+    if a.plant is not None and cfg.backend != "sim":
+        raise InputError("--plant: only for a simulated rig (the rig file says backend = 'hardware': the real "
+                         "actuator is the plant); give the controller's model with --actuator")
+    changes = {}
+    if a.actuator is not None:
+        changes["actuator"] = _actuator_spec(a.actuator, "--actuator")
+    if a.plant is not None:
+        changes["simulation"] = {**cfg.simulation, "plant_actuator": _actuator_spec(a.plant, "--plant")}
+    cfg = dataclasses.replace(cfg, **changes) if changes else cfg
+    model = cfg.actuator_params()
+    if cfg.backend == "sim":
+        plant = cfg.actuator_params("plant_actuator")
+        if plant.n_tendons != model.n_tendons:
+            raise InputError(f"the plant {plant.name!r} has {plant.n_tendons} tendons, the controller's model "
+                             f"{model.name!r} {model.n_tendons}: a model of another actuator cannot drive it")
+    elif len(cfg.drives) != model.n_tendons:
+        raise InputError(f"--actuator {a.actuator}: {model.n_tendons} tendons, the rig file has {len(cfg.drives)} "
+                         f"[[drives]] (one per tendon)")
+    return cfg
+
+
+def _model_record(spec: str, params, base_dir: str) -> dict:
+    """Which actuator: its name, a preset or a file (absolute path, SHA-256 of the file) and the SHA-256 of its
+    parameters as TOML (:meth:`ancf.ActuatorParams.to_toml`: equal for equal parameters)."""
+    import hashlib
+    path = pathlib.Path(base_dir, spec).resolve() if spec.endswith(".toml") else None
+    return {"name": params.name, "source": "file" if path else "preset", "path": None if path is None else str(path),
+            "file_sha256": None if path is None else hashlib.sha256(path.read_bytes()).hexdigest(),
+            "parameters_sha256": hashlib.sha256(params.to_toml().encode()).hexdigest(), "n_tendons": params.n_tendons}
+
+
+def _model_records(a: SimpleNamespace, cfg) -> dict:
+    """{"actuator": the controller's model, "plant": the simulated plant (with ``mismatch``: perturbed by
+    --mismatch) or None on a hardware rig} (:func:`_model_record`); in the run log and the result."""
+    out = {"actuator": _model_record(cfg.actuator, cfg.actuator_params(), cfg.base_dir), "plant": None}
+    if cfg.backend == "sim":
+        spec = cfg.simulation.get("plant_actuator", cfg.actuator)
+        out["plant"] = {**_model_record(spec, cfg.actuator_params("plant_actuator"), cfg.base_dir),
+                        "mismatch": bool(a.mismatch)}
+    return out
+
+
+def _models_line(models: dict) -> str:
+    """One line: which model the controller uses and which actuator the plant is."""
+    def one(r: dict) -> str:
+        return (f"{r['name']!r} from {r['path']} (sha256 {r['file_sha256'][:12]}…)" if r["source"] == "file"
+                else f"preset {r['name']!r}")
+    pl = models["plant"]
+    if pl is None:
+        plant = "the real actuator (hardware rig)"
+    else:
+        same = pl["parameters_sha256"] == models["actuator"]["parameters_sha256"]
+        plant = ("the model's own parameters" if same else "ANCF rod, actuator " + one(pl)) \
+            + (", perturbed by --mismatch" if pl["mismatch"] else "")
+    return f"controller's model: ANCF rod, actuator {one(models['actuator'])}; plant: {plant}"
 
 
 def _check_ranges(a: SimpleNamespace) -> None:
@@ -272,7 +356,7 @@ def _sim_overrides(a: SimpleNamespace, cfg) -> dict:
         overrides["seed"] = a.seed
     if a.mismatch:
         from hardware.simulated import PlantOptions
-        mm = PlantOptions.mismatched(base=cfg.actuator_params())
+        mm = PlantOptions.mismatched(base=cfg.actuator_params("plant_actuator"))
         overrides.update({k: getattr(mm, k) for k in ("params", "noise_std", "length_resolution", "length_rate",
                                                       "tendon_friction", "tendon_stiffness")})
     if a.dynamics:
@@ -315,9 +399,10 @@ def _built_controller(a: SimpleNamespace, cfg, target: np.ndarray):
     return ctrl, shaper
 
 
-def _run(a: SimpleNamespace, ctrl, the_rig, target: np.ndarray, shaper):
+def _run(a: SimpleNamespace, ctrl, the_rig, target: np.ndarray, shaper, models: dict):
     """The run itself (:func:`controller.run_on_rig`): Ctrl-C is its normal end; SIGTERM or a fault aborts it
-    (one ``error:`` line, the rig made safe, the log closed).  Returns the :class:`controller.RunResult`."""
+    (one ``error:`` line, the rig made safe, the log closed; the log's ``run`` attribute records ``models``,
+    :func:`_model_records`).  Returns the :class:`controller.RunResult`."""
     from controller import RunOptions, run_on_rig
     from hardware.errors import RunAborted
     simulated = bool(getattr(the_rig, "simulated", False))
@@ -327,11 +412,13 @@ def _run(a: SimpleNamespace, ctrl, the_rig, target: np.ndarray, shaper):
                f"{vector(target, 'mm', 1e3, 3)} at {a.pressure_kpa:g} kPa"
                + (f", load profile {a.load_profile}" if simulated else "")
                + ("; Ctrl-C ends the run" if duration == math.inf else "") + where, err=True)
+    typer.echo(_models_line(models), err=True)
     options = RunOptions(log=a.log, force=a.force, duration=duration, max_iterations=a.max_iterations,
                          status=_status_printer(), on_ctrl_c="end",
                          # the simulated experiment knows the load it applies: its static states record it
                          applied_load=the_rig.load if simulated else None,
-                         run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": a.load_profile},
+                         run_info={"command": "bellows " + " ".join(sys.argv[1:]), "load_profile": a.load_profile,
+                                   **models},
                          shaper=shaper, recover=_ask_recovery if a.on_drive_fault == "ask" else None)
     try:
         res = run_on_rig(ctrl, the_rig, target, options)
@@ -375,16 +462,19 @@ def _headline(res, tolerance: float) -> str:
             + (f"; run log {res.log_path}" if res.log_path else ""))
 
 
-def _print_result(a: SimpleNamespace, ctrl, res, wall_s: float) -> int:
-    """The summary (or the JSON of the result with ``wall_s`` [s] and ``exit_status``); returns the exit status."""
+def _print_result(a: SimpleNamespace, ctrl, res, models: dict, wall_s: float) -> int:
+    """The summary (or the JSON of the result with ``wall_s`` [s], ``exit_status`` and the ``actuator`` and
+    ``plant`` records of :func:`_model_records`); returns the exit status."""
     import json
     status = _exit_status(res)
     if a.json_out:
         out = res.to_dict()
         out["wall_s"] = wall_s
         out["exit_status"] = status
+        out.update(models)
         typer.echo(json.dumps(out))
     else:
+        typer.echo(_models_line(models))
         for line in (res.summary.lines() if res.summary is not None else []):
             typer.echo(line)
         typer.echo(_headline(res, ctrl.tolerance))

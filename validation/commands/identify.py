@@ -110,6 +110,8 @@ def _command_line() -> str:
 
 def _print_identification(res) -> None:
     from validation.report.build import derived_rows, param_rows
+    for line in res.warnings:           # what the data do not determine, before any number
+        console.print("[bold yellow]warning:[/bold yellow] " + escape(line))
     for title, rows in ((f"Identified parameters of the form '{res.form}'", param_rows(res)),
                         ("Derived values at rest (λ = 1)", derived_rows(res))):
         t = Table(title=title)
@@ -199,9 +201,11 @@ def _identify_fem(fem: tuple, mesh: str, workers, scheduler, cache: Optional[pat
     from validation.identification.identify import from_fem
     name, geo, mat, limits = fem
     console.print(f"design {name}: operating range {limits['tension_max']:g} N, {limits['pressure_max'] / 1e3:g} kPa")
-    return from_fem(geo, mat, mesh, workers=workers, scheduler=scheduler, cache_dir=cache, forms=forms,
-                    fit_distance=fit_distance, progress=True, tension_max=limits["tension_max"],
-                    pressure_max=limits["pressure_max"], cases=cases, after_sweep=after_sweep)
+    res = from_fem(geo, mat, mesh, workers=workers, scheduler=scheduler, cache_dir=cache, forms=forms,
+                   fit_distance=fit_distance, progress=True, tension_max=limits["tension_max"],
+                   pressure_max=limits["pressure_max"], cases=cases, after_sweep=after_sweep)
+    res.meta["design_name"] = name                  # the identified actuator's name and provenance (to_toml)
+    return res
 
 
 def _identify_measured(measurements: pathlib.Path, base: str, forms, fit_distance: bool, heldout_fraction: float,
@@ -209,14 +213,33 @@ def _identify_measured(measurements: pathlib.Path, base: str, forms, fit_distanc
     from ancf import presets
     from validation.identification.identify import from_measurements
     return from_measurements(measurements, presets.get(base), forms=forms, heldout_fraction=heldout_fraction,
-                             fit_distance=fit_distance, gravity=gravity)
+                             fit_distance=fit_distance, gravity=gravity, progress=_progress_printer())
+
+
+#: Progress lines (per form: which, how long, the result) are printed once a run has taken this long [s].
+PROGRESS_AFTER_S = 3.0
+
+
+def _progress_printer(after_s: float = PROGRESS_AFTER_S):
+    """``progress(line)`` for :func:`validation.identification.identify.identify`: silent for a run that ends
+    within ``after_s`` seconds; after that, the lines held back so far and each new one as it comes."""
+    t0, held = time.perf_counter(), []
+
+    def progress(line: str) -> None:
+        held.append(line)
+        if time.perf_counter() - t0 >= after_s:
+            for h in held:
+                console.print(escape(h))
+            held.clear()
+    return progress
 
 
 def _source_check(design: Optional[str], measurements: Optional[pathlib.Path]) -> None:
     if design is not None and measurements is not None:
         raise InputError("give either --design (virtual experiments on the FEM) or --measurements (rig data), not both")
     if measurements is not None and not measurements.is_file():
-        raise InputError(f"--measurements: no such file {measurements}")
+        raise InputError(f"--measurements: {measurements} is a folder, not a file" if measurements.is_dir() else
+                         f"--measurements: no such file {measurements}")
 
 
 def _base_check(measurements: Optional[pathlib.Path], base: Optional[str]) -> None:
@@ -250,6 +273,8 @@ def identify_cmd(
         scheduler: Optional[str] = SCHEDULER_OPT,
         cache: pathlib.Path = CACHE_OPT,
         out: pathlib.Path = typer.Option(pathlib.Path("bellows_out/identify"), help="Output folder."),
+        name: Optional[str] = typer.Option(None, "--name", help="The identified actuator's name in actuator.toml "
+                                           "(default: '<design or base actuator>-identified')."),
         force: bool = FORCE_OPT):
     """Identify k(λ), D_a, D_eff from the FEM or rig data.
 
@@ -258,6 +283,8 @@ def identify_cmd(
     names = _forms(forms)
     _cases_check(cases)
     _base_check(measurements, base)
+    if name is not None and not name.strip():
+        raise InputError("--name must not be empty")
     fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     d = prepare_output_dir(out, ("actuator.toml", "fit.json"), force=force)
     t0 = time.perf_counter()
@@ -269,7 +296,7 @@ def identify_cmd(
     if res.meta.get("torn_rows"):
         console.print(f"note: {measurements}: static-state row(s) {res.meta['torn_rows']} torn (the writer stopped "
                       f"while recording them) and not used; {res.meta['n_states']} complete states used")
-    res.to_toml(d / "actuator.toml", force=force)
+    res.to_toml(d / "actuator.toml", force=force, name=name)
     res.save(d / "fit.json", force=force)
     _print_identification(res)
     console.print(f"{time.perf_counter() - t0:.0f} s; wrote {d / 'actuator.toml'} and {d / 'fit.json'}")
@@ -443,9 +470,10 @@ def damping_cmd(record: pathlib.Path = typer.Argument(..., help="A free decay: s
                                            "compared."),
                 as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Damping from a free decay: natural frequency and damping ratio with 95 % intervals, as Rayleigh
-    coefficients for the actuator file, beside the model's first mode (docs/dynamics.md)."""
+    coefficients for the actuator file, beside the model's first mode (docs/dynamics.md).  A record that holds
+    no decay (no oscillation above the noise, a growing oscillation, a ζ interval containing 0) is an error."""
     from ancf import Model, presets
-    from validation.identification.damping import fit_free_decay, read_decay
+    from validation.identification.damping import MIN_AMPLITUDE_TO_NOISE, fit_free_decay, read_decay
 
     if tendons not in (None, "held", "locked"):
         raise InputError(f"--tendons must be 'held' or 'locked', got {tendons!r}")
@@ -469,7 +497,9 @@ def damping_cmd(record: pathlib.Path = typer.Argument(..., help="A free decay: s
         return
     lo, hi = fit.frequency_ci
     t_ = Table(title=escape(f"free decay of {record} ({fit.samples} samples, {fit.t_start:.3g}–{fit.t_end:.3g} s, "
-                            f"residual {fit.residual_rms * 1e3:.3g} mm RMS)"))
+                            f"residual {fit.residual_rms * 1e3:.3g} mm RMS, amplitude {fit.amplitude_to_noise:.3g}× "
+                            f"the residual, {fit.cycles_above_noise:.3g} periods above "
+                            f"{MIN_AMPLITUDE_TO_NOISE:g}× it)"))
     for c in ("quantity", "value", f"{fit.confidence:.0%} interval"):
         t_.add_column(escape(c))
     t_.add_row("natural frequency [Hz]", f"{fit.frequency_hz:.4f}", f"{lo:.4f} … {hi:.4f}")

@@ -5,6 +5,7 @@ module             job
 ================== ===============================================================================
 ``forms``          the model forms (which parameters, which laws) and their parameter vectors
 ``fit``            the weighted least-squares fit, its intervals and identifiability
+``information``    what the data can tell before a fit: coverage, the scaled sensitivities, what to hold
 ``identify``       the protocol: from the FEM (:func:`~validation.identification.identify.from_fem`) or
                    from measured static states (``from_measurements``), form selection, results
 ``design_select``  informative training cases by D-optimality

@@ -136,23 +136,38 @@ def initial_shear(rod: Optional[dict], base: ActuatorParams) -> float:
     return max(float(s), 0.0) if math.isfinite(s) else 0.0
 
 
-def initial_theta(form, rod: Optional[dict], base: ActuatorParams) -> np.ndarray:
-    """Starting point of ``form``: the closed-form rod values (FEM) or the base actuator's law."""
+def initial_theta(form, rod: Optional[dict], base: ActuatorParams, *, slopes: bool = False) -> np.ndarray:
+    """Starting point of ``form``: the closed-form rod values (FEM) or the base actuator's law at rest, slopes and
+    pressure coefficients 0.  ``slopes`` (rig data only): with the base law's slopes dEA/dλ, dEI/dλ, ½ d²EA/dλ² —
+    the *prior* a parameter the data do not determine is held at (:func:`prior_theta`).  The fits start with
+    slopes 0: from the base's slopes a soft base law collapses under data of a stiffer one (measured: the
+    `paper` form at k₁ = 122.8 N, a = 213.8 N cannot start on T = 5/5/5 N states of a 767 N actuator)."""
+    sA = sI = cA = 0.0
     if rod:
         EA, EI, D_eff = rod["EA"], rod["EI"], max(rod.get("D_eff", 0.0), 1e-3)
     else:
-        EA, EI, D_eff = float(base.stiffness.EA(1.0)), float(base.stiffness.EI(1.0)), base.D_eff
+        law, h = base.stiffness, 1e-3
+        EA, EI, D_eff = float(law.EA(1.0)), float(law.EI(1.0)), base.D_eff
+        if slopes:
+            sA, sI = float(law.EA(1 + h) - law.EA(1 - h)) / (2 * h), float(law.EI(1 + h) - law.EI(1 - h)) / (2 * h)
+            cA = float(law.EA(1 + h) - 2 * EA + law.EA(1 - h)) / (2 * h * h)
     D_a = math.sqrt(8 * EI / EA)
     name = form.name.split("+")[0]
-    th = {"paper": [EA, 0.0, D_a, D_eff], "paper_area": [EA, 0.0, D_a, D_eff, 0.0],
-          "separate": [EA, 0.0, EI, 0.0, D_eff], "separate_area": [EA, 0.0, EI, 0.0, D_eff, 0.0],
-          "quadratic": [EA, 0.0, 0.0, EI, 0.0, D_eff],
-          "constant": [EA, EI, D_eff], "pressure_ei": [EA, 0.0, EI, 0.0, 0.0, 0.0, D_eff],
-          "pressure_ei_ea": [EA, 0.0, EI, 0.0, 0.0, 0.0, 0.0, D_eff],
-          "pressure_ei_shear": [EA, 0.0, EI, 0.0, 0.0, 0.0, D_eff, initial_shear(rod, base), 0.0]}[name]
+    th = {"paper": [EA, sA, D_a, D_eff], "paper_area": [EA, sA, D_a, D_eff, 0.0],
+          "separate": [EA, sA, EI, sI, D_eff], "separate_area": [EA, sA, EI, sI, D_eff, 0.0],
+          "quadratic": [EA, sA, cA, EI, sI, D_eff],
+          "constant": [EA, EI, D_eff], "pressure_ei": [EA, sA, EI, sI, 0.0, 0.0, D_eff],
+          "pressure_ei_ea": [EA, sA, EI, sI, 0.0, 0.0, 0.0, D_eff],
+          "pressure_ei_shear": [EA, sA, EI, sI, 0.0, 0.0, D_eff, initial_shear(rod, base), 0.0]}[name]
     if form.fits_distance:
         th.append(float(np.mean(base.tendon_distances)))
     return np.array(th, float)
+
+
+def prior_theta(form, rod: Optional[dict], base: ActuatorParams) -> np.ndarray:
+    """The value a parameter of ``form`` the data do not determine is held at: the base actuator's law with its
+    slopes (rig data), the closed-form rod (FEM)."""
+    return initial_theta(form, rod, base, slopes=rod is None)
 
 
 # ---------------------------------------------------------------------------------------------- result
@@ -184,6 +199,14 @@ class IdentificationResult:
     modes: Optional[dict] = None
     #: what :func:`from_fem`'s ``after_sweep`` returned (run beside the fits), None without one
     after_sweep: Any = field(default=None, repr=False)
+    #: what the data can tell, checked before the fits (:mod:`validation.identification.information`):
+    #: {"coverage": …, "forms": {form: …}, "warnings": [text]}; None when not checked (FEM designs)
+    information: Optional[dict] = None
+
+    @property
+    def warnings(self) -> list:
+        """Lines saying what the data do not determine (empty when they determine every parameter)."""
+        return [] if not self.information else list(self.information.get("warnings", []))
 
     @property
     def fit(self) -> FitResult:
@@ -247,9 +270,47 @@ class IdentificationResult:
                      header=("parameter", "value", "95 % CI"))
 
     # -------------------------------------------------------------------- output
-    def to_toml(self, path=None, *, force: bool = False) -> str:
-        """The identified actuator as TOML (``ActuatorParams.from_toml`` reads it unchanged); written to
-        ``path`` if given (not overwritten without ``force``).  Returns the text."""
+    def default_name(self) -> str:
+        """The identified actuator's name: ``<base>-identified`` — the base actuator's name (rig data) or the FEM
+        design's (``meta["design_name"]``, a design file's stem; ``fem`` when unknown)."""
+        if self.source == "fem":
+            design = self.meta.get("design_name")
+            base = pathlib.Path(design).stem if design and str(design).endswith(".toml") else (design or "fem")
+        else:
+            base = self.params.name
+        return base if base.endswith("-identified") else f"{base}-identified"
+
+    def provenance_toml(self) -> str:
+        """The ``[provenance]`` table of :meth:`to_toml`: the source (FEM design and mesh, or the measurement
+        file with the SHA-256 of its bytes when the table is written), the chosen form, when it was made and
+        by which package version and git revision.  ``ActuatorParams.from_toml`` accepts and ignores it."""
+        from ancf.params import _toml_string
+        import hashlib
+        rec = {"source": self.source, "form": self.form, "created": self.provenance.get("created", ""),
+               "bellows_version": self.provenance.get("versions", {}).get("bellows", "unknown"),
+               "git_revision": self.provenance.get("git_revision", "unknown")}
+        if self.source == "fem":
+            rec.update(design=str(self.meta.get("design_name", "")), design_description=self.meta.get("design", ""),
+                       mesh=self.meta.get("mesh", ""))
+            files = {"design_file": self.meta.get("design_name")}
+        else:
+            rec.update(base_actuator=self.params.name, measurements=self.meta.get("path", ""))
+            files = {"measurements": self.meta.get("path")}
+        for key, f in files.items():
+            p = pathlib.Path(str(f)) if f and str(f).endswith((".toml", ".h5", ".hdf5", ".csv")) else None
+            if p is not None and p.is_file():
+                rec[key] = str(p.resolve())
+                rec[f"{key}_sha256"] = hashlib.sha256(p.read_bytes()).hexdigest()
+        return "\n[provenance]\n" + "".join(f"{k} = {_toml_string(str(v))}\n" for k, v in rec.items())
+
+    def to_toml(self, path=None, *, force: bool = False, name: Optional[str] = None) -> str:
+        """The identified actuator as TOML (``ActuatorParams.from_toml`` reads it unchanged apart from its
+        ``name``) with a ``[provenance]`` table (:meth:`provenance_toml`); written to ``path`` if given (not
+        overwritten without ``force``).  ``name``: the actuator's name in the file (default
+        :meth:`default_name`, ``<base>-identified``).  Returns the text."""
+        if name is not None and not (isinstance(name, str) and name.strip()):
+            raise InputError(f"name must be a non-empty text, got {name!r}")
+        params = self.params.replace(name=self.default_name() if name is None else name)
         lines = [f"# Identified by bellows ({self.source}), form '{self.form}': {self.fit.form.description}",
                  f"# git revision {self.provenance.get('git_revision', 'unknown')}, "
                  f"created {self.provenance.get('created', '')}"]
@@ -277,7 +338,7 @@ class IdentificationResult:
                                 "  NOT IDENTIFIABLE from these data"))
         if held:
             lines.append(f"# held: {held}; the intervals above are {f.intervals}")
-        text = "\n".join(lines) + "\n" + self.params.to_toml()
+        text = "\n".join(lines) + "\n" + params.to_toml() + self.provenance_toml()
         if path is not None:
             p = prepare_output_file(path, force=force, suffixes=(".toml",))
             atomic_write_text(p, text)
@@ -304,7 +365,8 @@ class IdentificationResult:
             "design": None if self.design is None else self.design.to_dict(),
             "fem_records": [r.to_dict() for r in self.records], "rod_estimate": self.rod,
             "actuator_toml": self.params.to_toml(), "provenance": self.provenance, "meta": self.meta}
-            | ({} if self.modes is None else {"modes": self.modes}))
+            | ({} if self.modes is None else {"modes": self.modes})
+            | ({} if self.information is None else {"information": self.information}))
 
     def save(self, path, *, force: bool = False) -> pathlib.Path:
         """Write the fit data as JSON (see :meth:`to_dict`)."""
@@ -366,27 +428,90 @@ def restricted_starts(form, fitted: dict) -> list:
 
 def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Observations] = None,
              forms: Sequence[str] = FORMS, rod: Optional[dict] = None, fit_distance: bool = False,
-             absolute_sigma: Optional[bool] = None, source: str = "data", progress=None) -> IdentificationResult:
+             absolute_sigma: Optional[bool] = None, source: str = "data", progress: Optional[Callable[[str], Any]] = None,
+             check_information: bool = False) -> IdentificationResult:
     """Fit every form in ``forms`` to ``train``, compare them on ``heldout`` (or on the training error when
     there is no held-out set) and return the chosen form's result (see the module docstring).  Each form is
     fitted from its own start, from the optimum of the richest nested form fitted before it
     (:func:`starting_points`) and from the optimum of a better-fitting richer form restricted to its parameters
-    (:func:`restricted_starts`); the fit with the smallest weighted residual is kept."""
+    (:func:`restricted_starts`); the fit with the smallest weighted residual is kept.
+
+    check_information : first measure what the data can tell (:mod:`validation.identification.information`):
+    the parameters they do not determine are held at their prior (``base``'s value, the form's start) and
+    reported as not determined with the reason; a form with nothing determined is not fitted (its row says
+    ``refused``).  progress : ``progress(line)`` after each form's fit and after the refits (which form, how
+    long, the result)."""
     if not forms:
         raise InputError("identify: no model form given")
-    fits, rows, failures, errors = {}, [], {}, {}
     all_forms = [get_form(name, fit_distance) for name in forms]
+    info, information = ({}, None) if not check_information else _check_information(all_forms, train, base, rod)
+    say = progress or (lambda line: None)
+    fits, errors = _fit_all(all_forms, train, base, rod, absolute_sigma, info, say)
+    rows, failures = [], {}
+    for form in all_forms:
+        if form.name not in fits:
+            err = errors.get(form.name)
+            failures[form.name] = f"{type(err).__name__}: {err}"
+            rows.append({"form": form.name, "n_params": form.n, "failed": failures[form.name]})
+            continue
+        rows.append(_comparison_row(form, fits[form.name], heldout, info.get(form.name)))
+    if not fits:
+        raise ConfigError(f"no model form could be fitted: {failures}")
+    chosen = _choose(rows, heldout is not None)
+    return IdentificationResult(chosen["form"], fits, rows, fits[chosen["form"]].params, source, train, heldout,
+                                rod=rod, provenance=provenance(), information=information)
 
-    tried: dict = {}
+
+def _check_information(all_forms, train: Observations, base: ActuatorParams, rod: Optional[dict]) -> tuple:
+    """({form: Information}, the record for fit.json with its warning lines) of what ``train`` can tell each
+    form at its start (:func:`validation.identification.information.check_form`)."""
+    from validation.identification.information import check_form, coverage
+    from validation.identification.fit import _too_few_data
+    cov = coverage(train, base)
+    n_obs = train.weights().size
+    # a form with too few data for all its parameters claims nothing (fit's rule); holding some would dodge it
+    info = {form.name: check_form(form, train, base, initial_theta(form, rod, base), cov) for form in all_forms
+            if not _too_few_data(train.n, n_obs, form.n)}
+    warnings = list(cov.findings.values())
+    refused = [name for name, inf in info.items() if inf.refused]
+    if refused:
+        warnings.append(("every form" if len(refused) == len(info) else "form(s) " + ", ".join(refused))
+                        + ": nothing determined by these data; refused (every parameter at the base actuator's "
+                        "value, reported as not determined)")
+    for name, inf in info.items():
+        if inf.held and not inf.refused:
+            warnings.append(f"form {name}: not determined by these data, held at the base actuator's value: "
+                            + "; ".join(f"{nm} ({why.split(';')[0]})" for nm, why in inf.held.items()))
+    if warnings:
+        warnings.insert(0, "coverage: " + cov.summary())
+    return info, {"coverage": cov.to_dict(), "forms": {n: i.to_dict() for n, i in info.items()},
+                  "warnings": warnings}
+
+
+def _fit_all(all_forms, train: Observations, base: ActuatorParams, rod, absolute_sigma, info: dict, say) -> tuple:
+    """({form: best FitResult}, {form: first error}): each form from its own start, then the nested refits
+    (:data:`NESTED_ROUNDS`); parameters the data do not determine (``info``) held at their start; a refused
+    form evaluated at its start only (:func:`validation.identification.fit.prior_result`)."""
+    import time
+    from validation.identification.fit import prior_result
+    fits, errors, tried = {}, {}, {}
+    held = {form.name: tuple(info[form.name].held) if form.name in info else () for form in all_forms}
 
     def attempt(form, start) -> bool:
+        th0 = prior_theta(form, rod, base)
+        start = np.asarray(start, float).copy()
+        for nm in held[form.name]:          # a parameter the data do not determine stays at its prior
+            start[form.names.index(nm)] = th0[form.names.index(nm)]
         seen = tried.setdefault(form.name, set())
-        key = np.asarray(start, float).tobytes()
-        if key in seen:
+        if start.tobytes() in seen:
             return False
-        seen.add(key)
+        seen.add(start.tobytes())
         try:
-            g = fit(form, train, base, start, absolute_sigma=absolute_sigma)
+            if len(held[form.name]) == form.n:
+                g = prior_result(form, train, base, start, info[form.name].held)
+            else:
+                g = fit(form, train, base, start, absolute_sigma=absolute_sigma, fixed=held[form.name])
+                _mark_prior(g, info.get(form.name))
         except BellowsError as exc:
             errors.setdefault(form.name, exc)
             return False
@@ -396,59 +521,100 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
         return False
 
     for form in all_forms:
+        t0 = time.perf_counter()
         attempt(form, initial_theta(form, rod, base))
+        say(_progress_line(form.name, fits.get(form.name), errors.get(form.name), time.perf_counter() - t0))
+    t0, better, n_before = time.perf_counter(), set(), sum(len(v) for v in tried.values())
     for _ in range(NESTED_ROUNDS):    # up from the richest nested form, down from a better richer one, until stable
         improved = False
         for form in all_forms:
             for start in (starting_points(form, initial_theta(form, rod, base), fits)[1:]
                           + restricted_starts(form, fits)):
-                improved |= attempt(form, start)
+                if attempt(form, start):
+                    improved = True
+                    better.add(form.name)
         if not improved:
             break
-    for form in all_forms:
-        if form.name not in fits:
-            err = errors.get(form.name)
-            failures[form.name] = f"{type(err).__name__}: {err}"
-            rows.append({"form": form.name, "n_params": form.n, "failed": failures[form.name]})
-            continue
-        f = fits[form.name]
-        row = {"form": form.name, "n_params": form.n, "description": form.description,
-               "train_rms_tip_m": f.rms_tip, "train_max_tip_m": float(f.tip_errors().max()),
-               "not_identifiable": [k for k, ok in f.values_identifiable.items() if not ok]}
-        if f.intervals.startswith("none"):          # too few data for this form: it identified nothing
-            row["too_few_data"] = f.intervals[len("none: "):]
-        if heldout is not None:
-            try:
-                pred = predict(f.params, heldout)
-                e = np.linalg.norm(pred[:, :3] - heldout.tip, axis=1)
-                row.update(heldout_rms_tip_m=float(np.sqrt(np.mean(e ** 2))), heldout_max_tip_m=float(e.max()),
-                           heldout_tip_errors_m=e.tolist())
-                if heldout.markers is not None:
-                    k = heldout.marker_s.size
-                    em = np.linalg.norm((pred[:, 3:] - heldout.markers.reshape(heldout.n, 3 * k))
-                                        .reshape(heldout.n, k, 3), axis=2)
-                    row["heldout_rms_marker_m"] = float(np.sqrt(np.mean(em ** 2)))
-            except BellowsError as exc:
-                row["heldout_failed"] = f"{type(exc).__name__}: {exc}"
-        rows.append(row)
-        if progress is not None:
-            progress(form.name, row)
-    if not fits:
-        raise ConfigError(f"no model form could be fitted: {failures}")
-    key = "heldout_rms_tip_m" if heldout is not None else "train_rms_tip_m"
+    n_refits = sum(len(v) for v in tried.values()) - n_before
+    if n_refits:
+        say(f"{n_refits} refit(s) from the nested forms' optima: {time.perf_counter() - t0:.1f} s; "
+            + (f"improved {', '.join(sorted(better))}" if better else "no fit improved"))
+    return fits, errors
+
+
+def _progress_line(name: str, f: Optional[FitResult], err, seconds: float) -> str:
+    """'form paper: 2.1 s, training RMS 0.08 mm (58 solves)' — or its failure, or that it was refused."""
+    if f is None:
+        return f"form {name}: {seconds:.1f} s, failed ({type(err).__name__})"
+    if f.intervals.startswith("none: not determined"):
+        return f"form {name}: refused — nothing determined by these data (training RMS at the prior {1e3 * f.rms_tip:.3g} mm)"
+    held = [nm for nm, at in f.held_at.items() if at == PRIOR]
+    return (f"form {name}: {seconds:.1f} s, training RMS {1e3 * f.rms_tip:.3g} mm ({f.nfev} solves)"
+            + (f", held at the prior: {', '.join(held)}" if held else ""))
+
+
+#: ``FitResult.held_at`` of a parameter the data do not determine (held at the base actuator's value).
+PRIOR = "prior (the base actuator's value: not determined by the data)"
+
+
+def _mark_prior(f: FitResult, inf) -> None:
+    """Record on ``f`` the parameters held at their prior because the data do not determine them (``inf``:
+    :class:`~validation.identification.information.Information`), and the derived values that depend on them."""
+    if inf is None or not inf.held:
+        return
+    for nm, why in inf.held.items():
+        f.held_at[nm] = PRIOR
+        f.reasons[nm] = "not determined by the data: " + why
+        f.identifiable[nm] = False
+    for k, ok in f.values_identifiable.items():
+        if not ok and k not in f.reasons:
+            f.reasons[k] = "depends on " + ", ".join(inf.held) + ", not determined by the data"
+
+
+def _comparison_row(form, f: FitResult, heldout: Optional[Observations], inf) -> dict:
+    """The form's row of the comparison: training and held-out tip errors [m], what it does not identify."""
+    row = {"form": form.name, "n_params": form.n, "description": form.description,
+           "train_rms_tip_m": f.rms_tip, "train_max_tip_m": float(f.tip_errors().max()),
+           "not_identifiable": [k for k, ok in f.values_identifiable.items() if not ok]}
+    if inf is not None and inf.held:
+        row["not_determined"] = dict(inf.held)
+    if inf is not None and inf.refused:
+        row["refused"] = "nothing determined by these data"
+    elif f.intervals.startswith("none"):          # too few data for this form: it identified nothing
+        row["too_few_data"] = f.intervals[len("none: "):]
+    if heldout is not None:
+        try:
+            pred = predict(f.params, heldout)
+            e = np.linalg.norm(pred[:, :3] - heldout.tip, axis=1)
+            row.update(heldout_rms_tip_m=float(np.sqrt(np.mean(e ** 2))), heldout_max_tip_m=float(e.max()),
+                       heldout_tip_errors_m=e.tolist())
+            if heldout.markers is not None:
+                k = heldout.marker_s.size
+                em = np.linalg.norm((pred[:, 3:] - heldout.markers.reshape(heldout.n, 3 * k))
+                                    .reshape(heldout.n, k, 3), axis=2)
+                row["heldout_rms_marker_m"] = float(np.sqrt(np.mean(em ** 2)))
+        except BellowsError as exc:
+            row["heldout_failed"] = f"{type(exc).__name__}: {exc}"
+    return row
+
+
+def _choose(rows: list, by_heldout: bool) -> dict:
+    """The chosen row: the simplest form within :data:`PARSIMONY` × the best error; forms that identified
+    nothing (too few data, refused) only when every form did."""
+    key = "heldout_rms_tip_m" if by_heldout else "train_rms_tip_m"
     ok = [r for r in rows if key in r]
     if not ok:
         raise ConfigError(f"no fitted form could predict the held-out states: "
                           f"{[r.get('heldout_failed') for r in rows]}")
-    # a form that had too few data for its parameters identified nothing: it is chosen only if every form did
-    ok = [r for r in ok if "too_few_data" not in r] or ok
+    ok = [r for r in ok if "too_few_data" not in r and "refused" not in r] or ok
     best = min(r[key] for r in ok)
-    # parsimony: the simplest form within PARSIMONY × the best error
-    chosen = min((r for r in ok if r[key] <= PARSIMONY * best + 1e-15), key=lambda r: (r["n_params"], r[key]))
+    if all("refused" in r for r in ok):      # nothing fitted: the first form asked for, at the base's values
+        chosen = ok[0]
+    else:
+        chosen = min((r for r in ok if r[key] <= PARSIMONY * best + 1e-15), key=lambda r: (r["n_params"], r[key]))
     for r in rows:
         r["chosen"] = r is chosen
-    return IdentificationResult(chosen["form"], fits, rows, fits[chosen["form"]].params, source, train, heldout,
-                                rod=rod, provenance=provenance())
+    return chosen
 
 
 def _finalise_params(res: IdentificationResult, base: ActuatorParams) -> None:
@@ -545,7 +711,8 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
 # ---------------------------------------------------------------------------------------------- from rig data
 def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Sequence[str] = FORMS,
                       heldout_fraction: float = 0.25, seed: int = 0, fit_distance: bool = False,
-                      gravity: bool = True, absolute_sigma: Optional[bool] = None) -> IdentificationResult:
+                      gravity: bool = True, absolute_sigma: Optional[bool] = None,
+                      progress: Optional[Callable[[str], Any]] = None) -> IdentificationResult:
     """Identify the reduced model from measured static states (HDF5 run log / static-states file or CSV;
     ``docs/data-formats.md``).
 
@@ -553,7 +720,10 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
     is no default, a wrong actuator gives wrong numbers), whose stiffness is the starting point; heldout_fraction : share of the states held out (random, seeded)
     to choose the model form (0: choose on the training error); gravity : the states were measured under
     gravity (the actuator's weight from ``base`` acts).  States with labels starting with ``heldout`` are
-    held out deterministically instead.
+    held out deterministically instead.  What the states cannot tell is checked before the fits
+    (``res.information``, ``res.warnings``; :mod:`validation.identification.information`): parameters they do not
+    determine are held at ``base``'s values and reported as not determined.  progress : ``progress(line)`` per
+    form fitted (:func:`identify`).
     """
     from hardware.static_states import StaticStates, read_static_states
     if base is None:
@@ -577,7 +747,7 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
     train, heldout = obs.subset(~ho), (obs.subset(ho) if ho.any() else None)
     fit_base = base if gravity else base.replace(gravity=(0.0, 0.0, 0.0))
     res = identify(train, fit_base, heldout=heldout, forms=forms, fit_distance=fit_distance,
-                   absolute_sigma=absolute_sigma, source="measurements")
+                   absolute_sigma=absolute_sigma, source="measurements", progress=progress, check_information=True)
     _finalise_params(res, base)
     res.meta = {"path": str(path) if not isinstance(path, StaticStates) else "<StaticStates>",
                 "n_states": obs.n, "n_heldout": int(ho.sum()), "seed": seed}

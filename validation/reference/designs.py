@@ -26,6 +26,16 @@ unknown keys and missing units are errors)::
     tension_max_N = 5
     pressure_max_kPa = 120
 
+**A wall profile as data.**  ``profile_file = "wall.csv"`` (a path relative to the TOML file) gives the inner and
+outer outline of the wall as a table (format, rules and errors: :mod:`fem_reference.profile`, docs/fem.md §3b); the
+design then states ``n_convolutions`` and ``collar_length_*`` (mesh blocks, tendon guides at the roots) but not
+``length``, ``root_radius``, ``crest_radius`` or ``wall_thickness``, which are read off the table.
+
+**Plausibility.**  Every dimensioned key is checked against :data:`PLAUSIBLE` (a value outside is almost always a
+unit mistake: the message names the key and the range in its unit), ``n_convolutions`` against 1 … 100,
+``tendon_angles_*`` must be a list of 1 … 16 distinct angles (two tendons at one angle would make the tension →
+tip map singular), the other keys single numbers.
+
 The operating range (:func:`design_limits`; default 5 N, 120 kPa) sets the loads of the virtual experiments.
 The ``paper`` preset (the soft, calibrated bellows) states 100 kPa: its FEM has an inflation limit point
 between 105 and 115 kPa (neo-Hookean wall, coarse mesh — no equilibrium beyond it; the Newton solve fails
@@ -38,10 +48,16 @@ cannot converge.
 
 from __future__ import annotations
 
+import json
+import math
 import pathlib
 
 from ancf.errors import ConfigError
-from ancf.params import _parse_table
+from ancf.params import UNITS, _parse_table
+from fem_reference.geometry import N_CONVOLUTIONS_MAX, N_TENDONS_MAX
+
+#: factor to SI of every unit suffix a design key may carry
+UNITS_BY_NAME = {u: f for table in UNITS.values() for u, f in table.items() if u}
 
 try:  # Python >= 3.11
     import tomllib
@@ -50,12 +66,60 @@ except ModuleNotFoundError:  # pragma: no cover
 
 __all__ = ["load_design", "design_to_toml", "design_limits", "PRESETS", "DEFAULT_LIMITS"]
 
-GEOMETRY_FIELDS = {"name": None, "description": None, "length": "length", "n_convolutions": None,
+GEOMETRY_FIELDS = {"name": None, "description": None, "profile_file": None, "length": "length", "n_convolutions": None,
                    "root_radius": "length", "crest_radius": "length", "wall_thickness": "length",
                    "collar_length": "length", "tendon_radius": "length", "tendon_angles": "angle",
                    "cap_mass": "mass", "cap_com_offset": "length", "tip_offset": "length"}
 MATERIAL_FIELDS = {"model": None, "mu": "modulus", "kappa": "modulus", "c10": "modulus", "c01": "modulus",
                    "density": "density", "formulation": None}
+
+
+#: Plausible SI range of every dimensioned design key: (low, high, zero allowed).
+PLAUSIBLE = {
+    "length": (5e-3, 2.0, False), "root_radius": (1e-4, 0.5, False), "crest_radius": (1e-4, 0.5, False),
+    "wall_thickness": (5e-5, 0.05, False), "collar_length": (1e-5, 1.0, True), "tendon_radius": (1e-4, 0.5, False),
+    "tendon_angles": (-2 * math.pi, 2 * math.pi, True), "cap_mass": (1e-6, 10.0, True),
+    "cap_com_offset": (1e-5, 1.0, True), "tip_offset": (1e-5, 1.0, True),
+    "mu": (1e3, 1e9, False), "kappa": (1e3, 1e11, False), "c10": (-1e9, 1e9, True), "c01": (-1e9, 1e9, True),
+    "density": (100.0, 20000.0, False), "tension_max": (1e-3, 1e3, False), "pressure_max": (1e3, 10e6, False),
+}
+TEXT_KEYS = ("name", "description", "profile_file", "model", "formulation")
+#: keys a design with a profile_file must not state (read off the table)
+TABLE_DERIVED = ("length", "root_radius", "crest_radius", "wall_thickness")
+
+
+def _check_values(raw: dict, parsed: dict, where: str) -> None:
+    """Types, list/scalar shape and plausible magnitude of every parsed value; the message names the key as
+    written and the range in its unit."""
+    written = {}
+    for key in raw:
+        for f in parsed:
+            if key == f or key.startswith(f + "_"):
+                written.setdefault(f, key)
+    for f, v in parsed.items():
+        key = written.get(f, f)
+        unit = key[len(f) + 1:]
+        if f in TEXT_KEYS:
+            if not isinstance(v, str):
+                raise ConfigError(f"{where}: {key} must be text in quotes, got {v!r}")
+            continue
+        if f == "n_convolutions":
+            if isinstance(v, bool) or not isinstance(v, int) or not 1 <= v <= N_CONVOLUTIONS_MAX:
+                raise ConfigError(f"{where}: n_convolutions must be a whole number in 1 … {N_CONVOLUTIONS_MAX}, "
+                                  f"got {v!r}")
+            continue
+        if isinstance(v, list):
+            raise ConfigError(f"{where}: {key} must be a single number, got the list {v!r}")
+        _plausible(f, v, raw[key], key, unit, where)
+
+
+def _plausible(field: str, si: float, given, key: str, unit: str, where: str) -> None:
+    lo, hi, zero_ok = PLAUSIBLE[field]
+    if (zero_ok and si == 0.0) or lo <= si <= hi:
+        return
+    fac = UNITS_BY_NAME.get(unit, 1.0)
+    raise ConfigError(f"{where}: {key} = {given!r} is implausible: expected {lo / fac:g} … {hi / fac:g}"
+                      f"{' ' + unit if unit else ''}{' (or 0)' if zero_ok else ''}; check the unit in the key name")
 
 
 def _presets():
@@ -85,11 +149,12 @@ def design_limits(source) -> dict:
     lim = raw.get("limits", {})
     if not isinstance(lim, dict):
         raise ConfigError(f"{source}: [limits] must be a table")
-    out = dict(DEFAULT_LIMITS, **_parse_table(dict(lim), LIMIT_FIELDS, f"{source}[limits]"))
-    for k, v in out.items():
-        if isinstance(v, (str, bool)) or not (v > 0):
+    parsed = _parse_table(dict(lim), LIMIT_FIELDS, f"{source}[limits]")
+    for k, v in parsed.items():
+        if isinstance(v, (str, bool, list)) or not (v > 0):
             raise ConfigError(f"{source}[limits]: {k} must be a positive number, got {v!r}")
-    return out
+    _check_values(lim, parsed, f"{source}[limits]")
+    return dict(DEFAULT_LIMITS, **parsed)
 
 
 def _read(source) -> dict:
@@ -98,15 +163,15 @@ def _read(source) -> dict:
         raise ConfigError(f"design {source!r} is neither a preset ({', '.join(PRESETS)}) nor a .toml file")
     try:
         return tomllib.loads(path.read_text())
-    except OSError as exc:
-        raise ConfigError(f"cannot read design file {path}: {exc.strerror or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{path}: not valid TOML: {exc}") from None
+    except (OSError, ValueError) as exc:           # ValueError: undecodable bytes, a NUL in the path
+        raise ConfigError(f"cannot read design file {path}: {getattr(exc, 'strerror', None) or exc}") from None
 
 
 def load_design(source):
-    """``(BellowsGeometry, Material)`` from a preset name or a design TOML file (module docstring)."""
-    from fem_reference import BellowsGeometry, Material
+    """``(BellowsGeometry, Material)`` from a preset name or a design TOML file (module docstring).  Any file gives
+    either a valid design or a :class:`ConfigError` naming the key (tested with random files)."""
     if isinstance(source, str) and source in PRESETS:
         return _presets()[source]()
     path = pathlib.Path(source)
@@ -116,21 +181,70 @@ def load_design(source):
     mat_raw = raw.pop("material", None)
     if not isinstance(mat_raw, dict):
         raise ConfigError(f"{path}: missing [material] table")
+    return _geometry(raw, path), _material(mat_raw, f"{path}[material]")
+
+
+def _geometry(raw: dict, path: pathlib.Path):
+    from fem_reference import BellowsGeometry
+    from fem_reference.profile import read_profile_csv
+
+    raw, angles = _tendon_angles(raw, str(path))
     g = _parse_table(raw, GEOMETRY_FIELDS, str(path))
-    m = _parse_table(mat_raw, MATERIAL_FIELDS, f"{path}[material]")
+    _check_values(raw, g, str(path))
+    g.update(angles)
     for k in ("name", "description"):
         g.pop(k, None)
     if "tendon_angles" in g:
         g["tendon_angles"] = tuple(g["tendon_angles"])
-    if "n_convolutions" in g and (isinstance(g["n_convolutions"], bool) or not isinstance(g["n_convolutions"], int)):
-        raise ConfigError(f"{path}: n_convolutions must be an integer, got {g['n_convolutions']!r}")
-    missing = [k for k in ("length", "n_convolutions", "root_radius", "crest_radius", "wall_thickness") if k not in g]
+    profile_file = g.pop("profile_file", None)
+    needed = ("n_convolutions",) if profile_file else ("length", "n_convolutions", "root_radius", "crest_radius",
+                                                        "wall_thickness")
+    missing = [k for k in needed if k not in g]
     if missing:
         raise ConfigError(f"{path}: missing {', '.join(missing)} (with units, e.g. length_mm)")
-    for k, v in g.items():
-        if isinstance(v, (str, bool)):
-            raise ConfigError(f"{path}: {k} must be a number, got {v!r}")
-    geometry = BellowsGeometry(**g)
+    if profile_file is None:
+        return BellowsGeometry(**g)
+    extra = [k for k in TABLE_DERIVED if k in g]
+    if extra:
+        raise ConfigError(f"{path}: {', '.join(extra)} must not be given with profile_file: they are read off the "
+                          f"profile table")
+    profile = read_profile_csv(_relative(path, profile_file))
+    return BellowsGeometry.from_profile(profile, **g)
+
+
+def _tendon_angles(raw: dict, where: str) -> tuple[dict, dict]:
+    """Split the list key ``tendon_angles_<unit>`` off ``raw``: (the rest, {"tendon_angles": [rad, ...]})."""
+    keys = [k for k in raw if k == "tendon_angles" or k.startswith("tendon_angles_")]
+    if len(keys) != 1:
+        return raw, {}                          # none, or twice: _parse_table names the problem
+    key = keys[0]
+    rest = {k: v for k, v in raw.items() if k != key}
+    value = raw[key]
+    if not isinstance(value, list):
+        raise ConfigError(f"{where}: {key} must be a list of numbers, e.g. [0, 120, 240], got {value!r}")
+    if not 1 <= len(value) <= N_TENDONS_MAX:
+        raise ConfigError(f"{where}: {key} must list 1 … {N_TENDONS_MAX} angles, got {len(value)}")
+    out = []
+    for i, x in enumerate(value):
+        parsed = _parse_table({key: x}, {"tendon_angles": "angle"}, f"{where}[{i}]")
+        _check_values({key: x}, parsed, f"{where}[{i}]")
+        out.append(parsed["tendon_angles"])
+    return rest, {"tendon_angles": out}
+
+
+def _relative(path: pathlib.Path, name: str) -> pathlib.Path:
+    """``name`` relative to the design file's folder (absolute paths kept), resolved."""
+    p = pathlib.Path(name)
+    if not name.strip():
+        raise ConfigError(f"{path}: profile_file is empty")
+    return (p if p.is_absolute() else path.parent / p).resolve()
+
+
+def _material(mat_raw: dict, where: str):
+    from fem_reference import Material
+
+    m = _parse_table(mat_raw, MATERIAL_FIELDS, where)
+    _check_values(mat_raw, m, where)
     model = m.pop("model", "neo_hookean")
     density = m.pop("density", 1100.0)
     try:
@@ -141,23 +255,31 @@ def load_design(source):
             material = Material.mooney_rivlin(c10=m.pop("c10"), c01=m.pop("c01"), kappa=m.pop("kappa"),
                                               density=density)
         else:
-            raise ConfigError(f"{path}[material]: model must be 'neo_hookean' or 'mooney_rivlin', got {model!r}")
+            raise ConfigError(f"{where}: model must be 'neo_hookean' or 'mooney_rivlin', got {model!r}")
     except KeyError as exc:
-        raise ConfigError(f"{path}[material]: missing {exc.args[0]} (with a unit, e.g. {exc.args[0]}_MPa)") from None
-    except TypeError as exc:
-        raise ConfigError(f"{path}[material]: {exc}") from None
+        raise ConfigError(f"{where}: missing {exc.args[0]} (with a unit, e.g. {exc.args[0]}_MPa)") from None
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, ConfigError):
+            raise
+        raise ConfigError(f"{where}: {exc}") from None
     if m:
-        raise ConfigError(f"{path}[material]: keys {sorted(m)} do not apply to model '{model}'")
-    return geometry, material
+        raise ConfigError(f"{where}: keys {sorted(m)} do not apply to model '{model}'")
+    return material
 
 
 def design_to_toml(geometry, material, name: str = "bellows", limits: dict | None = None) -> str:
     """The design as TOML in the format of :func:`load_design`, in SI units (m, kg, rad, Pa) so that it reads
-    back exactly; ``limits`` ({"tension_max": N, "pressure_max": Pa}) adds the [limits] table."""
+    back exactly (a table profile is referred to by the absolute path of its file); ``limits`` ({"tension_max": N, "pressure_max": Pa}) adds the [limits] table."""
     g = geometry
-    lines = [f'name = "{name}"', f"length_m = {g.length!r}", f"n_convolutions = {int(g.n_convolutions)}",
-             f"root_radius_m = {g.root_radius!r}", f"crest_radius_m = {g.crest_radius!r}",
-             f"wall_thickness_m = {g.wall_thickness!r}", f"collar_length_m = {g.collar_length!r}",
+    if getattr(g, "is_table", False):
+        if not g.profile.source:
+            raise ConfigError("a design with a profile table needs its profile file: write it with "
+                              "fem_reference.profile.write_profile_csv and read it back first")
+        shape = [f"profile_file = {json.dumps(pathlib.Path(g.profile.source).resolve().as_posix())}"]
+    else:
+        shape = [f"length_m = {g.length!r}", f"root_radius_m = {g.root_radius!r}",
+                 f"crest_radius_m = {g.crest_radius!r}", f"wall_thickness_m = {g.wall_thickness!r}"]
+    lines = [f"name = {json.dumps(str(name))}", *shape, f"n_convolutions = {int(g.n_convolutions)}", f"collar_length_m = {g.collar_length!r}",
              f"tendon_radius_m = {g.tendon_radius!r}", f"tendon_angles_rad = {list(g.tendon_angles)!r}",
              f"cap_mass_kg = {g.cap_mass!r}", f"cap_com_offset_m = {g.cap_com_offset!r}",
              f"tip_offset_m = {g.tip_offset!r}", "", "[material]"]

@@ -343,7 +343,7 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "targets": {} if validation is None else {
             {"shape_pct": "shape error", "compliance_pct": "compliance error"}.get(k, k): t
             for k, t in validation.targets.items()},
-        "not_identifiable": ident.not_identifiable, "params_rows": param_rows(ident),
+        "not_identifiable": ident.not_identifiable, "data_warnings": ident.warnings, "params_rows": param_rows(ident),
         "derived_rows": derived_rows(ident), "fem_name": FEM_NAME, "reduced_name": REDUCED_NAME,
         "absolute_sigma": bool(ident.train.has_sigma), "toml_name": toml_name, "toml_text": ident.to_toml(),
         "n_train": ident.train.n, "n_heldout": 0 if ident.heldout is None else ident.heldout.n,
