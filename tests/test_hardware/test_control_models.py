@@ -3,8 +3,8 @@
 before a run log exists."""
 
 import hashlib
-import pathlib
 import json
+import pathlib
 
 import numpy as np
 import pytest
