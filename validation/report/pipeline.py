@@ -184,6 +184,7 @@ def _from_fem(fem: FemDesign, names, *, quick: bool, fem_error: bool, mesh: str,
                    fit_distance=fit_distance, progress=True, tension_max=limits["tension_max"],
                    pressure_max=limits["pressure_max"], cases=cases,
                    after_sweep=fem_error_beside if fem_error else None)
+    res.meta["design_name"] = name                  # the identified actuator's name and provenance (to_toml)
     val = compare_records(res.params, [r for r in res.records if r.case.role == "heldout"])
     if fem_error:
         for_validation(val, spec, res.records, n_fe, estimate=res.after_sweep, **fe_kw)
