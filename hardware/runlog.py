@@ -484,6 +484,28 @@ def _read(f, p: pathlib.Path) -> RunData:
     return RunData(p, attrs, samples, units, events, summ)
 
 
+def _describe_actuator(rec: dict) -> str:
+    """One actuator record of a run (``bellows control`` writes ``run["actuator"]`` and ``run["plant"]``):
+    its name, where it came from (a preset, or a file with the start of its SHA-256)."""
+    where = rec.get("source", "?")
+    if rec.get("path"):
+        sha = str(rec.get("file_sha256") or "")[:12]
+        where = f"file {rec['path']}" + (f", sha256 {sha}…" if sha else "")
+    return f"'{rec.get('name', '?')}' ({where})"
+
+
+def _actuator_lines(run: dict) -> list[str]:
+    """Which actuator the controller's model was and which the simulated plant was (none for older logs)."""
+    out = []
+    if isinstance(run.get("actuator"), dict):
+        out.append(f"  controller's model: actuator {_describe_actuator(run['actuator'])}")
+    if isinstance(run.get("plant"), dict):
+        pl = run["plant"]
+        out.append(f"  simulated plant: actuator {_describe_actuator(pl)}"
+                   + (", perturbed by --mismatch" if pl.get("mismatch") else ""))
+    return out
+
+
 def summary(path) -> str:
     """A short human-readable summary of a run log."""
     d = read_run_log(path)
@@ -491,6 +513,7 @@ def summary(path) -> str:
     lines = [f"run log {d.path}", f"  created {d.attrs.get('created')}, bellows {d.attrs.get('versions', {}).get('bellows', '?')}",
              f"  rig: {rig.get('name', '?')} ({'simulated' if rig.get('simulated') else 'hardware'}, "
              f"{d.attrs.get('n_tendons')} tendons); controller: {d.attrs.get('controller', {}).get('name', '?')}"]
+    lines += _actuator_lines(run)
     if "target_m" in run:
         try:
             lines.append(f"  target [mm]: {np.round(np.asarray(run['target_m'], float) * 1e3, 3).tolist()}, "

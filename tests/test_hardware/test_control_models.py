@@ -87,6 +87,11 @@ def test_plant_other_than_the_model_shows_the_mismatch(tmp_path, stiff):
     run = d.attrs["run"]
     assert run["actuator"]["name"] == "paper" and run["plant"]["name"] == "stiff"
     assert run["plant"]["file_sha256"] == hashlib.sha256(stiff.read_bytes()).hexdigest()
+    from hardware.runlog import summary                                # what `bellows log show` prints
+    text = summary(log)
+    assert "controller's model: actuator 'paper' (preset)" in text
+    sha = run["plant"]["file_sha256"][:12]
+    assert f"simulated plant: actuator 'stiff' (file {stiff.resolve()}, sha256 {sha}…)" in text
 
 
 def test_mismatch_perturbs_the_given_plant(tmp_path, stiff):
@@ -98,6 +103,8 @@ def test_mismatch_perturbs_the_given_plant(tmp_path, stiff):
     base = ActuatorParams.from_toml(stiff)
     # PlantOptions.mismatched scales the stiffness law by 0.95: around the stiff file, not around paper
     assert float(plant.stiffness.EA(1.0)) == pytest.approx(0.95 * float(base.stiffness.EA(1.0)), rel=1e-9)
+    from hardware.runlog import summary
+    assert "simulated plant: actuator 'stiff'" in summary(log) and "perturbed by --mismatch" in summary(log)
 
 
 def test_text_output_names_model_and_plant(tmp_path, stiff):
