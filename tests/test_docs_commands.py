@@ -5,7 +5,7 @@ copied here): backslash continuations are joined, ``# comments`` and optional ``
 ``pip install … && bellows …`` keeps its ``bellows`` part.  Each command runs as a subprocess in a fresh
 temporary folder holding the input files it names, made by the documented command that writes them
 (``bellows log show run.h5`` gets the log of the documented ``control … --log run.h5``): exit status 0 and
-no traceback.
+no traceback; where a document says what a command reports, ``SAYS`` checks its output holds it.
 
 What the test changes, and only this (docs/README.md says so too):
 
@@ -46,6 +46,11 @@ SHORTER = [
     # one model form instead of all nine (~30 s instead of 3–8 min on 2 cores; each form goes through the same
     # fit, and tests/test_identification/ fits several forms to measured states)
     (r"^(bellows identify --measurements\b(?!.*--forms).*)$", r"\1 --forms paper"),
+]
+# what the docs say a command reports: (pattern of the command, words its output must hold)
+SAYS = [
+    # README: the 20 s control log (one pressure, one tip point) identifies nothing, and the command says why
+    (r"^bellows identify --measurements run\.h5", ("one point", "one pressure", "refused")),
 ]
 # FEM sweeps: slow
 FEM_SWEEP = re.compile(r"^bellows (report|validate|calibrate)\b|^bellows identify\b(?!.*--measurements)")
@@ -204,6 +209,9 @@ def test_doc_command_runs(artifacts, tmp_path, doc, index, cmd):
     res = run_bellows(cmd, cwd)
     assert res.returncode == 0, f"{shortened(cmd)}\nexit {res.returncode}\n{res.stdout[-3000:]}\n{res.stderr[-3000:]}"
     assert "Traceback" not in res.stderr + res.stdout
+    for pattern, words in SAYS:
+        if re.search(pattern, cmd):
+            assert all(w in res.stdout + res.stderr for w in words), f"{cmd}: the docs say it prints {words}"
 
 
 @pytest.mark.parametrize("cmd", sorted({c.values[2] for c in CASES if FEM_SWEEP.search(c.values[2])}))
