@@ -216,11 +216,16 @@ def _check_determined(zeta, zci, snr, cycles, noise, ratio, min_cycles, confiden
     """Raise :class:`DecayNotDeterminedError` when the fit does not determine ζ (module docstring)."""
     info = dict(amplitude_to_noise=snr, cycles_above_noise=cycles, damping_ratio=zeta, damping_ratio_ci=zci)
     ci = f"{confidence:.0%} interval {zci[0]:.3g} … {zci[1]:.3g}"
-    if not (snr >= ratio and cycles >= min_cycles):
+    need = (f"a decay needs at least {ratio:g}× the residual noise ({noise * 1e3:.3g} mm RMS) for {min_cycles:g} "
+            "periods")
+    if not snr >= ratio:
         raise DecayNotDeterminedError(
-            f"no oscillation above the noise: the fitted envelope peaks at {snr:.3g}× the residual noise "
-            f"({noise * 1e3:.3g} mm RMS) and stays above {ratio:g}× it for {cycles:.3g} periods; a decay needs "
-            f"at least {ratio:g}× for {min_cycles:g} periods", reason="noise", **info)
+            f"no oscillation above the noise: the fitted envelope peaks at {snr:.3g}× the residual noise; {need}",
+            reason="noise", **info)
+    if not cycles >= min_cycles:       # a fit whose envelope collapses within a period (often: no decay at all)
+        raise DecayNotDeterminedError(
+            f"too few periods above the noise: the fitted envelope stays above {ratio:g}× the residual noise for "
+            f"{cycles:.3g} periods only; {need}", reason="noise", **info)
     if zci[1] < 0:
         raise DecayNotDeterminedError(
             f"not a free decay: the oscillation grows (ζ = {zeta:.3g}, {ci}); fit a window where the tip is "
