@@ -1,11 +1,9 @@
 """Run logs: SWMR layout, readable while written and after SIGKILL; 'bellows control' and 'bellows log'."""
 
 import json
-import os
+import pathlib
 import signal
-import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -16,22 +14,13 @@ from hardware.runlog import RunLog, export_csv, read_run_log
 from hardware.static_states import read_static_states
 from validation.commands.main import app, main
 
+sys.path.insert(0, str(pathlib.Path(__file__).parents[1]))
+from control_process import signal_after_rows, start_control, target_mm, wait_rows  # noqa: E402
+
+TARGET_MM = target_mm()
+STOCHASTIC = ("--load-profile", "stochastic", "--seed", "1")
+
 runner = CliRunner()
-def _target_mm() -> str:
-    """The default preset's tip with tensions (2.2, 1.6, 1.6) N at 60 kPa (a reachable target) [mm]."""
-    from ancf import Model, presets
-    tip = Model(presets.paper()).fk((2.2, 1.6, 1.6), 60e3).tip
-    return ",".join(f"{1e3 * x:.3f}" for x in tip)
-
-
-def _default_sigint():
-    """In the child: SIGINT back to its default, so Python installs its KeyboardInterrupt handler even when this
-    test runs from a shell that started it in the background (which leaves SIGINT ignored in every child)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
-
-TARGET_MM = _target_mm()
 
 
 def test_log_layout_units_and_refusals(tmp_path):
@@ -69,36 +58,11 @@ def test_log_layout_units_and_refusals(tmp_path):
         export_csv(path, tmp_path / "a.csv")
 
 
-def _wait_rows(path, n, proc, timeout=60.0):
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout:
-        assert proc.poll() is None, proc.stderr.read()
-        if path.exists():
-            try:
-                d = read_run_log(path)                     # a reader while the writer runs (SWMR)
-                if d.rows >= n:
-                    return d
-            except (ConfigError, OSError):
-                pass
-        time.sleep(0.2)
-    raise AssertionError("the run log did not grow")
-
-
-def _start(tmp_path, log):
-    env = {**os.environ, "PYTHONPATH": os.getcwd()}
-    # SIGUSR1 makes the child print every thread's stack (how a test that times out shows where it hung)
-    code = "import faulthandler, signal; faulthandler.register(signal.SIGUSR1); from validation.commands.main import main; main()"
-    return subprocess.Popen([sys.executable, "-c", code, "control", "--target-mm", TARGET_MM, "--pressure-kpa", "60",
-                             "--load-profile", "stochastic", "--seed", "1", "--log", str(log)],
-                            cwd=os.getcwd(), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_default_sigint)  # noqa: PLW1509 (only resets a signal)
-
-
 def test_log_survives_sigkill_mid_run(tmp_path):
     log = tmp_path / "killed.h5"
-    proc = _start(tmp_path, log)
+    proc = start_control(log, *STOCHASTIC)
     try:
-        live = _wait_rows(log, 4, proc)
+        live = wait_rows(log, 4, proc, timeout=60.0)
         assert live.ended is None
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=10)
@@ -119,23 +83,9 @@ def test_ctrl_c_ends_the_run_and_says_where_the_log_is(tmp_path):
     """Ctrl-C is the normal end of a run without --duration-s (tests/test_hardware/test_control_ctrl_c.py): the
     summary and the log's place on stdout, the exit status the verdict the log's summary records."""
     log = tmp_path / "int.h5"
-    proc = _start(tmp_path, log)
-    try:
-        _wait_rows(log, 3, proc)
-        proc.send_signal(signal.SIGINT)
-        try:
-            out, err = proc.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.send_signal(signal.SIGUSR1)
-            time.sleep(1.0)
-            proc.kill()
-            out, err = proc.communicate()
-            pytest.fail("no exit within 20 s of Ctrl-C; the child's stderr and stacks:\n" + err)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    code, out, err = signal_after_rows(log, signal.SIGINT, 3, *STOCHASTIC, timeout=20.0)
     d = read_run_log(log)
-    assert proc.returncode == (0 if d.summary["met_tolerance"] else 1), err
+    assert code == (0 if d.summary["met_tolerance"] else 1), err
     assert "error:" not in err
     last = out.strip().splitlines()[-1]
     assert last.startswith("held") and "ended by Ctrl-C" in last and str(log) in last
