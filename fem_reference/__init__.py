@@ -19,9 +19,9 @@ Quick start::
     locked = model.solve(locked_lengths=res.tendon_lengths[:1].tolist() + [None, None],
                          pressure=50e3, tip_force=(0, 0, -0.49), gravity=True, initial=res)
 
-Command line (mounted by the product CLI as ``bellows fem``)::
+Command line (the product's, :mod:`validation.commands.fem`)::
 
-    python -m fem_reference.cli solve --pressure-kpa 30 --tensions-n 2,0,0 --tip-force-n 0,0,-0.49 \\
+    bellows fem solve --pressure-kpa 30 --tensions-n 2,0,0 --tip-force-n 0,0,-0.49 \\
         --gravity --mesh coarse --out out/ --png
 
 What is modelled (details and derivations in the module docstrings):
@@ -49,7 +49,8 @@ What is modelled (details and derivations in the module docstrings):
 - :mod:`.sparse_keys` — the fixed sparsity patterns, from sorted entry keys.
 - :mod:`.fields` — per-element Cauchy stress, von Mises, pressure and principal stretches (the VTU's cell data).
 - :mod:`.render` — headless PNG rendering with pyvista (EGL; see that module for system packages).
-- :mod:`.cli` — ``typer`` app ``app`` with the ``solve`` command.
+- :mod:`.errors` — its errors: the product's exception tree (:mod:`ancf.errors`), or the same names standing
+  alone when ``ancf`` is not installed; the FEM needs no other package of the product.
 """
 
 from . import presets

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ancf.errors import ConfigError
+from .errors import ConfigError
 
 
 def validated(obj, what: str) -> None:

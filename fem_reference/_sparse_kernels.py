@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ancf.errors import InputError
+from .errors import InputError
 
 
 @njit(cache=True)

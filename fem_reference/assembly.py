@@ -68,7 +68,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ancf.errors import ConfigError
+from .errors import ConfigError
 
 from .material import Material, _inv_det
 from .sparse_keys import csr_index, unique_keys

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ancf.errors import InputError
+from .errors import InputError
 
 from .loads.caps import expm_so3
 

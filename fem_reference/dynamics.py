@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ancf.errors import InputError, UnstableEquilibriumError
+from .errors import InputError, UnstableEquilibriumError
 
 
 def mass_matrix(asm, density: float) -> sp.csr_matrix:

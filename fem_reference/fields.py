@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ancf.errors import InputError
+from .errors import InputError
 
 from .material import _inv_det
 

@@ -54,7 +54,7 @@ from typing import Literal
 
 import numpy as np
 
-from ancf.errors import ConfigError
+from .errors import ConfigError
 
 from ._checks import validated
 from .profile import TableProfile

@@ -57,7 +57,7 @@ from typing import Literal
 
 import numpy as np
 
-from ancf.errors import ConfigError
+from .errors import ConfigError
 
 from ._checks import validated
 

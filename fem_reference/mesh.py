@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ancf.errors import ConfigError, InputError
+from .errors import ConfigError, InputError
 
 from .geometry import BellowsGeometry
 from .profile import check_resolution
@@ -243,6 +243,22 @@ def check_jacobians(mesh) -> tuple[float, float]:
     return lo, hi
 
 
+def lattice_rows(geo: BellowsGeometry, level: MeshLevel) -> np.ndarray:
+    """Fine-lattice axial coordinates ζ [m] of the mesh of ``geo`` at ``level``: shape ``(2 n_s + 1,)``
+    (vertices and mid-nodes; the rows every node of :func:`build_mesh` sits on)."""
+    nc = level.n_collar if geo.collar_length > 0 else 0
+    segs = []
+    c = geo.collar_length
+    if nc:
+        segs.append(np.linspace(0.0, c, 2 * nc + 1))
+    for k in range(geo.n_convolutions):
+        a = c + k * geo.pitch
+        segs.append(np.linspace(a, a + geo.pitch, 2 * level.n_per_conv + 1))
+    if nc:
+        segs.append(np.linspace(geo.length - c, geo.length, 2 * nc + 1))
+    return np.concatenate([segs[0]] + [s[1:] for s in segs[1:]])
+
+
 def build_mesh(geo: BellowsGeometry, level: str | MeshLevel = "coarse") -> BellowsMesh:
     """Build the structured ``MeshHex2`` of the bellows wall.
 
@@ -272,17 +288,7 @@ def build_mesh(geo: BellowsGeometry, level: str | MeshLevel = "coarse") -> Bello
         raise ConfigError(f"mesh of {n_s} × {n_t} × {n_th} = {n_s * n_t * n_th} elements (this design at {level}) "
                           f"exceeds {MAX_ELEMENTS}: it would not fit in memory; choose a coarser level")
 
-    # fine-lattice axial coordinates (2 n_s + 1 points: vertices and mid-nodes)
-    segs = []
-    c = geo.collar_length
-    if nc:
-        segs.append(np.linspace(0.0, c, 2 * nc + 1))
-    for k in range(nconv):
-        a = c + k * geo.pitch
-        segs.append(np.linspace(a, a + geo.pitch, 2 * npc + 1))
-    if nc:
-        segs.append(np.linspace(geo.length - c, geo.length, 2 * nc + 1))
-    zeta = np.concatenate([segs[0]] + [s[1:] for s in segs[1:]])
+    zeta = lattice_rows(geo, level)
     assert zeta.size == 2 * n_s + 1
     if geo.is_table:
         check_resolution(geo.profile, zeta[::2], n_t)

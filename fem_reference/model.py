@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
-from ancf.errors import (
+from .errors import (
     ConfigError,
     ConvergenceError,
     InputError,

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ancf.errors import ConfigError
+from .errors import ConfigError
 
 from .geometry import BellowsGeometry
 from .material import Material

@@ -6,7 +6,11 @@ with the two end faces).  Between the points an outline is the interpolating cub
 O(h⁴) on a smooth outline sampled every h) with slope ``dr/dz = 0`` imposed at ``z = 0`` and ``z = L`` (the
 wall meets each cap in a flat annulus, as the built-in profile does).  A spline rings next to a sharp
 corner; give corners a fillet of a few points, as a moulded part has (the checks below refuse a ringing that
-folds the wall).
+folds the wall).  A table may also give each point's slope ``dr/dz`` (the ``dr_dz`` column): the outline is then
+the cubic Hermite curve through points and slopes — C¹ only, exact at every point, and exact across a curvature
+jump placed on a point, which no C² spline is (:mod:`fem_reference.profile_export` exports the built-in profile
+so, reproducing its mesh and FEM to round-off).  The outlines may also come from a 2-D mesh of the section
+(:func:`read_profile`, :mod:`fem_reference.section_mesh`).
 
 **Through the wall.**  The wall point of lattice row ``ζ`` at the through-wall fraction ``s ∈ [0, 1]`` is
 
@@ -47,12 +51,12 @@ from functools import cached_property
 
 import numpy as np
 
-from ancf.errors import ConfigError
+from .errors import ConfigError
 
 from ._checks import validated
 
-__all__ = ["MAX_ASPECT", "MIN_POINTS", "TableProfile", "check_resolution", "read_profile_csv",
-           "write_profile_csv"]
+__all__ = ["MAX_ASPECT", "MIN_POINTS", "SLOPE_COLUMN", "TableProfile", "check_resolution", "read_profile",
+           "read_profile_csv", "write_profile_csv"]
 
 #: fewest points an outline may have
 MIN_POINTS = 4
@@ -60,8 +64,12 @@ MIN_POINTS = 4
 MAX_ASPECT = 25.0
 #: the length units a profile file may use (header suffixes) and their factor to metres
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
+#: largest end slope ``|dr/dz|`` a table with slopes may give on a cap face (they must be 0: flat annuli)
+SLOPE_END_TOLERANCE = 1e-9
 #: largest overlap of the through-wall segments, as a fraction of the local wall thickness (module docstring)
 FOLD_TOLERANCE = 0.01
+#: the optional fourth column of the two-list layout: the outline's slope dr/dz (a ratio: no unit)
+SLOPE_COLUMN = "dr_dz"
 _DENSE = 4001            # through-wall segments sampled to check the wall and to invert ζ(u)
 
 
@@ -81,6 +89,14 @@ class TableProfile:
         Outer outline points [m], ``z`` strictly increasing from 0 to the inner outline's last ``z``.
     source : str
         Where the table came from (a file path), named in every error message.
+    dr_inner, dr_outer : tuple of float, empty or one per point
+        Slopes ``dr/dz`` [-] of the outlines at their points (both or neither; 0 at ``z = 0`` and ``z = L``).
+        Given, each outline is the cubic Hermite interpolant through the points *and* slopes (exact at the
+        points, O(h⁴) between them on an outline that is smooth between its points); empty: the clamped
+        cubic spline (module docstring).
+    source_unit : str
+        Length unit of a source file that states none (a section mesh, :mod:`fem_reference.section_mesh`):
+        "m", "cm" or "mm"; empty for a CSV table (units in its header) or no file.
     """
 
     z_inner: tuple[float, ...]
@@ -88,9 +104,12 @@ class TableProfile:
     z_outer: tuple[float, ...]
     r_outer: tuple[float, ...]
     source: str = ""
+    dr_inner: tuple[float, ...] = ()
+    dr_outer: tuple[float, ...] = ()
+    source_unit: str = ""
 
     def __post_init__(self):
-        for k in ("z_inner", "r_inner", "z_outer", "r_outer"):
+        for k in ("z_inner", "r_inner", "z_outer", "r_outer", "dr_inner", "dr_outer"):
             try:
                 object.__setattr__(self, k, tuple(float(v) for v in np.ravel(getattr(self, k))))
             except (TypeError, ValueError):
@@ -102,12 +121,34 @@ class TableProfile:
         src = _where(self.source)
         for name, z, r in (("inner", self.z_inner, self.r_inner), ("outer", self.z_outer, self.r_outer)):
             _check_outline(src, name, np.array(z), np.array(r))
+        self._check_slopes(src)
         L_i, L_o = self.z_inner[-1], self.z_outer[-1]
         if abs(L_i - L_o) > 1e-9 * max(L_i, L_o):
             raise ConfigError(f"{src}: the section does not close: the inner outline ends at z = {L_i * 1e3:g} mm, "
                               f"the outer at z = {L_o * 1e3:g} mm (both must end on the distal cap face)")
         self._check_inside(src)
         self._check_wall(src)
+
+    @property
+    def has_slopes(self) -> bool:
+        """True when the outlines carry their slopes (Hermite interpolation, class docstring)."""
+        return bool(self.dr_inner or self.dr_outer)
+
+    def _check_slopes(self, src: str) -> None:
+        if not self.has_slopes:
+            return
+        for name, z, d in (("inner", self.z_inner, self.dr_inner), ("outer", self.z_outer, self.dr_outer)):
+            if len(d) != len(z):
+                raise ConfigError(f"{src}: the {name} outline has {len(z)} points but {len(d)} slopes dr/dz "
+                                  "(give a slope at every point of both outlines, or none)")
+            bad = [k for k in range(len(d)) if not math.isfinite(d[k])]
+            if bad:
+                raise ConfigError(f"{src}: {name} outline point {bad[0] + 1} has slope dr/dz = {d[bad[0]]!r}; "
+                                  "slopes must be finite")
+            for k, face in ((0, "base cap face z = 0"), (-1, "distal cap face z = L")):
+                if abs(d[k]) > SLOPE_END_TOLERANCE:
+                    raise ConfigError(f"{src}: the {name} outline has slope dr/dz = {d[k]:g} on the {face}; it must "
+                                      "be 0 there (the wall meets each cap in a flat annulus)")
 
     def _check_inside(self, src: str) -> None:
         z = np.union1d(np.linspace(0.0, self.length, _DENSE), np.r_[self.z_inner, self.z_outer])
@@ -141,11 +182,11 @@ class TableProfile:
     # ------------------------------------------------------------------ interpolants
     @cached_property
     def _inner(self):
-        return _outline_interpolant(np.array(self.z_inner), np.array(self.r_inner))
+        return _outline_interpolant(np.array(self.z_inner), np.array(self.r_inner), self.dr_inner)
 
     @cached_property
     def _outer(self):
-        return _outline_interpolant(np.array(self.z_outer), np.array(self.r_outer))
+        return _outline_interpolant(np.array(self.z_outer), np.array(self.r_outer), self.dr_outer)
 
     @property
     def length(self) -> float:
@@ -186,7 +227,8 @@ class TableProfile:
         zeta = np.asarray(zeta, float)
         mid, u_tab = self._mid_table
         u = np.interp(zeta, mid, u_tab)
-        for _ in range(6):                                  # Newton on mid(u) = ζ, derivative by a secant
+        for _ in range(60):     # Newton on mid(u) = ζ, derivative by a one-sided secant: at a knot of a table with
+            # slopes mid'(u) jumps (Hermite outlines are C¹), the secant is off and the convergence only linear
             pi, po, _ = self._segments(u)
             m = 0.5 * (pi[0] + po[0])
             du = 1e-7 * self.length
@@ -219,6 +261,17 @@ class TableProfile:
                 "crest_radius": float(max(np.max(self._outer(u)), max(self.r_outer))),
                 "wall_thickness": float(self.thickness(u).min())}
 
+    def describe(self) -> dict:
+        """What names the table in a result's metadata (JSON types): its file, the file's unit if it states none,
+        the number of points per outline, whether slopes are given, and the SHA-256 of the point data (the
+        outlines in metres as float64 bytes, in the order inner z, r, outer z, r, then the slopes)."""
+        import hashlib
+
+        data = np.array(self.z_inner + self.r_inner + self.z_outer + self.r_outer + self.dr_inner + self.dr_outer)
+        return {"profile_file": self.source, "profile_unit": self.source_unit, "points_inner": len(self.z_inner),
+                "points_outer": len(self.z_outer), "slopes": self.has_slopes,
+                "sha256": hashlib.sha256(data.astype("<f8").tobytes()).hexdigest()}
+
     @property
     def cap_inner_radius(self) -> float:
         """Inner radius where the wall meets the distal cap [m]."""
@@ -235,11 +288,31 @@ class TableProfile:
         xo = geo.map_points(z, geo.wall_thickness / 2, 0.0)
         return cls(tuple(xi[0]), tuple(xi[2]), tuple(xo[0]), tuple(xo[2]), source)
 
+    @classmethod
+    def exact_at_rows(cls, geo, zeta, source: str = "") -> TableProfile:
+        """The outlines of a built-in (sine) :class:`BellowsGeometry` at the lattice rows ``zeta`` [m] (shape
+        ``(n,)``, from 0 to L), each point the exact offset point ``map_points(ζ, ∓t/2)`` *with its exact slope*
+        (an offset curve is parallel to its mid-curve: ``dr/dz = r_m'(ζ)``).  At every row ``ζ`` listed, the
+        table's through-wall segment is then the built-in one to round-off, so a mesh whose rows are all listed
+        is the built-in mesh to round-off (``bellows fem profile --export``)."""
+        if geo.is_table:
+            raise ConfigError("exact_at_rows samples the built-in sine profile; this design is already a table")
+        z = np.unique(np.asarray(zeta, float))
+        if z.size < MIN_POINTS or z[0] != 0.0 or z[-1] != geo.length:
+            raise ConfigError(f"exact_at_rows needs at least {MIN_POINTS} rows from 0 to L = {geo.length!r} m")
+        xi = geo.map_points(z, -geo.wall_thickness / 2, 0.0)
+        xo = geo.map_points(z, geo.wall_thickness / 2, 0.0)
+        slope = tuple(geo.profile_mid(z)[1])
+        return cls(tuple(xi[0]), tuple(xi[2]), tuple(xo[0]), tuple(xo[2]), source, slope, slope)
 
-def _outline_interpolant(z: np.ndarray, r: np.ndarray):
-    """Cubic spline through the points with the end slopes clamped to 0 (flat annuli at the caps)."""
-    from scipy.interpolate import CubicSpline
 
+def _outline_interpolant(z: np.ndarray, r: np.ndarray, dr=()):
+    """Cubic spline through the points with the end slopes clamped to 0 (flat annuli at the caps), or, with
+    the slopes ``dr`` given, the cubic Hermite interpolant through points and slopes."""
+    from scipy.interpolate import CubicHermiteSpline, CubicSpline
+
+    if len(dr):
+        return CubicHermiteSpline(z, r, np.asarray(dr, float), extrapolate=True)
     return CubicSpline(z, r, bc_type=((1, 0.0), (1, 0.0)), extrapolate=True)
 
 
@@ -310,6 +383,29 @@ def _number(text: str, src: str, lineno: int, col: str) -> float:
     return v
 
 
+def read_profile(path, length_unit: str | None = None) -> TableProfile:
+    """Read a profile file by its suffix: ``.csv`` a table (:func:`read_profile_csv`, units in its header: then
+    ``length_unit`` must be None), any suffix of :data:`fem_reference.section_mesh.MESH_SUFFIXES` a 2-D mesh of
+    the meridian section (:func:`fem_reference.section_mesh.read_profile_mesh`; ``length_unit`` "m", "cm" or
+    "mm" required: a mesh file states no unit).  ConfigError for any other suffix."""
+    from .section_mesh import MESH_SUFFIXES, read_profile_mesh
+
+    path = pathlib.Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        if length_unit is not None:
+            raise ConfigError(f"{path}: a CSV profile states its units in its header (z_mm, r_mm, …); the profile "
+                              f"unit {length_unit!r} is for mesh files only")
+        return read_profile_csv(path)
+    if suffix in MESH_SUFFIXES:
+        if length_unit is None:
+            raise ConfigError(f"{path}: a mesh file states no unit: give its length unit (design key "
+                              f"profile_unit = one of {', '.join(repr(u) for u in LENGTH_UNITS)})")
+        return read_profile_mesh(path, length_unit)
+    raise ConfigError(f"{path}: a profile file must be a CSV table (.csv) or a 2-D section mesh "
+                      f"({', '.join(MESH_SUFFIXES)}), got the suffix {suffix or '(none)'!r}")
+
+
 def read_profile_csv(path) -> TableProfile:
     """Read a profile file (CSV, ``#`` comment lines allowed) in one of two layouts, units in the header:
 
@@ -352,31 +448,38 @@ def _read_wide(names, data, src, hline) -> TableProfile:
 
 
 def _read_long(names, data, src, hline) -> TableProfile:
-    if len(names) != 3:
-        raise ConfigError(f"{src}, line {hline}: expected the columns outline,z_<unit>,r_<unit>; got {', '.join(names)}")
+    expected = f"expected the columns outline,z_<unit>,r_<unit> (and optionally {SLOPE_COLUMN}); got {', '.join(names)}"
+    if len(names) not in (3, 4) or (len(names) == 4 and names[3] != SLOPE_COLUMN):
+        raise ConfigError(f"{src}, line {hline}: {expected}")
     (bz, fz), (br, fr) = _column_unit(names[1], src, hline), _column_unit(names[2], src, hline)
     if (bz, br) != ("z", "r"):
-        raise ConfigError(f"{src}, line {hline}: expected the columns outline,z_<unit>,r_<unit>; got {', '.join(names)}")
-    pts = {"inner": ([], []), "outer": ([], [])}
+        raise ConfigError(f"{src}, line {hline}: {expected}")
+    pts = {"inner": ([], [], []), "outer": ([], [], [])}
     for lineno, row in data:
-        if len(row) != 3:
-            raise ConfigError(f"{src}, line {lineno}: {len(row)} values, expected 3")
+        if len(row) != len(names):
+            raise ConfigError(f"{src}, line {lineno}: {len(row)} values, expected {len(names)}")
         tag = row[0].lower()
         if tag not in pts:
             raise ConfigError(f"{src}, line {lineno}: outline must be 'inner' or 'outer', got {row[0]!r}")
         pts[tag][0].append(_number(row[1], src, lineno, names[1]) * fz)
         pts[tag][1].append(_number(row[2], src, lineno, names[2]) * fr)
-    return TableProfile(tuple(pts["inner"][0]), tuple(pts["inner"][1]), tuple(pts["outer"][0]),
-                        tuple(pts["outer"][1]), src)
+        if len(names) == 4:        # a slope dr/dz is a ratio of lengths: unchanged by the units of z and r only
+            pts[tag][2].append(_number(row[3], src, lineno, names[3]) * (fr / fz))
+    (zi, ri, di), (zo, ro, do) = pts["inner"], pts["outer"]
+    return TableProfile(tuple(zi), tuple(ri), tuple(zo), tuple(ro), src, tuple(di), tuple(do))
 
 
-def write_profile_csv(profile: TableProfile, path) -> pathlib.Path:
-    """Write ``profile`` in the two-list layout (``outline,z_mm,r_mm``), every number in ``repr`` precision
-    (reads back to round-off, ~1e-16 relative)."""
+def write_profile_csv(profile: TableProfile, path, comments: tuple[str, ...] = ()) -> pathlib.Path:
+    """Write ``profile`` in the two-list layout (``outline,z_mm,r_mm``, with the column ``dr_dz`` when the
+    outlines carry slopes), every number in ``repr`` precision (reads back to round-off, ~1e-16 relative);
+    ``comments``: extra ``#`` lines for the head of the file."""
+    slopes = profile.has_slopes
     lines = ["# bellows wall profile: inner and outer outline of the meridian section",
-             "outline,z_mm,r_mm"]
-    for tag, z, r in (("inner", profile.z_inner, profile.r_inner), ("outer", profile.z_outer, profile.r_outer)):
-        lines += [f"{tag},{zz * 1e3!r},{rr * 1e3!r}" for zz, rr in zip(z, r)]
+             *(f"# {c}" for c in comments), "outline,z_mm,r_mm" + (f",{SLOPE_COLUMN}" if slopes else "")]
+    for tag, z, r, d in (("inner", profile.z_inner, profile.r_inner, profile.dr_inner),
+                         ("outer", profile.z_outer, profile.r_outer, profile.dr_outer)):
+        lines += [f"{tag},{zz * 1e3!r},{rr * 1e3!r}" + (f",{d[k]!r}" if slopes else "")
+                  for k, (zz, rr) in enumerate(zip(z, r))]
     path = pathlib.Path(path)
     path.write_text("\n".join(lines) + "\n")
     return path

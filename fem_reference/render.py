@@ -15,12 +15,11 @@ pyvista is an optional dependency (extra ``fem``); importing this module does no
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
 import numpy as np
-
-from ancf.textfmt import number, vector
 
 __all__ = ["render_result", "result_title", "to_pyvista"]
 
@@ -83,8 +82,23 @@ def render_result(res, path: str | Path, show_undeformed: bool = True, window_si
 
 def result_title(res) -> str:
     """Title of a rendered result: the loads and the tip, with units (no numpy repr)."""
-    return (f"p = {number(res.loadcase.pressure, 'kPa', 1e-3)}, T = {vector(res.state.T, 'N', digits=2)}, "
-            f"tip = {vector(res.tip_position, 'mm', 1e3)}")
+    return (f"p = {_num(float(res.loadcase.pressure) * 1e-3)} kPa, T = {_vector(res.state.T, digits=2)} N, "
+            f"tip = {_vector(res.tip_position, 1e3)} mm")
+
+
+def _num(x: float, digits: int = 1) -> str:
+    """``x`` with ``digits`` decimals, never ``-0.0`` (``nan``, ``inf``, ``-inf`` as words); the product's text
+    rule (ancf.textfmt), kept here so that the FEM needs no other package."""
+    x = float(x)
+    if not math.isfinite(x):
+        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    s = f"{x:.{digits}f}"
+    return s.lstrip("-") if float(s) == 0 else s
+
+
+def _vector(v, scale: float = 1.0, digits: int = 1) -> str:
+    """``(x, y, z)`` with ``digits`` decimals after multiplying by ``scale`` (no unit, no numpy repr)."""
+    return "(" + ", ".join(_num(float(x) * scale, digits) for x in v) + ")"
 
 
 def _accepts_algorithm(grid) -> bool:

@@ -41,7 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ancf.errors import ConfigError
+from .errors import ConfigError
 
 __all__ = ["NewtonStats", "StepFailed", "available_solvers", "bordered_step", "factorize", "symmetric_inertia"]
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ancf.errors import InputError
+from .errors import InputError
 
 __all__ = ["unique_keys", "csr_index"]
 

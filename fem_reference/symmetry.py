@@ -78,7 +78,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ancf.errors import InputError
+from .errors import InputError
 
 from .geometry import e_radial
 from .solver import bordered_step, factorize

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ancf.errors import InputError
+from .errors import InputError
 
 __all__ = ["StateSnapshot", "snapshot", "start_from", "interpolate", "new_nodes", "relax_new_nodes",
            "lattice_coordinates", "interpolation_matrix"]

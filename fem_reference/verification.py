@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ancf.errors import InputError
+from .errors import InputError
 
 from .assembly import HexAssembler
 from .material import Material

@@ -117,11 +117,13 @@ class RunLog:
         loses at most what was written since the last flush: fewer than ``flush_rows`` sample rows and at most
         ``flush_period`` of wall-clock time (defaults 50 rows, 0.1 s).  ``flush_rows=1`` flushes every row (the
         slowest and safest).
+    static_std : ``/static_states`` also holds the standard errors ``tensions_std``, ``pressure_std``,
+        ``tip_position_std`` of each state (an identification experiment's means of several samples)
     """
 
     def __init__(self, path, *, n_tendons: int, force: bool = False, rig: Optional[dict] = None,
                  controller: Optional[dict] = None, run: Optional[dict] = None, actuator_toml: str = "",
-                 chunk: int = 256, flush_rows: int = 50, flush_period: float = 0.1):
+                 chunk: int = 256, flush_rows: int = 50, flush_period: float = 0.1, static_std: bool = False):
         import h5py
         if isinstance(n_tendons, bool) or not isinstance(n_tendons, (int, np.integer)) or n_tendons < 1:
             raise InputError(f"n_tendons must be a positive integer, got {n_tendons!r}")
@@ -165,6 +167,8 @@ class RunLog:
         s.attrs["description"] = "static states recorded by a control run (converged equilibria)"
         s.attrs["actuator_toml"] = actuator_toml
         st_shapes = {"tensions": (self.m,), "pressure": (), "tip_position": (3,), "tip_force": (3,), "time": ()}
+        if static_std:                                # standard errors of the static states' means
+            st_shapes.update({"tensions_std": (self.m,), "pressure_std": (), "tip_position_std": (3,)})
         self.static = {}
         for name, shape in st_shapes.items():
             ds = s.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), chunks=(64, *shape), dtype="f8",
@@ -261,18 +265,28 @@ class RunLog:
         else:
             self._flush_due()
 
-    def static_state(self, *, time: float, tensions, pressure: float, tip, tip_force=None, label: str = "") -> None:
-        """Append one measured equilibrium to ``/static_states`` (tip force NaN = unknown)."""
+    def static_state(self, *, time: float, tensions, pressure: float, tip, tip_force=None, label: str = "",
+                     std: Optional[dict] = None) -> None:
+        """Append one measured equilibrium to ``/static_states`` (tip force NaN = unknown).  ``std``: the
+        standard errors {"tensions_std": (m,) [N], "pressure_std": [Pa], "tip_position_std": (3,) [m]}, required
+        by (and only by) a log opened with ``static_std=True``."""
+        std_names = [n for n in self.static if n.endswith("_std")]
+        if set(std or {}) != set(std_names):
+            raise InputError(f"static state: this log records the standard errors {std_names or 'none'}; "
+                             f"got {sorted(std or {}) or 'none'}")
         try:
             T = np.asarray(tensions, float).reshape(self.m)
             vals = {"tensions": T, "pressure": float(pressure), "tip_position": np.asarray(tip, float).reshape(3),
                     "tip_force": np.full(3, np.nan) if tip_force is None else np.asarray(tip_force, float).reshape(3),
                     "time": float(time)}
+            vals.update({n: np.asarray(std[n], float).reshape(self.static[n].shape[1:]) for n in std_names})
         except (TypeError, ValueError):
-            raise InputError("static state: tensions (m,), pressure, tip (3,), tip_force (3,) and time must be "
-                             "numeric with those shapes") from None
+            raise InputError("static state: tensions (m,), pressure, tip (3,), tip_force (3,), time and the standard "
+                             "errors must be numeric with those shapes") from None
         if np.any(~np.isfinite(T)) or np.any(T < 0):
             raise InputError(f"static state: tensions must be finite and >= 0 N, got {T.tolist()}")
+        if any(not np.all(np.isfinite(vals[n]) & (vals[n] >= 0)) for n in std_names):
+            raise InputError("static state: standard errors must be finite and >= 0")
         self._statics.append((vals, str(label)))
         self._flush_due()
 

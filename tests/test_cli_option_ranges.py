@@ -34,6 +34,8 @@ BASE = {
     "validate": ["--params", "paper"],
     "calibrate": ["--target-ea-n", "700"],
     "control": ["--target-mm", "176,-12,3", "--pressure-kpa", "30"],
+    "experiment": ["--log", "exp.h5"],
+    "fem profile": ["--export", "wall.csv"],
 }
 
 NAN_INF = ["nan", "inf"]
@@ -96,6 +98,14 @@ RANGES = [
     ("control", "--max-iterations", ["-1"]),
     ("control", "--plant-damping-ratio", RATIO, "--plant-damping-ratio", ["--dynamics"]),
     ("control", "--shaping-damping-ratio", ["-0.1", "1", *NAN_INF]),
+    # the identification experiment on a rig: validation/commands/experiment.py
+    ("experiment", "--states", ["2", "-1", "1001"]),
+    ("experiment", "--samples", ["1", "0", "10001"]),
+    ("experiment", "--loads-g", [*NUMBERS, "-1", "1001"]),
+    ("experiment", "--settle-s", ["-1", "601", *NAN_INF]),
+    ("experiment", "--tension-tolerance-n", ["0", "-1", "11", *NAN_INF]),
+    ("experiment", "--corrections", ["-1", "51"]),
+    ("experiment", "--seed", SEED),
     # the paper's studies: validation/commands/paper.py
     *[(f"paper {c}", "--samples", SAMPLES) for c in ("workspace", "all", "compare")],
     *[(f"paper {c}", "--seed", SEED) for c in ("workspace", "all")],
@@ -116,7 +126,7 @@ RANGES = [
     ("paper loads", "--hold-mass-kg", [*POSITIVE, "1.5"]),
     ("paper compare", "--seeds", [*NUMBERS, "-1", "0.5", str(2**32)]),
     ("paper compare", "--presets", ["", ","]),
-    # the FEM: fem_reference/cli.py
+    # the FEM: validation/commands/fem.py
     ("fem solve", "--pressure-kpa", [*NAN_INF, "-inf"]),
     ("fem solve", "--tensions-n", [*VECTOR3, "-1,0,0"]),
     ("fem solve", "--tip-force-n", VECTOR3),
@@ -125,6 +135,8 @@ RANGES = [
     ("fem solve", "--kappa-mpa", [*POSITIVE, "1e7"]),
     ("fem solve", "--kappa-mpa", ["1"], "--kappa-mpa", ["--mu-mpa", "10"]),   # Poisson ratio < 0
     ("fem solve", "--max-time-s", POSITIVE),
+    ("fem profile", "--spacing-mm", [*POSITIVE, "10.5"]),
+    ("fem profile", "--mesh", ["", ",", "fine", "coarse,x"]),
     # paths the commands read: the line names the path
     ("log show", "path", ["no_such_log.h5"], "no_such_log.h5"),
     ("log export", "path", ["no_such_log.h5"], "no_such_log.h5", ["--csv", "out.csv"]),

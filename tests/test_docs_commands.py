@@ -13,12 +13,14 @@ What the test changes, and only this (docs/README.md says so too):
 * ``SHORTER``: long runs get a documented short option (fewer workspace samples, a duration for a run that
   otherwise holds until Ctrl-C, the simulated rig as fast as it computes);
 * ``FILES``: input files a document names but no command of it writes (a design file) are made from the
-  format's own example;
+  format's own example (or the walkthrough's), with the files they name (a design's profile table, made by the
+  documented command that writes it);
 * commands that drive real hardware (``--rig FILE.toml``) run in tests/test_hardware/test_doc_rig_command.py
   against fake devices;
 * commands that run FEM sweeps (``report``, ``identify``/``validate`` on the FEM, ``calibrate``; ~4–25 min
-  each on 2 cores) are marked ``slow`` (``pytest -m slow``); the default run checks that the options they
-  use exist in the command's help — see ``test_fem_sweep_commands_parse``.
+  each on 2 cores) are marked ``slow`` (``pytest -m slow``), and so are the commands whose input files one of
+  them makes (a walkthrough's later steps); the default run checks that the options of the sweeps exist in the
+  command's help — see ``test_fem_sweep_commands_parse``.
 """
 
 from __future__ import annotations
@@ -53,7 +55,7 @@ SAYS = [
     (r"^bellows identify --measurements run\.h5", ("one point", "one pressure", "refused")),
 ]
 # FEM sweeps: slow
-FEM_SWEEP = re.compile(r"^bellows (report|validate|calibrate)\b|^bellows identify\b(?!.*--measurements)")
+FEM_SWEEP = re.compile(r"^bellows (report|validate|calibrate)(?![-\w])|^bellows identify(?![-\w])(?!.*--measurements)")
 # real hardware: tests/test_hardware/test_doc_rig_command.py
 HARDWARE = re.compile(r"--rig\s+\S+\.toml")
 
@@ -65,7 +67,14 @@ def _design_example() -> str:
     return re.search(r"```toml\n(.*?)```", section, re.S).group(1)
 
 
-FILES = {"my_bellows.toml": _design_example}
+def _walkthrough_design() -> str:
+    """The design file of docs/walkthrough.md (its first TOML block), which names the profile table of step 1."""
+    return re.search(r"```toml\n(.*?)```", (ROOT / "docs" / "walkthrough.md").read_text(), re.S).group(1)
+
+
+FILES = {"my_bellows.toml": _design_example, "lab_bellows.toml": _walkthrough_design}
+#: a file that a FILES entry names inside it (a design's profile table) is provided beside it
+COMPANION = re.compile(r'^profile_file\s*=\s*"([^"]+)"', re.M)
 
 
 def doc_commands(path: pathlib.Path) -> list[str]:
@@ -91,20 +100,28 @@ def shortened(cmd: str) -> str:
     return cmd
 
 
+def needs_fem_sweep(cmd: str, writers: dict, seen: frozenset = frozenset()) -> bool:
+    """A FEM sweep, or a command whose inputs are made by one (a walkthrough's later steps): ``slow``."""
+    if FEM_SWEEP.search(cmd):
+        return True
+    tops = {name.split("/", 1)[0] for name in inputs_of(cmd)}
+    return any(writers[t] not in seen and needs_fem_sweep(writers[t], writers, seen | {cmd})
+               for t in tops if t in writers and writers[t] != cmd)
+
+
 def _cases():
     seen = set()
+    writers = producers()
     for path in DOCS:
         for k, cmd in enumerate(doc_commands(path)):
             if cmd in seen:             # the same command in two documents runs once
                 continue
             seen.add(cmd)
-            marks = [pytest.mark.slow] if FEM_SWEEP.search(cmd) else []
+            marks = [pytest.mark.slow] if needs_fem_sweep(cmd, writers) else []
             if HARDWARE.search(cmd):
                 marks = [pytest.mark.skip(reason="real hardware: runs in test_doc_rig_command.py on fake devices")]
             yield pytest.param(path.name, k, cmd, marks=marks, id=f"{path.name}:{k}:{cmd[:60]}")
 
-
-CASES = list(_cases())
 
 
 def run_bellows(cmd: str, cwd: pathlib.Path, timeout: float = 900) -> subprocess.CompletedProcess:
@@ -122,7 +139,7 @@ def _env(cwd: pathlib.Path) -> dict:
     return env
 
 
-OUTPUT_OPTIONS = ("--out", "--log", "--csv", "--vtu")
+OUTPUT_OPTIONS = ("--out", "--log", "--csv", "--vtu", "--export")
 
 
 def outputs_of(cmd: str) -> list[str]:
@@ -148,6 +165,9 @@ def producers() -> dict[str, str]:
     return out
 
 
+CASES = list(_cases())
+
+
 @pytest.fixture(scope="module")
 def artifacts(tmp_path_factory):
     """``provide(name, dest)``: puts the input file ``name`` into folder ``dest`` — from FILES, or made once by
@@ -162,6 +182,8 @@ def artifacts(tmp_path_factory):
         target.parent.mkdir(parents=True, exist_ok=True)
         if name in FILES:
             target.write_text(FILES[name]())
+            for companion in COMPANION.findall(target.read_text()):
+                provide(companion, dest)
             return
         top = name.split("/", 1)[0] if "/" in name else name
         if top not in writers:
@@ -226,3 +248,13 @@ def test_fem_sweep_commands_parse(cmd):
     # every option the doc gives exists in the subcommand's help
     for opt in (a for a in argv if a.startswith("--")):
         assert opt in res.output, f"{cmd}: {opt} is not an option of 'bellows {argv[0]}'"
+
+
+def test_what_counts_as_a_fem_sweep():
+    """Sweeps and the steps that need their outputs are slow; a command named like a sweep but not one is not."""
+    writers = {"lab": "bellows report --quick --out lab", "decay": "bellows simulate --out decay"}
+    assert needs_fem_sweep("bellows report --quick --out lab", writers)
+    assert needs_fem_sweep("bellows control --rig sim --actuator lab/actuator.toml --log run.h5", writers)
+    assert not needs_fem_sweep("bellows identify-damping decay/simulation.csv", writers)
+    assert not needs_fem_sweep("bellows identify --measurements run.h5", writers)
+    assert needs_fem_sweep("bellows identify --design paper", writers)

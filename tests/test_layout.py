@@ -22,7 +22,7 @@ def test_no_test_folder_shadows_a_package():
 
 # imports point one way, down: validation → controller → hardware → ancf, validation → fem_reference
 ALLOWED = {"ancf": set(), "hardware": {"ancf"}, "controller": {"hardware", "ancf"},
-           "fem_reference": {"ancf"},        # model-free utilities of ancf only (checked below)
+           "fem_reference": {"ancf"},        # only fem_reference/errors.py, guarded (checked below)
            "validation": {"controller", "hardware", "ancf", "fem_reference"}}
 
 
@@ -45,16 +45,102 @@ def test_imports_point_down(package):
     assert not {k: v for k, v in bad.items() if v}, "imports against the layering"
 
 
-def test_fem_reference_uses_no_ancf_model():
-    """The FEM stays an independent reference: from ancf it takes the exception tree and the command-line and
-    output helpers (none of which loads the model or numba: tests/test_fem/test_fem_limits.py), nothing else."""
+def _ancf_imports(path: pathlib.Path) -> list[tuple[int, bool]]:
+    """Every import of ``ancf`` (or a module of it) in a file: (line, guarded), guarded meaning inside a
+    ``try`` that handles ``ModuleNotFoundError`` (the FEM then runs without ancf)."""
     import ast
-    allowed = {"ancf.errors", "ancf.clitools", "ancf.outputs", "ancf.textfmt"}
-    for p in sorted((ROOT / "fem_reference").rglob("*.py")):
-        for node in ast.walk(ast.parse(p.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("ancf"):
-                names = [f"ancf.{a.name}" for a in node.names] if node.module == "ancf" else [node.module]
-                assert set(names) <= allowed, f"{p.relative_to(ROOT)} imports {names}"
+    tree = ast.parse(path.read_text())
+    guarded = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Try) and any("ModuleNotFoundError" in ast.unparse(h.type or ast.Name("BaseException"))
+                                             for h in node.handlers):
+            guarded |= {id(n) for part in (node.body, node.orelse) for stmt in part for n in ast.walk(stmt)}
+    found = []
+    for node in ast.walk(tree):
+        names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                 [node.module or ""] if isinstance(node, ast.ImportFrom) and node.level == 0 else [])
+        if any(n == "ancf" or n.startswith("ancf.") for n in names):
+            found.append((node.lineno, id(node) in guarded))
+    return found
+
+
+def test_only_fem_reference_errors_imports_ancf_and_only_guarded():
+    """The FEM stays an independent reference: no module of it imports ``ancf`` but fem_reference/errors.py,
+    whose import is guarded (without ancf the FEM takes its standalone error tree)."""
+    found = {str(p.relative_to(ROOT)): _ancf_imports(p) for p in sorted((ROOT / "fem_reference").rglob("*.py"))}
+    assert {k: v for k, v in found.items() if v and k != "fem_reference/errors.py"} == {}
+    assert found["fem_reference/errors.py"] and all(g for _, g in found["fem_reference/errors.py"])
+
+
+def test_the_ancf_import_scan_sees_imports_and_guards(tmp_path):
+    f = tmp_path / "m.py"
+    f.write_text("import numpy\nfrom ancf.textfmt import vector\nimport ancf.errors as e\nfrom .errors import X\n"
+                 "try:\n    import ancf\nexcept ModuleNotFoundError:\n    pass\nelse:\n    from ancf import errors\n"
+                 "try:\n    import ancf\nexcept ValueError:\n    pass\n")
+    assert sorted(_ancf_imports(f)) == [(2, False), (3, False), (6, True), (10, True), (12, False)]
+
+
+# run with ``import ancf`` refused (sys.modules["ancf"] = None: ModuleNotFoundError, as if not installed)
+_WITHOUT_ANCF = """
+import importlib, json, pickle, pkgutil, sys
+sys.modules["ancf"] = None
+import fem_reference
+mods = [m.name for m in pkgutil.walk_packages(fem_reference.__path__, "fem_reference.")]
+for name in mods:
+    importlib.import_module(name)
+from fem_reference import BellowsGeometry, BellowsModel, Material, MeshLevel, errors
+model = BellowsModel(BellowsGeometry.straight_tube(0.08, 0.015, 0.004, n_segments=2),
+                     Material.neo_hookean(0.8e6, 40e6), MeshLevel(2, 1, 12, 1))
+tip = model.solve(tensions=(0.5, 0.0, 0.0)).tip_position.tolist()
+try:
+    Material.neo_hookean("0.8", 40e6)
+    raised = None
+except errors.BellowsError as exc:
+    raised = [c.__module__ + "." + c.__name__ for c in type(exc).__mro__]
+conv = pickle.loads(pickle.dumps(errors.ConvergenceError("no", solver="fem", iterations=3, residual_norm=1.0,
+                                                         tolerance=1e-8, history=[2.0, 1.0])))
+print(json.dumps({"modules": mods, "standalone": errors.STANDALONE, "tip": tip, "raised": raised,
+                  "conv": [conv.solver, conv.iterations, conv.history],
+                  "ancf": sorted(m for m in sys.modules if m.split(".")[0] == "ancf" and sys.modules[m] is not None)}))
+"""
+
+
+def test_fem_reference_imports_solves_and_raises_without_ancf():
+    """Every module of fem_reference imports with ``ancf`` absent; a tiny tube solves to the same tip as in the
+    full install, and a bad value raises the standalone tree's ConfigError (a ValueError)."""
+    import json
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    from fem_reference import BellowsGeometry, BellowsModel, Material, MeshLevel
+    out = subprocess.run([sys.executable, "-c", _WITHOUT_ANCF], capture_output=True, text=True, timeout=600,
+                         cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["standalone"] is True and got["ancf"] == []
+    assert {"fem_reference.model", "fem_reference.render", "fem_reference.loads.caps"} <= set(got["modules"])
+    assert got["raised"][:2] == ["fem_reference._standalone_errors.ConfigError",
+                                 "fem_reference._standalone_errors.BellowsError"] and "builtins.ValueError" in got["raised"]
+    assert got["conv"] == ["fem", 3, [2.0, 1.0]]
+    model = BellowsModel(BellowsGeometry.straight_tube(0.08, 0.015, 0.004, n_segments=2),
+                         Material.neo_hookean(0.8e6, 40e6), MeshLevel(2, 1, 12, 1))
+    tip = model.solve(tensions=(0.5, 0.0, 0.0)).tip_position
+    assert np.allclose(got["tip"], tip, rtol=0, atol=1e-12) and tip[2] > 1e-5      # bent toward the pulled tendon
+
+
+def test_fem_reference_errors_are_the_products_errors():
+    """With ancf installed there is one tree: the FEM's error classes are ancf.errors' own."""
+    import ancf.errors
+    import fem_reference.errors as fe
+    from fem_reference import Material
+    assert fe.STANDALONE is False
+    for name in ("BellowsError", "ConfigError", "InputError", "LimitError", "ConvergenceError",
+                 "UnstableEquilibriumError", "check_finite"):
+        assert getattr(fe, name) is getattr(ancf.errors, name), name
+    with pytest.raises(ancf.errors.ConfigError):
+        Material.neo_hookean("0.8", 40e6)
 
 
 def _relative_imports(path: pathlib.Path) -> set[str]:

@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ancf.errors import InputError
+from ..errors import InputError
 
 from ..sparse_keys import csr_index, unique_keys
 

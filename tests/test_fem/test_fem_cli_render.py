@@ -1,4 +1,4 @@
-"""CLI (typer app mounted as ``bellows fem``) and headless rendering."""
+"""CLI (typer app mounted as ``bellows fem``, validation/commands/fem.py) and headless rendering."""
 
 import json
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from fem_reference.cli import app
+from validation.commands.fem import app
 
 
 def test_cli_solve_json_and_files(tmp_path):

@@ -72,7 +72,7 @@ def test_the_report_shows_the_section_and_fit_json_carries_it(result, tmp_path):
     pressures = report_pressures(p.pressure_max)
     m = compare_modes(p, pressures, [0.0] * 3, fem=_fake_fem(pressures))
     html = build_report(result, modes=m, figures={})
-    assert re.search(r"<h2>\d\. Dynamics: first modes per pressure</h2>", html)
+    assert re.search(r"<h2 id=\"sec-dynamics\">\d\. Dynamics: first modes per pressure</h2>", html)
     t = _dynamics_table(html)
     assert t["head"][:4] == ["pressure [kPa]", "FEM bending f₁ [Hz]", "rod bending f₁ [Hz]", "bending difference [%]"]
     rows = [r for r in t["rows"] if r]
@@ -81,7 +81,7 @@ def test_the_report_shows_the_section_and_fit_json_carries_it(result, tmp_path):
         assert r[2] == f"{d['rod_bending_frequency_hz']:.3f}" and r[3] == f"{d['bending_difference_pct']:+.1f}"
     assert "pressure dependence of EI" in html
     assert re.search(r"FEM(&#39;|')s first bending frequency changes by \+21 %", html)       # 1.1² − 1 of the stand-in
-    assert "<h2>5. Diagnostics</h2>" in html                                          # numbering follows
+    assert '<h2 id="sec-diagnostics">4. Diagnostics</h2>' in html                     # numbering follows
     assert "Dynamics" not in build_report(result, figures={})                         # no data, no section
     result.modes = m
     try:

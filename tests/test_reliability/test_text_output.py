@@ -46,7 +46,7 @@ def _fem_result():
 
 
 def test_fem_solve_text_and_figure_title():
-    from fem_reference.cli import summary_lines
+    from validation.commands.fem import summary_lines
     from fem_reference.render import result_title
     res = _fem_result()
     text = "\n".join(summary_lines(res))

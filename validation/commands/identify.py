@@ -209,11 +209,25 @@ def _identify_fem(fem: tuple, mesh: str, workers, scheduler, cache: Optional[pat
 
 
 def _identify_measured(measurements: pathlib.Path, base: str, forms, fit_distance: bool, heldout_fraction: float,
-                       gravity: bool):
+                       gravity: bool, masses: str = "free"):
     from ancf import presets
     from validation.identification.identify import from_measurements
     return from_measurements(measurements, presets.get(base), forms=forms, heldout_fraction=heldout_fraction,
-                             fit_distance=fit_distance, gravity=gravity, progress=_progress_printer())
+                             fit_distance=fit_distance, gravity=gravity, progress=_progress_printer(), masses=masses)
+
+
+MASSES_HELP = ("With --measurements: the line mass [kg/m] and tip mass [kg] 'free' (fitted, starting at --base's; "
+               "held there, and said so, when the states do not determine them — known tip loads at several pressures "
+               "do) or 'base' (held at --base's values).")
+
+
+def _masses_check(masses: str, measurements: Optional[pathlib.Path]) -> str:
+    from validation.identification.identify import MASS_CHOICES
+    if masses not in MASS_CHOICES:
+        raise InputError(f"--masses must be one of {', '.join(MASS_CHOICES)}, got {masses!r}")
+    if measurements is None and masses != "free":
+        raise InputError("--masses applies only with --measurements (the FEM's states carry no gravity)")
+    return masses
 
 
 #: Progress lines (per form: which, how long, the result) are printed once a run has taken this long [s].
@@ -263,6 +277,7 @@ def identify_cmd(
                                                     f"the model form, {HELDOUT.text} (states labelled 'heldout…' are "
                                                     "held out instead)."),
         gravity: bool = typer.Option(True, help="With --measurements: the states were measured under gravity."),
+        masses: str = typer.Option("free", help=MASSES_HELP),
         tension_max_n: Optional[float] = TMAX_OPT,
         pressure_max_kpa: Optional[float] = PMAX_OPT,
         mesh: str = MESH_OPT,
@@ -283,13 +298,14 @@ def identify_cmd(
     names = _forms(forms)
     _cases_check(cases)
     _base_check(measurements, base)
+    _masses_check(masses, measurements)
     if name is not None and not name.strip():
         raise InputError("--name must not be empty")
     fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     d = prepare_output_dir(out, ("actuator.toml", "fit.json"), force=force)
     t0 = time.perf_counter()
     if measurements is not None:
-        res = _identify_measured(measurements, base, names, fit_distance, heldout_fraction, gravity)
+        res = _identify_measured(measurements, base, names, fit_distance, heldout_fraction, gravity, masses)
     else:
         res = _identify_fem(fem, mesh, workers, scheduler, cache, names, fit_distance, cases)
     res.meta["command"] = _command_line()

@@ -1,7 +1,7 @@
 """The ``bellows`` console command: one entry point, subcommands from each package.
 
 ``bellows demo | fk | ik | locked | params`` come from :mod:`ancf.cli`; ``bellows fem ...`` from
-:mod:`fem_reference.cli`.  Every subcommand's package is imported here unconditionally: a missing dependency
+:mod:`validation.commands.fem`.  Every subcommand's package is imported here unconditionally: a missing dependency
 is an install error to see at once, not a subcommand that silently disappears.  Every handled error (a product error or a usage error) is
 printed as one ``error: …`` line and exits with status 2 (:mod:`ancf.clitools`); nothing is returned
 silently wrong.
@@ -15,10 +15,11 @@ import ancf
 from ancf import cli as ancf_cli
 from ancf import clitools
 from ancf.dynamics import cli as dynamics_cli
-from fem_reference.cli import app as fem_app
 from hardware import cli as rig_cli
 from validation.commands import control as control_cli
+from validation.commands import experiment as experiment_cli
 from validation.commands import identify as identify_cli
+from validation.commands.fem import app as fem_app
 from validation.commands.paper import app as paper_app
 
 app = typer.Typer(help="Tendon-pneumatic bellows actuators: ANCF model, FEM reference, compliance control.",
@@ -45,6 +46,7 @@ app.add_typer(paper_app, name="paper", help="Reproduce the paper's studies, besi
 identify_cli.register(app)                                   # identify | validate | report | calibrate
 app.add_typer(fem_app, name="fem", help="3-D hyperelastic FEM reference of the bellows.")
 app.command("control")(control_cli.control)                  # a controller on a rig (above both)
+experiment_cli.register(app)                                 # an identification experiment on a rig
 app.add_typer(rig_cli.log_app, name="log", help="Inspect run logs: show | export.")
 
 

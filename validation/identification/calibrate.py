@@ -116,6 +116,11 @@ def calibrate(target: dict, geometry, material, free: dict, *, mesh: str = "coar
         lo, hi = free[n]
         if not (0 < lo < hi):
             raise InputError(f"calibrate: bounds of {n} must satisfy 0 < low < high, got {free[n]}")
+    fixed = [n for n in names if n in GEOMETRY_PARAMETERS] if getattr(geometry, "is_table", False) else []
+    if fixed:
+        raise InputError(f"calibrate: cannot adjust {', '.join(fixed)} of a design whose wall profile is a table "
+                         f"({geometry.profile.source or 'profile_file'}): the wall's shape is the table's (change the "
+                         f"table instead); adjust {', '.join(MATERIAL_PARAMETERS)}")
     w = np.array([(weights or {}).get(k, 1.0) for k in keys])
     lo = np.log([free[n][0] for n in names])
     hi = np.log([free[n][1] for n in names])

@@ -12,11 +12,17 @@ the state's previous equilibrium.
 
 Uncertainty (reported for every parameter):
 
-* covariance  Cov(θ) = s² (JᵀJ)⁻¹ with J the σ-weighted Jacobian at the optimum, and s² = RSS/(n − k) when
-  the data carry no stated uncertainties (``absolute_sigma=False``: FEM data, whose misfit is model error),
-  or s² = 1 when they do (``absolute_sigma=True``: measured data with known σ);
-* 95 % confidence intervals θ ± t₀.₉₇₅(n − k) √Cov_jj (normal quantile with absolute σ); derived values
-  (``a``, ``b``, ``EA``, ``EI``, ``D_a``, ``D_eff``) by the delta method through their closed-form maps;
+* covariance  Cov(θ) = s² (JᵀJ)⁻¹ with J the whitened Jacobian at the optimum — each state's residuals
+  whitened by its covariance: the stated tip/marker σ's plus the stated noise of the tensions, pressure and
+  tip load propagated through the model's input sensitivities (errors in variables,
+  :mod:`validation.identification.uncertainty`; the whitening is recomputed at the optimum and the fit
+  repeated until θ stops moving) — and s² = RSS/(n − k) when the data carry no stated uncertainties
+  (``absolute_sigma=False``: FEM data, whose misfit is model error), or s² = max(1, RSS/(n − k)) when they
+  do (``absolute_sigma=True``: measured data with known σ; a reduced χ² above 1 is misfit the stated noise
+  does not explain — model-form error — and widens the intervals, never narrows them);
+* 95 % confidence intervals θ ± t₀.₉₇₅(n − k) √Cov_jj (the normal quantile with absolute σ and χ²/dof ≤ 1);
+  derived values (``a``, ``b``, ``EA``, ``EI``, ``D_a``, ``D_eff``) by the delta method through their
+  closed-form maps; ``FitResult.interval_basis`` says in words what the intervals contain;
 * the correlation matrix of θ.
 
 Identifiability: a parameter is *not identifiable* when the data do not determine it — (1) it has a share
@@ -68,7 +74,6 @@ from typing import Optional, Sequence
 
 import numpy as np
 import scipy.optimize as so
-import scipy.stats as st
 
 from ancf import ActuatorParams, Model
 from ancf.errors import (
@@ -81,6 +86,8 @@ from ancf.errors import (
 from ancf.shear import offset as shear_offset
 
 from validation.identification.forms import ModelForm, distance_column, position_matrix
+from validation.identification.uncertainty import (WEIGHT_ITERATIONS, WEIGHT_RTOL, diagonal_whitening, misfit,
+                                                   state_covariance, variance_scale, whiten, whitening)
 
 __all__ = ["Observations", "FitResult", "fit", "predict", "prior_result"]
 
@@ -121,7 +128,9 @@ class Observations:
 
     tensions (N, m) [N]; pressure (N,) [Pa]; tip_force (N, 3) [N]; gravity (N,) bool; tip (N, 3) [m];
     tip_std (N, 3) [m] or None; markers (N, k, 3) [m] or None with marker_s (k,) [m] their undeformed arc
-    lengths and markers_std; labels (N,).
+    lengths and markers_std; labels (N,).  The stated noise of the inputs (each None or ≥ 0): tensions_std
+    (N, m) [N], pressure_std (N,) [Pa], tip_force_std (N, 3) [N]; propagated to the predictions by the fit
+    (:mod:`validation.identification.uncertainty`).
     """
     tensions: np.ndarray
     pressure: np.ndarray
@@ -133,6 +142,9 @@ class Observations:
     marker_s: Optional[np.ndarray] = None
     markers_std: Optional[np.ndarray] = None
     labels: list = field(default_factory=list)
+    tensions_std: Optional[np.ndarray] = None
+    pressure_std: Optional[np.ndarray] = None
+    tip_force_std: Optional[np.ndarray] = None
 
     def __post_init__(self):
         self.tensions = np.atleast_2d(np.asarray(self.tensions, float))
@@ -151,6 +163,19 @@ class Observations:
                 raise InputError(f"observations: markers must have shape (N, k, 3), got {self.markers.shape}")
         if not self.labels:
             self.labels = [f"state {i}" for i in range(N)]
+        for name, like in (("tensions_std", self.tensions), ("pressure_std", self.pressure),
+                           ("tip_force_std", self.tip_force)):
+            v = getattr(self, name)
+            if v is None:
+                continue
+            try:
+                a = np.broadcast_to(np.asarray(v, float), like.shape).copy()
+            except ValueError:
+                raise InputError(f"observations: {name} must broadcast to {like.shape}, got shape "
+                                 f"{np.shape(v)}") from None
+            if not np.all(np.isfinite(a) & (a >= 0)):
+                raise InputError(f"observations: {name} must be finite and >= 0")
+            setattr(self, name, a)
 
     @property
     def n(self) -> int:
@@ -160,12 +185,32 @@ class Observations:
     def has_sigma(self) -> bool:
         return self.tip_std is not None
 
+    @property
+    def has_input_sigma(self) -> bool:
+        """Whether any input (tension, pressure, tip load) has a stated noise > 0."""
+        return any(v is not None and np.any(v > 0) for v in (self.tensions_std, self.pressure_std,
+                                                              self.tip_force_std))
+
+    def input_std(self) -> np.ndarray:
+        """(N, m + 4) standard deviations of the inputs u = (T_1 … T_m [N], p [Pa], F_x, F_y, F_z [N]); 0 where
+        none is stated."""
+        m = self.tensions.shape[1]
+        out = np.zeros((self.n, m + 4))
+        if self.tensions_std is not None:
+            out[:, :m] = self.tensions_std
+        if self.pressure_std is not None:
+            out[:, m] = self.pressure_std
+        if self.tip_force_std is not None:
+            out[:, m + 1:] = self.tip_force_std
+        return out
+
     def subset(self, idx) -> "Observations":
         idx = np.arange(self.n)[idx]
         pick = lambda a: None if a is None else a[idx]      # noqa: E731
         return Observations(self.tensions[idx], self.pressure[idx], self.tip_force[idx], self.gravity[idx],
                             self.tip[idx], pick(self.tip_std), pick(self.markers), self.marker_s,
-                            pick(self.markers_std), [self.labels[i] for i in idx])
+                            pick(self.markers_std), [self.labels[i] for i in idx], pick(self.tensions_std),
+                            pick(self.pressure_std), pick(self.tip_force_std))
 
     def weights(self) -> np.ndarray:
         """1/σ for every residual entry, stacked per state as [tip (3), markers (3k)]."""
@@ -223,6 +268,17 @@ class FitResult:
     held: dict = field(default_factory=dict)
     held_at: dict = field(default_factory=dict)
     intervals: str = "full"
+    #: what the intervals contain: the stated noise (tip, markers, inputs propagated) and any χ² scaling
+    #: (:mod:`validation.identification.uncertainty`)
+    interval_basis: str = ""
+    #: "" or the warning that the form does not fit the data within their stated noise
+    #: (:func:`validation.identification.uncertainty.misfit`)
+    misfit: str = ""
+
+    @property
+    def chi2_per_dof(self) -> float:
+        """The reduced χ² = rss / dof of the whitened residuals (≈ 1 when the stated noise explains them)."""
+        return float(self.rss) / max(int(self.dof), 1)
 
     @property
     def names(self) -> tuple:
@@ -330,6 +386,19 @@ class _Evaluator:
                     break
         return None, err
 
+    def input_jacobian(self, theta) -> np.ndarray:
+        """∂predictions/∂u (N, 3 + 3k, m + 4) at θ, u = (tensions, pressure, tip load) of each state
+        (:func:`validation.identification.uncertainty.input_jacobian`), at the equilibria of θ (solved if not
+        cached)."""
+        from validation.identification.uncertainty import input_jacobian
+        self.evaluate(theta, jacobian=False)
+        _, _, _, (m_g, m_0), qs = self._cache
+        obs = self.obs
+        k = 0 if obs.markers is None else obs.marker_s.size
+        S = None if k == 0 else position_matrix(m_g.params.n_elements, m_g.params.length, obs.marker_s)
+        return np.stack([input_jacobian(m_g if obs.gravity[i] else m_0, qs[i], obs.tensions[i], obs.pressure[i],
+                                        obs.tip_force[i], S) for i in range(obs.n)])
+
     def _sensitivities(self, theta, models, qs) -> np.ndarray:
         """∂predictions/∂θ (N, 3 + 3k, n) at the equilibria ``qs``: ∂z/∂θ = −H⁻¹ ∂Q/∂θ, one linear solve per
         state (the implicit-function theorem at the equilibrium; no Newton solve)."""
@@ -346,13 +415,16 @@ class _Evaluator:
             H = model.reduce_mat(ev.K)
             dQ = form.dQ_dtheta(model, q, p, theta)
             if form.fits_distance:
-                dQ[:, -1] = distance_column(model, q, T, p, F)
+                dQ[:, form.names.index("d")] = distance_column(model, q, T, p, F)
             dz = -np.linalg.solve(H, model.reduce_vec(dQ.T).T)          # (nz, n)
             Jp = model.reduce_vec(model.tool_jacobian(q, p, F))         # (3, nz): p_end + shear offset
             J[i, :3] = Jp @ dz
             if form.shear is not None:        # ∂x/∂s = P⊥F_tot times ∂s/∂θ (validation.identification.forms docstring)
                 PF = shear_offset(q[-3:], 1.0, model.total_tip_load(F))
                 J[i, :3] += np.outer(PF, form.shear_columns(theta, p))
+            if form.fits_masses and model.params.shear_compliance:
+                # the tip weight's own shear offset s(p) P⊥ g per kg (linear in the tip load)
+                J[i, :3, -1] += model.shear_offset(q, p, F + model._g) - model.shear_offset(q, p, F)
             if k:
                 J[i, 3:] = model.reduce_vec(S) @ dz
         return J
@@ -420,11 +492,11 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         ev.q = list(_warm)
     if free.sum() > w.size:
         raise InputError(f"form {form.name}: {free.sum()} free parameters but only {w.size} observations")
-    res, theta = _optimise(ev, _observed(obs).ravel(), w, theta0, free, lo, hi, typical, max_nfev)
+    res, theta, W = _optimise_weighted(ev, theta0, free, lo, hi, typical, max_nfev)
     params, pred, J3 = ev.evaluate(theta, jacobian=True)
     r = pred - _observed(obs)
-    Jw = J3.reshape(-1, form.n) * w[:, None]
-    rw = r.ravel() * w
+    Jw = whiten(W, J3.reshape(-1, form.n))
+    rw = whiten(W, r.ravel())
     rss = float(rw @ rw)
     n_obs = rw.size
     n_free = int(free.sum())
@@ -439,9 +511,9 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     ident = np.zeros(form.n, bool)
     ident[idx_free] = share <= NULL_SHARE
     dof = max(n_obs - int(ident.sum()), 1)
-    s2 = 1.0 if absolute else rss / dof
+    s2, q, basis = variance_scale(rss, dof, absolute)
+    loud = misfit(rss, dof, absolute)
     cov = _covariance(Jw, ident, s2, _marginal)
-    q = st.norm.ppf(0.975) if absolute else st.t.ppf(0.975, dof)
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     # identifiability 2: CI wider than the value
     signed = np.array([nm in SIGNED for nm in form.names])
@@ -449,8 +521,69 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
     if _refit and (wide.any() or (~ident & free).any()):
         return _refit_holding(form, obs, base, theta, ident, wide, free, cov, q, ev, absolute=absolute,
                               fixed=fixed, max_nfev=max_nfev, typical=typical)
-    return _full_result(form, theta, cov, sd, q, ident & ~wide, r, params, rss, dof, s2, sv, ev, str(res.message),
-                        fixed)
+    out = _full_result(form, theta, cov, sd, q, ident & ~wide, r, params, rss, dof, s2, sv, ev, str(res.message),
+                       fixed)
+    out.interval_basis = _basis_text(obs, absolute, basis) + (
+        "; NOT the actuator's: the model does not fit these data within their stated noise (the intervals "
+        "describe the best compromise)" if loud else "")
+    out.misfit = loud
+    return out
+
+
+def _basis_text(obs: Observations, absolute: bool, scale_text: str) -> str:
+    """What the intervals contain, in words (:mod:`validation.identification.uncertainty`)."""
+    if not absolute:
+        return "95 % intervals from " + scale_text
+    inputs = [nm for nm, v in (("tensions", obs.tensions_std), ("pressure", obs.pressure_std),
+                               ("tip load", obs.tip_force_std)) if v is not None and np.any(v > 0)]
+    prop = (" with the stated noise of the " + ", ".join(inputs) + " propagated through the model's input "
+            "sensitivities") if inputs and obs.has_sigma else " (no input noise stated)"
+    return f"95 % intervals from {scale_text}; tip/marker noise{prop}"
+
+
+def _whitening_at(ev: _Evaluator, theta) -> np.ndarray:
+    """Per-state whitening blocks (N, d, d) of the residuals at θ: the tip and marker σ's plus the stated input
+    noise propagated through ∂prediction/∂u at θ's equilibria (:mod:`validation.identification.uncertainty`)."""
+    obs = ev.obs
+    G = ev.input_jacobian(theta)
+    usd = obs.input_std()
+    osd = 1.0 / obs.weights()
+    return np.stack([whitening(state_covariance(G[i], osd[i], usd[i])) for i in range(obs.n)])
+
+
+def _optimise_weighted(ev: _Evaluator, theta0, free, lo, hi, typical, max_nfev: int):
+    """(scipy's result, θ (n,), whitening blocks (N, d, d) at θ): :func:`_optimise` with the tip and marker
+    weights; with stated input noise (and stated tip noise) again with the whitening recomputed at the optimum
+    until θ moves by less than :data:`~validation.identification.uncertainty.WEIGHT_RTOL` of its standard deviation
+    (at most :data:`~validation.identification.uncertainty.WEIGHT_ITERATIONS` refits)."""
+    obs = ev.obs
+    y = _observed(obs).ravel()
+    if not (obs.has_sigma and obs.has_input_sigma):
+        W = diagonal_whitening(obs.weights())
+        res, theta = _optimise(ev, y, W, theta0, free, lo, hi, typical, max_nfev)
+        return res, theta, W
+    ev.evaluate(theta0, jacobian=False, all_failures=True)     # the start's failures named as the fit's would be
+    theta = theta0
+    for _ in range(WEIGHT_ITERATIONS):
+        W = _whitening_at(ev, theta)
+        res, new = _optimise(ev, y, W, theta, free, lo, hi, typical, max_nfev)
+        moved = _moved((new - theta)[free], res.jac)
+        theta = new
+        if moved <= WEIGHT_RTOL:
+            break
+    return res, theta, _whitening_at(ev, theta)
+
+
+def _moved(step: np.ndarray, jac_free: np.ndarray) -> float:
+    """Largest |step| (over the free parameters, in the order of the columns of ``jac_free``) in units of the
+    parameter's standard deviation from that whitened Jacobian (inf when it is singular: not converged)."""
+    try:
+        sd = np.sqrt(np.diag(np.linalg.inv(jac_free.T @ jac_free)))
+    except np.linalg.LinAlgError:
+        return float("inf")
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.abs(step) / sd
+    return float(np.max(r)) if np.all(np.isfinite(r)) else float("inf")
 
 
 def _checked_start(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, fixed: Sequence[str], scale):
@@ -474,11 +607,12 @@ def _checked_start(form: ModelForm, obs: Observations, base: ActuatorParams, the
     return theta0, lo, hi, typical
 
 
-def _optimise(ev: _Evaluator, y: np.ndarray, w: np.ndarray, theta0: np.ndarray, free: np.ndarray, lo: np.ndarray,
+def _optimise(ev: _Evaluator, y: np.ndarray, W: np.ndarray, theta0: np.ndarray, free: np.ndarray, lo: np.ndarray,
               hi: np.ndarray, typical: np.ndarray, max_nfev: int):
-    """(scipy's result, θ at the optimum (n,)): trust-region reflective least squares of the weighted residuals
-    (prediction − ``y``) · ``w`` over the ``free`` parameters, the others held at ``theta0``.  With signed and
-    unsigned free parameters, a continuation first fits the magnitudes with the signed ones held at their start."""
+    """(scipy's result, θ at the optimum (n,)): trust-region reflective least squares of the whitened residuals
+    ``W`` (prediction − ``y``) (``W`` (N, d, d) per-state blocks, :func:`~validation.identification.uncertainty.whiten`)
+    over the ``free`` parameters, the others held at ``theta0``.  With signed and unsigned free parameters, a
+    continuation first fits the magnitudes with the signed ones held at their start."""
     form = ev.form
 
     def full(x):
@@ -499,11 +633,11 @@ def _optimise(ev: _Evaluator, y: np.ndarray, w: np.ndarray, theta0: np.ndarray, 
             ev.rejected += 1
             return np.full(y.size, REJECTED_RESIDUAL)
         first[0] = False
-        return (pred.ravel() - y) * w
+        return whiten(W, pred.ravel() - y)
 
     def jac(x):
         _, _, J = ev.evaluate(full(x), jacobian=True)
-        return J.reshape(-1, form.n)[:, free] * w[:, None]
+        return whiten(W, J.reshape(-1, form.n)[:, free])
 
     x0 = theta0[free].copy()
     signed_free = np.array([nm in SIGNED for nm in np.array(form.names)[free]])

@@ -65,7 +65,8 @@ from ancf.assembly import assemble
 from ancf.stiffness import P_REF
 from ancf.errors import InputError
 
-__all__ = ["ModelForm", "FORMS", "get_form", "position_matrix", "REPORTED", "MEANINGS", "display_unit"]
+__all__ = ["ModelForm", "FORMS", "get_form", "with_masses", "position_matrix", "REPORTED", "MEANINGS", "display_unit",
+           "MASS_NAMES"]
 
 #: Derived values every form reports, with units.
 REPORTED = {"a": "N", "b": "N", "EA": "N", "EI": "N m^2", "D_a": "m", "D_eff": "m", "beta": "-", "d": "m",
@@ -88,11 +89,21 @@ MEANINGS = {
     "s0": "series rotation-free (shear) tip compliance at 0 kPa: s(p) = s0 + s1 p̂, p̂ = p/100 kPa",
     "s1": "pressure coefficient of the shear tip compliance (see s0)",
     "s_0kPa": "shear tip compliance at 0 kPa, s(0)", "s_100kPa": "shear tip compliance at 100 kPa, s(100 kPa)",
+    "line_mass": "line mass of the actuator (its distributed weight m' g)",
+    "tip_mass": "tip mass (cap and tool; its weight acts at the tool point)",
 }
+
+#: The mass parameters :func:`with_masses` appends to a form: line mass [kg/m], tip mass [kg] (last, in this order).
+MASS_NAMES = ("line_mass", "tip_mass")
+#: their units and bounds (positive; the lower bounds are ``ActuatorParams``' smallest non-zero masses)
+MASS_UNITS = ("kg/m", "kg")
+MASS_LOWER = (1e-4, 1e-5)
+MASS_UPPER = (100.0, 10.0)
 
 
 #: How the tables show a parameter of each SI unit: unit → (scale, shown unit).
-DISPLAY_UNITS = {"m": (1e3, "mm"), "N m^2": (1.0, "N m²"), "-": (1.0, "–"), "N": (1.0, "N"), "m/N": (1e3, "mm/N")}
+DISPLAY_UNITS = {"m": (1e3, "mm"), "N m^2": (1.0, "N m²"), "-": (1.0, "–"), "N": (1.0, "N"), "m/N": (1e3, "mm/N"),
+                 "kg/m": (1e3, "g/m"), "kg": (1e3, "g")}
 
 
 def display_unit(unit: str) -> tuple:
@@ -127,6 +138,7 @@ class ModelForm:
     pressure_jacobian: Callable | None = None
     shear: Callable | None = None
     shear_jacobian: Callable | None = None
+    fits_masses: bool = False
 
     @property
     def n(self) -> int:
@@ -136,7 +148,7 @@ class ModelForm:
         """Pickled by name (its laws are closures): a form of :func:`get_form` reaches a worker process as itself."""
         base = self.name[:-2] if self.fits_distance and self.name.endswith("+d") else self.name
         if base in _DEF:
-            return get_form, (base, self.fits_distance)
+            return get_form, (base, self.fits_distance, self.fits_masses)
         return super().__reduce__()
 
     def typical_scale(self, theta0) -> np.ndarray:
@@ -165,6 +177,11 @@ class ModelForm:
     # ------------------------------------------------------------------ θ ↔ ActuatorParams
     def to_params(self, theta, base: ActuatorParams) -> ActuatorParams:
         """The actuator parameters for θ (everything the form does not fit is taken from ``base``)."""
+        if self.fits_masses:
+            theta = np.asarray(theta, float)
+            inner = self._without_masses()
+            return inner.to_params(theta[:inner.n], base).replace(line_mass=float(theta[-2]),
+                                                                 tip_mass=float(theta[-1]))
         ea, ei, c, d = self.laws(np.asarray(theta, float))
         A1 = float(np.sum(c))                         # A(1) = Σ c_k
         if not (A1 > 0):
@@ -188,6 +205,11 @@ class ModelForm:
             from ancf.params import Tendon
             changes["tendons"] = tuple(Tendon(distance=d, angle=t.angle) for t in base.tendons)
         return base.replace(**changes)
+
+    def _without_masses(self) -> "ModelForm":
+        """The form this one extends by the masses (:func:`with_masses`)."""
+        base = self.name[:-2] if self.fits_distance and self.name.endswith("+d") else self.name
+        return get_form(base, self.fits_distance)
 
     def derived(self, theta) -> dict:
         """The reported values (``REPORTED`` keys that apply) at θ."""
@@ -262,7 +284,26 @@ class ModelForm:
             _, Q, *_ = assemble(q, model.n, model._N, model._wq, _vec(dea), _vec(dei), float(pressure) * _vec(dc),
                                 zero3, model._E, model._d, model._co, model._so, T0, 0.0, zero3, False, 0)
             out[:, j] = Q
+        if self.fits_masses:
+            out[:, -2:] = mass_columns(model, q)
         return out
+
+
+def mass_columns(model, q: np.ndarray) -> np.ndarray:
+    """∂Q/∂(m', m_tip) (ndof, 2) [N/(kg/m), N/kg]: the gravity load of a unit line mass and of a unit tip mass (at
+    the tool point) at full coordinates ``q`` — one assembly each with every stiffness, pressure and tendon term
+    zero; exact, gravity's potential being linear in the masses.  Zero for a model without gravity."""
+    out = np.zeros((model.ndof, 2))
+    g = np.ascontiguousarray(model._g, dtype=float)
+    if not np.any(g):
+        return out
+    q = np.ascontiguousarray(q, dtype=float)
+    zero3, T0, z1 = np.zeros(3), np.zeros(model.m), np.zeros(1)
+    for j, (mg, F) in enumerate(((g, zero3), (zero3, g))):
+        _, Q, *_ = assemble(q, model.n, model._N, model._wq, z1, z1, z1, mg, model._E, model._d, model._co,
+                            model._so, T0, model.params.tool_offset, F, False, 0)
+        out[:, j] = Q
+    return out
 
 
 def _factor(coeffs, x: float) -> float:
@@ -494,8 +535,11 @@ _TYPICAL = {"a": "k1", "sA": "EA1", "cA": "EA1", "sI": "EI1", "beta": 1.0, "pI1"
             "s0": 1e-3, "s1": 1e-3}
 
 
-def get_form(name: str, fit_distance: bool = False) -> ModelForm:
-    """The form ``name`` (one of :data:`FORMS`); ``fit_distance`` adds the tendon routing distance d [m]."""
+def get_form(name: str, fit_distance: bool = False, fit_masses: bool = False) -> ModelForm:
+    """The form ``name`` (one of :data:`FORMS`); ``fit_distance`` adds the tendon routing distance d [m],
+    ``fit_masses`` the line and tip mass (:func:`with_masses`)."""
+    if fit_masses:
+        return with_masses(get_form(name, fit_distance))
     if name not in _DEF:
         raise InputError(f"unknown model form {name!r}; choose from {sorted(_DEF)}")
     names, units, lo, hi, laws, jac, area, desc = _DEF[name]
@@ -520,3 +564,33 @@ def get_form(name: str, fit_distance: bool = False) -> ModelForm:
 
 
 FORMS = tuple(_DEF)
+
+
+def with_masses(form: ModelForm) -> ModelForm:
+    """``form`` with the line mass m' [kg/m] and the tip mass m_tip [kg] appended to its parameters
+    (:data:`MASS_NAMES`, bounded positive): a rig-data fit under gravity.  Its name is the form's (the masses do not
+    change the law); the laws, pressure and shear maps are the form's on θ without the masses, and ∂Q/∂θ of the
+    masses is the gravity load of a unit mass (:func:`mass_columns`)."""
+    if form.fits_masses:
+        return form
+    n0 = form.n
+
+    def pad(cols, zero):
+        return list(cols) + [zero, zero]
+
+    pressure = pressure_jac = shear = shear_jac = None
+    if form.pressure is not None:
+        pressure = lambda th: form.pressure(th[:n0])                                     # noqa: E731
+
+        def pressure_jac(th):
+            cols = form.pressure_jacobian(th[:n0])
+            return pad(cols, (tuple(0.0 for _ in cols[0][0]), tuple(0.0 for _ in cols[0][1])))
+    if form.shear is not None:
+        shear = lambda th: form.shear(th[:n0])                                           # noqa: E731
+        shear_jac = lambda th: pad(form.shear_jacobian(th[:n0]), (0.0, 0.0))              # noqa: E731
+    return ModelForm(form.name, form.names + MASS_NAMES, form.units + MASS_UNITS, form.lower + MASS_LOWER,
+                     form.upper + MASS_UPPER, lambda th: form.laws(np.asarray(th, float)[:n0]),
+                     lambda th: pad(form.laws_jacobian(np.asarray(th, float)[:n0]), (None, None, None)),
+                     form.fits_distance, form.description + ", line and tip mass fitted",
+                     (form.typical or (None,) * n0) + (None, None), pressure, pressure_jac, shear, shear_jac,
+                     fits_masses=True)

@@ -48,12 +48,14 @@ from validation.identification.forms import FORMS, REPORTED, get_form
 from validation.infra.provenance import provenance
 
 __all__ = ["IdentificationResult", "from_fem", "from_measurements", "identify", "fem_base_params",
-           "observations_from_records", "observations_from_states", "MARKER_FRACTIONS", "PARSIMONY"]
+           "observations_from_records", "observations_from_states", "MARKER_FRACTIONS", "PARSIMONY", "MASS_CHOICES"]
 
 #: Markers used in the fit: centreline points at these fractions of the length.
 MARKER_FRACTIONS = (0.25, 0.5, 0.75)
 #: A simpler form wins when its held-out error is within this factor of the best form's.
 PARSIMONY = 1.10
+#: ``from_measurements(masses=…)``: the masses fitted (``free``) or held at the base actuator's (``base``).
+MASS_CHOICES = ("free", "base")
 
 
 # ---------------------------------------------------------------------------------------------- data
@@ -83,7 +85,17 @@ def observations_from_states(states, gravity: bool = True) -> Observations:
     labels = states.label or [f"state {i}" for i in range(states.n_states)]
     return Observations(states.tensions, states.pressure, F, np.full(states.n_states, bool(gravity)),
                         states.tip_position, states.tip_position_std, states.markers, states.marker_arclength,
-                        states.markers_std, list(labels))
+                        states.markers_std, list(labels), tensions_std=states.tensions_std,
+                        pressure_std=states.pressure_std, tip_force_std=states.tip_force_std)
+
+
+def _geometry_meta(geometry) -> dict:
+    """The geometry's fields for a result's metadata; a profile table is named by its file and data hash
+    (:meth:`fem_reference.profile.TableProfile.describe`), not copied point by point."""
+    meta = dict(vars(geometry))
+    if getattr(geometry, "is_table", False):
+        meta["profile"] = geometry.profile.describe()
+    return meta
 
 
 def describe_geometry(geometry) -> str:
@@ -161,6 +173,8 @@ def initial_theta(form, rod: Optional[dict], base: ActuatorParams, *, slopes: bo
           "pressure_ei_shear": [EA, sA, EI, sI, 0.0, 0.0, D_eff, initial_shear(rod, base), 0.0]}[name]
     if form.fits_distance:
         th.append(float(np.mean(base.tendon_distances)))
+    if form.fits_masses:          # the base actuator's masses (from_measurements: the masses stated in its file)
+        th += [float(base.line_mass), float(base.tip_mass)]
     return np.array(th, float)
 
 
@@ -205,8 +219,10 @@ class IdentificationResult:
 
     @property
     def warnings(self) -> list:
-        """Lines saying what the data do not determine (empty when they determine every parameter)."""
-        return [] if not self.information else list(self.information.get("warnings", []))
+        """Lines saying what the data do not determine and whether the chosen form fits them within their
+        stated noise (empty when neither applies)."""
+        out = [] if not self.information else list(self.information.get("warnings", []))
+        return out + ([f"form {self.form}: {self.fit.misfit}"] if self.fits and self.fit.misfit else [])
 
     @property
     def fit(self) -> FitResult:
@@ -336,6 +352,14 @@ class IdentificationResult:
                 lines.append(f"#   {nm:6s} = {v:.6g} per (p/100 kPa)^{2 if nm == 'pI2' else 1}"
                              + (f"  (95 % CI {lo:.6g} .. {hi:.6g})" if f.identifiable.get(nm) else
                                 "  NOT IDENTIFIABLE from these data"))
+        for nm, unit in zip(f.names, f.form.units):          # fitted masses (they are in the table below)
+            if nm in ("line_mass", "tip_mass"):
+                lo, hi = f.ci95.get(nm, (float("nan"), float("nan")))
+                v = float(f.theta[f.names.index(nm)])
+                lines.append(f"#   {nm:9s} = {v:.6g} {unit}" + (f"  (95 % CI {lo:.6g} .. {hi:.6g})"
+                             if f.identifiable.get(nm) else f"  NOT IDENTIFIED: {f.held_at.get(nm, 'not determined')}"))
+        if f.misfit:
+            lines.append(f"# WARNING: {f.misfit}")
         if held:
             lines.append(f"# held: {held}; the intervals above are {f.intervals}")
         text = "\n".join(lines) + "\n" + params.to_toml() + self.provenance_toml()
@@ -355,11 +379,13 @@ class IdentificationResult:
                           "rejected_trials": f.rejected, "not_identifiable_reasons": f.reasons,
                           "held": {nm: {"value": v, "unit": dict(zip(f.names, f.form.units))[nm],
                                         "held_at": f.held_at.get(nm, "")} for nm, v in f.held.items()},
-                          "intervals": f.intervals,
+                          "intervals": f.intervals, "interval_basis": f.interval_basis, "misfit": f.misfit,
+                          "chi2_per_dof": f.chi2_per_dof,
                           "residuals_m": f.residuals, "description": f.form.description}
         return to_jsonable({
             "source": self.source, "form": self.form, "values": self.values, "ci95": self.ci95,
             "identifiable": self.identifiable, "units": REPORTED, "comparison": self.comparison, "fits": fits,
+            "misfit": self.fit.misfit, "warnings": self.warnings,
             "training_labels": self.train.labels,
             "heldout_labels": None if self.heldout is None else self.heldout.labels,
             "design": None if self.design is None else self.design.to_dict(),
@@ -429,7 +455,7 @@ def restricted_starts(form, fitted: dict) -> list:
 def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Observations] = None,
              forms: Sequence[str] = FORMS, rod: Optional[dict] = None, fit_distance: bool = False,
              absolute_sigma: Optional[bool] = None, source: str = "data", progress: Optional[Callable[[str], Any]] = None,
-             check_information: bool = False) -> IdentificationResult:
+             check_information: bool = False, fit_masses: bool = False) -> IdentificationResult:
     """Fit every form in ``forms`` to ``train``, compare them on ``heldout`` (or on the training error when
     there is no held-out set) and return the chosen form's result (see the module docstring).  Each form is
     fitted from its own start, from the optimum of the richest nested form fitted before it
@@ -440,10 +466,11 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
     the parameters they do not determine are held at their prior (``base``'s value, the form's start) and
     reported as not determined with the reason; a form with nothing determined is not fitted (its row says
     ``refused``).  progress : ``progress(line)`` after each form's fit and after the refits (which form, how
-    long, the result)."""
+    long, the result).  fit_masses : the line and tip mass are parameters of every form
+    (:func:`~validation.identification.forms.with_masses`; rig data under gravity), starting at ``base``'s."""
     if not forms:
         raise InputError("identify: no model form given")
-    all_forms = [get_form(name, fit_distance) for name in forms]
+    all_forms = [get_form(name, fit_distance, fit_masses) for name in forms]
     info, information = ({}, None) if not check_information else _check_information(all_forms, train, base, rod)
     say = progress or (lambda line: None)
     fits, errors = _fit_all(all_forms, train, base, rod, absolute_sigma, info, say)
@@ -618,13 +645,15 @@ def _choose(rows: list, by_heldout: bool) -> dict:
 
 
 def _finalise_params(res: IdentificationResult, base: ActuatorParams) -> None:
-    """Give the chosen parameters the base actuator's name, masses, damping and limits (the fit ran without
-    gravity where the data had none; static states say nothing about mass or damping)."""
-    keep = dict(line_mass=base.line_mass, tip_mass=base.tip_mass, gravity=base.gravity,
-                rayleigh_alpha=base.rayleigh_alpha, rayleigh_beta=base.rayleigh_beta, axial_damping=base.axial_damping)
-    res.params = res.fit.params.replace(**keep)
+    """Give the chosen parameters the base actuator's name, gravity, damping and limits, and its masses unless the
+    form fitted them (the fit ran without gravity where the data had none; static states say nothing about
+    damping; a fitted mass held at the prior is the base's value anyway)."""
+    keep = dict(gravity=base.gravity, rayleigh_alpha=base.rayleigh_alpha, rayleigh_beta=base.rayleigh_beta,
+                axial_damping=base.axial_damping)
+    masses = dict(line_mass=base.line_mass, tip_mass=base.tip_mass)
     for f in res.fits.values():
-        f.params = f.params.replace(**keep)
+        f.params = f.params.replace(**keep, **({} if f.form.fits_masses else masses))
+    res.params = res.fit.params
 
 
 # ---------------------------------------------------------------------------------------------- from the FEM
@@ -702,7 +731,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
         res.after_sweep = side
     _finalise_params(res, base)
     res.design, res.records = design, records
-    res.meta = {"mesh": str(mesh), "design": describe_geometry(geometry), "geometry": to_jsonable(vars(geometry)),
+    res.meta = {"mesh": str(mesh), "design": describe_geometry(geometry), "geometry": to_jsonable(_geometry_meta(geometry)),
                 "material": to_jsonable(vars(material)),
                 "marker_s_m": marker_s, "failed_cases": failed}
     return res
@@ -712,7 +741,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
 def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Sequence[str] = FORMS,
                       heldout_fraction: float = 0.25, seed: int = 0, fit_distance: bool = False,
                       gravity: bool = True, absolute_sigma: Optional[bool] = None,
-                      progress: Optional[Callable[[str], Any]] = None) -> IdentificationResult:
+                      progress: Optional[Callable[[str], Any]] = None, masses: str = "free") -> IdentificationResult:
     """Identify the reduced model from measured static states (HDF5 run log / static-states file or CSV;
     ``docs/data-formats.md``).
 
@@ -723,7 +752,9 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
     held out deterministically instead.  What the states cannot tell is checked before the fits
     (``res.information``, ``res.warnings``; :mod:`validation.identification.information`): parameters they do not
     determine are held at ``base``'s values and reported as not determined.  progress : ``progress(line)`` per
-    form fitted (:func:`identify`).
+    form fitted (:func:`identify`).  masses : ``"free"`` (default, under gravity) — the line mass [kg/m] and the
+    tip mass [kg] are parameters of the fit, starting at ``base``'s (held there, and said so, when the states do
+    not determine them: known tip loads at several pressures do); ``"base"`` — held at ``base``'s values.
     """
     from hardware.static_states import StaticStates, read_static_states
     if base is None:
@@ -737,6 +768,8 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
                          f"{base.n_tendons} tendons")
     if not (0.0 <= heldout_fraction < 1.0):
         raise InputError(f"heldout_fraction must be in [0, 1), got {heldout_fraction}")
+    if masses not in MASS_CHOICES:
+        raise InputError(f"masses must be one of {', '.join(MASS_CHOICES)}, got {masses!r}")
     obs = observations_from_states(states, gravity=gravity)
     labels = obs.labels
     ho = np.array([str(lb).startswith("heldout") for lb in labels])
@@ -747,7 +780,8 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
     train, heldout = obs.subset(~ho), (obs.subset(ho) if ho.any() else None)
     fit_base = base if gravity else base.replace(gravity=(0.0, 0.0, 0.0))
     res = identify(train, fit_base, heldout=heldout, forms=forms, fit_distance=fit_distance,
-                   absolute_sigma=absolute_sigma, source="measurements", progress=progress, check_information=True)
+                   absolute_sigma=absolute_sigma, source="measurements", progress=progress, check_information=True,
+                   fit_masses=masses == "free" and gravity and bool(np.any(base.gravity)))
     _finalise_params(res, base)
     res.meta = {"path": str(path) if not isinstance(path, StaticStates) else "<StaticStates>",
                 "n_states": obs.n, "n_heldout": int(ho.sum()), "seed": seed}

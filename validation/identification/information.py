@@ -34,6 +34,12 @@ chosen greedily: the one with the largest share of the least-determined directio
 SVD is taken again over the others, until every remaining direction is determined.  S is evaluated at the
 starting point (the base actuator) — one equilibrium and one linear solve per state, no fit — and re-checked at
 the solution by the fit's own rank and interval tests (:mod:`validation.identification.fit`).
+
+**Masses** (a form with the line and tip mass, :func:`validation.identification.forms.with_masses`): without known
+tip loads the weight's sag and the stiffness trade against each other — a heavier, stiffer actuator bends like a
+lighter, softer one.  Before the greedy step, when an undetermined direction has more than :data:`MASS_SHARE`
+of its weight on the masses, *both* masses are held at the base actuator's values (what its file states), with
+that reason, rather than a stiffness; known tip loads (hung masses) at several pressures separate them.
 """
 
 from __future__ import annotations
@@ -60,6 +66,10 @@ ONE_POINT_FRACTION = 0.002
 ONE_PRESSURE_FRACTION = 0.05
 #: Parameters that describe a change with pressure (not determined by states at one pressure).
 PRESSURE_PARAMETERS = frozenset({"pI1", "pI2", "pA1", "s1"})
+#: The masses of a rig-data fit (:func:`validation.identification.forms.with_masses`) …
+MASS_PARAMETERS = frozenset({"line_mass", "tip_mass"})
+#: … held together at the base's values when an undetermined direction has more than this share on them.
+MASS_SHARE = 0.1
 
 
 @dataclass
@@ -179,6 +189,7 @@ def information(form, J: np.ndarray, weights: np.ndarray, typical: np.ndarray, c
         return Information(form.name, names, held, sv, rel, Vt, noise, refused=True)
     if "one_pressure" in cov.findings:
         held.update({nm: cov.findings["one_pressure"] for nm in names if nm in PRESSURE_PARAMETERS})
+    held.update(_masses_held(names, S, held, cov))
     while len(held) < len(names):
         free = [j for j, nm in enumerate(names) if nm not in held]
         s_f, Vt_f, bad = weak_directions(S[:, free])
@@ -194,6 +205,29 @@ def information(form, J: np.ndarray, weights: np.ndarray, typical: np.ndarray, c
                    f"(1σ, noise {noise}; more than {MAX_RELATIVE_SD:.0%})")
         held[names[j]] = why + f"; {cov.summary()}"
     return Information(form.name, names, held, sv, rel, Vt, noise, refused=len(held) == len(names))
+
+
+def _masses_held(names: tuple, S: np.ndarray, held: dict, cov: Coverage) -> dict:
+    """{mass: reason} for the line and tip mass (:data:`MASS_PARAMETERS`) when the data do not determine them:
+    some undetermined direction of S over the parameters not yet ``held`` has a share above
+    :data:`MASS_SHARE` on the masses — gravity's sag trading against the stiffness.  Both masses are then held
+    (at the base actuator's values), not a stiffness: the masses are what the actuator file states."""
+    masses = [nm for nm in names if nm in MASS_PARAMETERS and nm not in held]
+    if not masses:
+        return {}
+    free = [j for j, nm in enumerate(names) if nm not in held]
+    mj = [free.index(names.index(nm)) for nm in masses]
+    s_f, Vt_f, bad = weak_directions(S[:, free])
+    share = np.sum(Vt_f[:, mj] ** 2, axis=1)
+    weak = bad & (share > MASS_SHARE)
+    if not weak.any():
+        return {}
+    k = int(np.flatnonzero(weak)[-1])
+    fixed = "no" if not s_f[k] > 0 else f"±{100 / s_f[k]:.3g} %"
+    why = (f"gravity's sag and the stiffness trade against each other in these data: a parameter direction "
+           f"{100 * share[k]:.0f} % masses is fixed to {fixed} (1σ, more than {MAX_RELATIVE_SD:.0%}) — known tip "
+           f"loads (hung masses) at several pressures determine the masses; {cov.summary()}")
+    return {nm: why for nm in masses}
 
 
 def noise_text(obs) -> str:

@@ -27,8 +27,10 @@ unknown keys and missing units are errors)::
     pressure_max_kPa = 120
 
 **A wall profile as data.**  ``profile_file = "wall.csv"`` (a path relative to the TOML file) gives the inner and
-outer outline of the wall as a table (format, rules and errors: :mod:`fem_reference.profile`, docs/fem.md §3b); the
-design then states ``n_convolutions`` and ``collar_length_*`` (mesh blocks, tendon guides at the roots) but not
+outer outline of the wall as a table (format, rules and errors: :mod:`fem_reference.profile`, docs/fem.md §3b), or
+``profile_file = "wall.msh"`` (any 2-D mesh file meshio reads) as a mesh of the meridian section, x = radius,
+y = axial, whose unit the design states as ``profile_unit = "mm"`` (or "m", "cm"; :mod:`fem_reference.section_mesh`);
+the design then states ``n_convolutions`` and ``collar_length_*`` (mesh blocks, tendon guides at the roots) but not
 ``length``, ``root_radius``, ``crest_radius`` or ``wall_thickness``, which are read off the table.
 
 **Plausibility.**  Every dimensioned key is checked against :data:`PLAUSIBLE` (a value outside is almost always a
@@ -66,7 +68,8 @@ except ModuleNotFoundError:  # pragma: no cover
 
 __all__ = ["load_design", "design_to_toml", "design_limits", "PRESETS", "DEFAULT_LIMITS"]
 
-GEOMETRY_FIELDS = {"name": None, "description": None, "profile_file": None, "length": "length", "n_convolutions": None,
+GEOMETRY_FIELDS = {"name": None, "description": None, "profile_file": None, "profile_unit": None, "length": "length",
+                   "n_convolutions": None,
                    "root_radius": "length", "crest_radius": "length", "wall_thickness": "length",
                    "collar_length": "length", "tendon_radius": "length", "tendon_angles": "angle",
                    "cap_mass": "mass", "cap_com_offset": "length", "tip_offset": "length"}
@@ -83,7 +86,7 @@ PLAUSIBLE = {
     "mu": (1e3, 1e9, False), "kappa": (1e3, 1e11, False), "c10": (-1e9, 1e9, True), "c01": (-1e9, 1e9, True),
     "density": (100.0, 20000.0, False), "tension_max": (1e-3, 1e3, False), "pressure_max": (1e3, 10e6, False),
 }
-TEXT_KEYS = ("name", "description", "profile_file", "model", "formulation")
+TEXT_KEYS = ("name", "description", "profile_file", "profile_unit", "model", "formulation")
 #: keys a design with a profile_file must not state (read off the table)
 TABLE_DERIVED = ("length", "root_radius", "crest_radius", "wall_thickness")
 
@@ -186,7 +189,7 @@ def load_design(source):
 
 def _geometry(raw: dict, path: pathlib.Path):
     from fem_reference import BellowsGeometry
-    from fem_reference.profile import read_profile_csv
+    from fem_reference.profile import read_profile
 
     raw, angles = _tendon_angles(raw, str(path))
     g = _parse_table(raw, GEOMETRY_FIELDS, str(path))
@@ -197,6 +200,9 @@ def _geometry(raw: dict, path: pathlib.Path):
     if "tendon_angles" in g:
         g["tendon_angles"] = tuple(g["tendon_angles"])
     profile_file = g.pop("profile_file", None)
+    profile_unit = g.pop("profile_unit", None)
+    if profile_unit is not None and profile_file is None:
+        raise ConfigError(f"{path}: profile_unit is the length unit of a profile_file mesh; there is no profile_file")
     needed = ("n_convolutions",) if profile_file else ("length", "n_convolutions", "root_radius", "crest_radius",
                                                         "wall_thickness")
     missing = [k for k in needed if k not in g]
@@ -208,7 +214,7 @@ def _geometry(raw: dict, path: pathlib.Path):
     if extra:
         raise ConfigError(f"{path}: {', '.join(extra)} must not be given with profile_file: they are read off the "
                           f"profile table")
-    profile = read_profile_csv(_relative(path, profile_file))
+    profile = read_profile(_relative(path, profile_file), profile_unit)
     return BellowsGeometry.from_profile(profile, **g)
 
 
@@ -276,6 +282,8 @@ def design_to_toml(geometry, material, name: str = "bellows", limits: dict | Non
             raise ConfigError("a design with a profile table needs its profile file: write it with "
                               "fem_reference.profile.write_profile_csv and read it back first")
         shape = [f"profile_file = {json.dumps(pathlib.Path(g.profile.source).resolve().as_posix())}"]
+        if g.profile.source_unit:
+            shape.append(f"profile_unit = {json.dumps(g.profile.source_unit)}")
     else:
         shape = [f"length_m = {g.length!r}", f"root_radius_m = {g.root_radius!r}",
                  f"crest_radius_m = {g.crest_radius!r}", f"wall_thickness_m = {g.wall_thickness!r}"]

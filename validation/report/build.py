@@ -6,6 +6,12 @@ matrices vs the FEM) and the stiffness-vs-tension study (:func:`validation.check
 into one HTML page that a colleague can open anywhere: figures are embedded as base64 PNG, styles inline,
 no script and no network access.  The template is ``validation/report/templates/report.html.j2`` (jinja2).
 
+The page opens with :func:`headline`: what fails, worst first (the quantity — locked or tensions-held
+compliance, shape —, its worst held-out state, its value against the target, what it means for LACC), then
+what is not checked and what passes, each linked to its section; then a table of contents (:func:`sections`).
+Every sentence that states physics or a verdict is made from the numbers it describes (the fitted law's own
+pressure factors, the measured errors and their verdicts); none is fixed text.
+
 Sections: identified parameters with 95 % CIs (non-identifiable ones shown as such, never as a number)
 and the closed-form first estimate; the model forms compared on held-out error; parameter correlations;
 error per state; the reduced model vs the FEM on held-out states (tip, shape, compliance, stiffness
@@ -31,9 +37,10 @@ from validation.report import figures as figs
 from validation.checks.compare import N_SHAPE_POINTS, ValidationResult
 from validation.identification.forms import MEANINGS, REPORTED, display_unit
 from validation.identification.identify import PARSIMONY, IdentificationResult
-from validation.checks.modes_compare import modes_sentences
+from validation.checks.modes_compare import modes_sentences, pressure_factor_text
+from validation.reference.experiments import EXTRAPOLATION
 
-__all__ = ["build_report", "write_report", "report_figures"]
+__all__ = ["build_report", "write_report", "report_figures", "headline", "sections"]
 
 #: The paper's identified values (Sec. II-B), shown beside ours.
 PAPER_DIAMETERS_MM = {"D_a": 29.59, "D_eff": 26.05}
@@ -182,6 +189,154 @@ def _ratio_rows(val: ValidationResult) -> list[dict]:
     return out
 
 
+#: the validated compliances, as the headline names them
+COMPLIANCE_NAMES = {"locked": "locked compliance", "tension": "tensions-held compliance"}
+
+
+def _row_at(rows: list, key: str, value: float) -> Optional[dict]:
+    """The row whose ``key`` is the stated worst ``value`` (nearest finite one), None without one."""
+    cand = [r for r in rows if r.get(key) is not None and np.isfinite(r[key])]
+    return min(cand, key=lambda r: abs(r[key] - value)) if cand and np.isfinite(value) else None
+
+
+def _where(row: Optional[dict]) -> str:
+    """" at state <label> (<its loads>)", the loads left out when the label already states the pressure."""
+    if row is None:
+        return ""
+    return f" at state {row['label']}" + ("" if "kPa" in row["label"] else f" ({_loads(row)})")
+
+
+def _lacc_meaning(mode: str, row: Optional[dict]) -> str:
+    """What a failing compliance means for LACC (controller/lacc.py).  Along z, with the FEM as the plant, one
+    step ΔF̂ = C'_p⁻¹ e leaves e' = (1 − C_plant/C_model) e = −ε e, ε = k_model/k_plant − 1 (the row's signed
+    locked k_z error): a Newton step with a wrong slope."""
+    if mode == "tension":
+        return ("For the controller: LACC uses the tensions-held compliance to choose which tendons go taut "
+                "(δl = J_l C_q δF̂, Sec. III-D); its error matters where it changes that choice.")
+    text = ("For the controller: LACC turns each measured tip error e into its load-estimate step through the "
+            "locked compliance (ΔF̂ = C'_p⁻¹ e, Algorithm 1 line 10)")
+    k = None if row is None else row.get("k_locked_z_error_pct")
+    if k is None or not np.isfinite(k):
+        return text + "; its error makes that step too large or too small, so the loop needs more iterations."
+    if abs(k) >= 100:
+        return (text + f"; with the model's vertical stiffness {k:+.0f} % off, one step would not shrink a vertical "
+                "error (a stiffness error of 100 % or more): the loop relies on its trust region and fallback.")
+    how = "overshooting: the model is stiffer" if k > 0 else "falling short: the model is softer"
+    return (text + f"; with a plant like the FEM one step leaves about {-k:+.0f} % of a vertical error ({how}; "
+            "0 % for an exact compliance): more iterations to the tolerance, not a worse end position, since the "
+            "loop closes on the measured tip.")
+
+
+def _compliance_items(val: ValidationResult, t: dict) -> list[dict]:
+    """One headline item per compliance (locked, tensions held) with its worst state, against the target."""
+    out = []
+    for mode in ("locked", "tension"):
+        worst = (val.compliance_error_pct.get(mode) or {}).get("max")
+        if worst is None or not np.isfinite(worst):
+            continue
+        row = _row_at(val.rows, f"C_{mode}_error_pct", worst)
+        name = COMPLIANCE_NAMES[mode]
+        if worst < t["target"]:
+            out.append({"status": "passes", "anchor": "sec-validation", "severity": worst / t["target"],
+                        "text": f"{name.capitalize()}: worst error {worst:.1f} %{_where(row)}, below the "
+                                f"{t['target']:g} % target."})
+            continue
+        k = None if row is None else row.get(f"k_{mode}_z_error_pct")
+        stiff = ("" if k is None or not np.isfinite(k) else
+                 f"; there the reduced model's vertical stiffness k_z is {k:+.0f} % against the FEM's "
+                 f"({'stiffer' if k > 0 else 'softer'})")
+        out.append({"status": "fails", "anchor": "sec-validation", "severity": worst / t["target"],
+                    "label": None if row is None else row["label"],
+                    "text": f"{name.capitalize()}: error {worst:.1f} %{_where(row)} against the {t['target']:g} % "
+                            f"target ({worst / t['target']:.1f} × the target){stiff}. " + _lacc_meaning(mode, row)})
+    return out
+
+
+def _shape_item(val: ValidationResult, t: dict) -> dict:
+    v = t["value"]
+    row = _row_at([r for r in val.rows if r.get("experiment") != EXTRAPOLATION], "shape_error_pct", v)
+    mm = "" if row is None else f" ({1e3 * row['shape_error_m']:.2f} mm)"
+    if t["met"]:
+        return {"status": "passes", "anchor": "sec-validation", "severity": v / t["target"],
+                "text": f"Shape: worst error {v:.2f} % of L{mm}{_where(row)}, below the {t['target']:g} % target."}
+    return {"status": "fails", "anchor": "sec-validation", "severity": v / t["target"],
+            "label": None if row is None else row["label"],
+            "text": f"Shape: error {v:.2f} % of L{mm}{_where(row)} against the {t['target']:g} % target "
+                    f"({v / t['target']:.1f} × the target). For the controller: the reduced model's IK commands a "
+                    "centreline off by up to that much, and LACC, which sees only the tip, reads the tip part of "
+                    "such a model error as a load."}
+
+
+def _target_items(val: ValidationResult) -> list[dict]:
+    """The headline items of the validation targets (their verdicts as :func:`validation.checks.compare`
+    made them; a target split into its quantities, each with its worst state)."""
+    out = []
+    names = {"shape_pct": "shape error", "compliance_pct": "compliance error"}
+    for key, t in val.targets.items():
+        if t.get("status") == "incomplete":
+            missing = ", ".join(t.get("incomplete") or []) or "every state"
+            out.append({"status": "incomplete", "anchor": "sec-validation", "severity": 0.0,
+                        "text": f"{names.get(key, key).capitalize()} (target {t['target']:g} %): not checked on "
+                                f"{missing}; the verdict is incomplete."})
+        elif key == "compliance_pct":
+            out += _compliance_items(val, t)
+        elif key == "shape_pct":
+            out.append(_shape_item(val, t))
+    return out
+
+
+def _fem_error_item(fe: Optional[dict]) -> Optional[dict]:
+    """The headline item of the FEM's own discretisation error (:func:`validation.checks.fem_error.assess`)."""
+    if not fe:
+        return None
+    if not fe.get("estimated"):
+        return {"status": "incomplete", "anchor": "sec-fem-error", "severity": 0.0,
+                "text": "The FEM's discretisation error was not estimated: the verdicts assume the FEM is exact."}
+    if fe.get("too_large"):
+        return {"status": "fails", "anchor": "sec-fem-error", "severity": 0.0,
+                "text": "The FEM's discretisation error is too large for the verdict to mean anything on "
+                        f"{', '.join(fe.get('too_large_states') or [])} (too large: {fe.get('criterion', '')})."}
+    if not fe.get("n_measured"):
+        return {"status": "incomplete", "anchor": "sec-fem-error", "severity": 0.0,
+                "text": "The FEM's discretisation error was not measured on any held-out state."}
+    unsure = fe.get("not_ruled_out_states") or []
+    return {"status": "passes", "anchor": "sec-fem-error", "severity": 0.0,
+            "text": f"FEM discretisation error, measured on the {fe['n_measured']} most deformed held-out states: tip "
+                    f"up to {fe['max_fem_tip_error_pct']:.2f} % of L, not too large for the verdict on any of them "
+                    f"(too large: {fe.get('criterion', '')})"
+                    + (f"; not ruled out on the unmeasured {', '.join(unsure)}" if unsure else "") + "."}
+
+
+def headline(val: Optional[ValidationResult]) -> dict:
+    """The report's headline, failures first: {"fails": [item, …] (worst first: value / target), "incomplete":
+    […], "passes": […], "notes": [str]}; an item is {"status", "text", "anchor" (the section's id), "severity"}.
+    Only presents the verdicts of :class:`~validation.checks.compare.ValidationResult` and
+    :func:`validation.checks.fem_error.assess`; computes none."""
+    items = [] if val is None else _target_items(val)
+    fe = None if val is None else _fem_error_item(val.fem_error)
+    if fe is not None:
+        items.append(fe)
+    out = {k: [i for i in items if i["status"] == k] for k in ("fails", "incomplete", "passes")}
+    out["fails"].sort(key=lambda i: -i["severity"])
+    doubtful = set(((val.fem_error or {}).get("too_large_states") or []) if val is not None else [])
+    for i in out["fails"]:
+        if i.get("label") in doubtful:
+            i["text"] += " The FEM's own discretisation error is too large for a verdict on this state."
+    notes = []
+    if val is None:
+        notes.append("No validation against the FEM: the model was identified from measured states; its held-out "
+                     "tip errors are in section 2.")
+    elif val.tip_error_pct:
+        notes.append(f"Tip error (no target): mean {val.tip_error_pct['mean']:.2f} %, max "
+                     f"{val.tip_error_pct['max']:.2f} % of L.")
+    if val is not None and val.failures:
+        out["incomplete"].append({"status": "incomplete", "anchor": "sec-validation", "severity": 0.0,
+                                  "text": f"{len(val.failures)} held-out state(s) could not be compared: "
+                                          + ", ".join(f"{f['label']} ({f['model']})" for f in val.failures) + "."})
+    out["notes"] = notes
+    return out
+
+
 def _matrix(C) -> str:
     return "\n".join(" ".join(f"{1e3 * x:9.3f}" for x in row) for row in np.asarray(C, float))
 
@@ -206,6 +361,26 @@ def _shear_note(params) -> str:
             "'pressure_ei_shear' adds one)")
 
 
+def _law_dependence(params, key: str) -> str:
+    """What the chosen law's ``key`` ("EA" or "EI") depends on, in words, from its pressure factor."""
+    coeffs = getattr(params.stiffness, f"{key}_pressure", ()) if params is not None else ()
+    if coeffs:
+        return (f"the law's dependence on stretch and pressure ({key}(λ) · ({pressure_factor_text(coeffs)}), "
+                "p̂ = p / 100 kPa)")
+    return "the law's dependence on stretch alone"
+
+
+def _ratio_note(val: ValidationResult) -> str:
+    """The locked/held ratio, FEM against reduced model, in words (which is lower, from the means)."""
+    f, a = val.ratio["fem"]["mean"], val.ratio["ancf"]["mean"]
+    if not (np.isfinite(f) and np.isfinite(a)):
+        return ""
+    if f < a:
+        return ("The FEM's ratio is the lower one on average, as where its tip moves sideways without turning "
+                "(shear-like, growing with pressure), which locked tendons cannot hold; ")
+    return "The reduced model's ratio is not above the FEM's on average; "
+
+
 def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], stiffness: Optional[dict]) -> list[str]:
     d = []
     v = ident.values
@@ -220,7 +395,8 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
         trend = "softens" if a < 0 else "stiffens"
         d.append(f"Axial law EA(λ) = a λ + b with a = {a:.4g} N: the axial stiffness {trend} with stretch "
                  f"(EA(1) = {v['EA']:.4g} N). The product's axial energy uses the Green strain, which stiffens by "
-                 "itself; a negative slope can compensate it (docs/identification.md).")
+                 "itself" + ("; this negative slope compensates part of that (docs/identification.md)." if a < 0
+                             else " (docs/identification.md)."))
         if a > 0 and v.get("b") is not None and v["b"] < 0:
             d.append(f"The linear law reaches zero stiffness at λ = {-v['b'] / a:.3f}: states compressed further are "
                      "outside the law's validity.")
@@ -243,15 +419,13 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
             if fitted is not None and lin and abs(fitted / lin - 1) > 0.10:
                 d.append(f"The fitted {what} stiffness at rest ({key} = {fitted:.4g}) differs by "
                          f"{100 * (fitted / lin - 1):+.0f} % "
-                         f"from the FEM's small-load tangent ({lin:.4g}): over the training loads the FEM "
-                         f"{'stiffens' if fitted > lin else 'softens'} with deformation in a way the law's stretch "
-                         "dependence cannot follow (e.g. convolutions closing under compression or on the inner side "
-                         "of a bend — a curvature-dependent stiffness); expect the largest errors at the largest and "
-                         "smallest deformations.")
+                         f"from the FEM's small-load tangent ({lin:.4g}): over the training loads the FEM is "
+                         f"{'stiffer' if fitted > lin else 'softer'} than at rest in a way "
+                         f"{_law_dependence(ident.params, key)} does not follow.")
         if ident.rod.get("EI_tip_force") and ident.rod.get("EI"):
             sh = ident.rod["EI"] / ident.rod["EI_tip_force"] - 1
-            d.append(f"Shear: a tip force bends the unloaded FEM {100 * sh:.1f} % more than its pure-moment EI predicts; "
-                     + _shear_note(ident.params) + ".")
+            d.append(f"Shear: a tip force bends the unloaded FEM {100 * abs(sh):.1f} % {'more' if sh >= 0 else 'less'} "
+                     "than its pure-moment EI predicts; " + _shear_note(ident.params) + ".")
     if ident.not_identifiable:
         d.append("Not identifiable: " + ", ".join(ident.not_identifiable) + ". The fit held these at its first-pass "
                  "optimum and refitted the rest (fit.json: 'held'); the actuator file marks them.")
@@ -259,8 +433,7 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
         d.append(f"Locked/constant-tension vertical stiffness ratio on the held-out states: FEM "
                  f"{val.ratio['fem']['mean']:.2f} (max {val.ratio['fem']['max']:.2f}), reduced model "
                  f"{val.ratio['ancf']['mean']:.2f} "
-                 f"(max {val.ratio['ancf']['max']:.2f}); the paper reports \"about twice\". The FEM's is lower where its tip "
-                 "moves sideways without turning (shear-like, growing with pressure), which locked tendons cannot hold; "
+                 f"(max {val.ratio['ancf']['max']:.2f}); the paper reports \"about twice\". " + _ratio_note(val)
                  + _shear_note(ident.params) + " (section 3b; docs/identification.md §4b).")
     if val is not None and val.failures:
         d.append(f"{len(val.failures)} held-out state(s) could not be compared: "
@@ -306,8 +479,32 @@ def _provenance_rows(ident: IdentificationResult, command: Optional[str]) -> lis
             v = ", ".join(f"{kk}={vv}" for kk, vv in v.items())
         rows.append((k, v))
     if command:
-        rows.append(("command", command))
+        rows = [r for r in rows if r[0] != "command"] + [("command", command)]
     return rows
+
+
+def sections(validation: Optional[ValidationResult], stiffness: Optional[dict], modes: Optional[dict],
+             has_ratio: bool) -> list[dict]:
+    """The report's sections in order, numbered as shown, each {"id" (its anchor), "title", "level" (2 or 3)}:
+    the table of contents and every heading come from this one list."""
+    out = [("sec-params", "Identified parameters", 2), ("sec-forms", "Model forms compared", 2)]
+    if validation is not None:
+        out += [("sec-validation", "Reduced model vs FEM on held-out states", 2),
+                ("sec-fem-error", "The FEM's own discretisation error", 3)]
+        if has_ratio:
+            out.append(("sec-ratio", "Locked / tension-held vertical stiffness ratio per state", 3))
+    if stiffness:
+        out.append(("sec-stiffness", "Stiffness vs tendon tension (the Fig. 9 protocol)", 2))
+    if modes:
+        out.append(("sec-dynamics", "Dynamics: first modes per pressure", 2))
+    out.append(("sec-diagnostics", "Diagnostics", 2))
+    res, n, sub = [], 0, 0
+    for sid, title, level in out:
+        n, sub = (n + 1, 0) if level == 2 else (n, sub + 1)
+        number = f"{n}." if level == 2 else f"{n}{'abcdefgh'[sub - 1]}."
+        res.append({"id": sid, "title": f"{number} {title}", "level": level})
+    res.append({"id": "sec-provenance", "title": "Provenance", "level": 2})
+    return res
 
 
 def build_report(ident: IdentificationResult, validation: Optional[ValidationResult] = None,
@@ -361,7 +558,13 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "provenance_rows": _provenance_rows(ident, command),
         "modes": modes, "modes_rows": _modes_rows(modes),
         "modes_sentences": [] if not modes else modes_sentences(modes),
+        "headline": headline(validation),
+        "ratio_note": "" if validation is None else (
+            "On a straight tube the difference is the FEM's lateral tip motion without cap rotation, which locked "
+            "tendons cannot hold (docs/identification.md §4b); " + _shear_note(validation.params) + "."),
     }
+    toc = sections(validation, stiffness, modes, bool(ctx["ratio_rows"]))
+    ctx.update(toc=toc, sec={t["id"]: t["title"] for t in toc})
     return env.get_template("report.html.j2").render(**ctx)
 
 

@@ -1,12 +1,16 @@
-"""Command line of the FEM reference (``typer``); the product mounts ``app`` as ``bellows fem``.
+"""``bellows fem …``: the command line of the FEM reference (``typer``); :mod:`validation.commands.main` mounts
+``app`` as ``bellows fem``.
 
 Examples::
 
     bellows fem solve --pressure-kpa 30 --tensions-n 2,0,0 --tip-force-n 0,0,-0.49 --mesh coarse --out out/
     bellows fem solve --json --compliance          # JSON summary on stdout (SI units)
+    bellows fem solve --design my_bellows.toml --tensions-n 2,0,0 --pressure-kpa 30   # a design file of one's own
     bellows fem info                               # preset values and the GUESSED table
+    bellows fem profile --export wall.csv          # the built-in wall profile as a table (exact at the mesh rows)
 
-Standalone: ``python -m fem_reference.cli solve ...``.
+It lives in :mod:`validation` (which may use both :mod:`ancf` and :mod:`fem_reference`) so that
+:mod:`fem_reference` itself needs no other package of the product.
 
 Rules (docs/errors.md): every option given is used or rejected (``--mu-mpa 0`` is an error, not the
 preset's value); ``--out`` is checked before the mesh is built and existing results are only replaced with
@@ -28,11 +32,11 @@ import typer
 from ancf import clitools
 from ancf.errors import InputError
 from ancf.outputs import atomic_write_text, prepare_output_dir
-
 from ancf.textfmt import one_of, vector
-from .assembly import ELEMENTS
-from .mesh import MESH_LEVELS
-from .model import LINEAR_SOLVERS, OperatingLimits
+from fem_reference.assembly import ELEMENTS
+from fem_reference.mesh import MESH_LEVELS
+from fem_reference.model import LINEAR_SOLVERS, OperatingLimits
+from validation.commands.fem_profile import profile as _profile
 
 app = typer.Typer(help="scikit-fem 3-D hyperelastic reference model of the bellows actuator.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
@@ -48,7 +52,7 @@ GEOMETRIES = {
 
 
 def _presets():
-    from . import presets
+    from fem_reference import presets
     return presets
 
 
@@ -116,12 +120,15 @@ def solve(
     mesh: MeshChoice = typer.Option(MeshChoice("coarse"), help="mesh level"),
     element: ElementChoice = typer.Option(ElementChoice("mixed"), help="wall element: mixed (u–p, locking-free) "
                                           "or displacement (Hex27 alone; locks in bending, docs/fem.md §3a)"),
-    preset: PresetChoice = typer.Option(PresetChoice("paper"), help="geometry preset"),
+    preset: PresetChoice | None = typer.Option(None, help="geometry preset (default: paper)"),
+    design: str | None = typer.Option(None, "--design", help="a bellows design of one's own instead of --preset: a "
+                                      "design .toml file (wall profile, tendons, material; docs/data-formats.md) or a "
+                                      "design preset name"),
     mu_mpa: float | None = typer.Option(None, callback=MODULUS_MPA,
-                                        help=f"shear modulus, {MODULUS_MPA.text} (default: preset)"),
+                                        help=f"shear modulus, {MODULUS_MPA.text} (default: the design's)"),
     kappa_mpa: float | None = typer.Option(None, callback=MODULUS_MPA,
                                            help=f"bulk modulus, {MODULUS_MPA.text}, above 2/3 of the shear modulus "
-                                                "(default: preset)"),
+                                                "(default: the design's)"),
     solver: str = typer.Option("auto", help=f"linear solver {one_of(LINEAR_SOLVERS)} (a library's solver where it "
                                             "is installed; auto: pardiso if installed, else splu)"),
     compliance: bool = typer.Option(False, help="also compute the 3×3 tip compliance (tension and locked)"),
@@ -138,9 +145,8 @@ def solve(
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from . import presets
-    from .material import Material
-    from .model import BellowsModel, OperatingLimits
+    from fem_reference.material import Material
+    from fem_reference.model import BellowsModel
 
     console = Console(stderr=True)
     if png and out is None:
@@ -157,14 +163,14 @@ def solve(
     locked = _locked(locked_lengths_mm)
     if not no_limits:     # the loads, before minutes of meshing and solving
         OperatingLimits().check_loads(T, pressure_kpa * 1e3, F, [v is not None for v in locked or [None] * 3])
-    base = presets.paper_material()
+    geometry, base, name, source = _design(preset, design)
     mu, kappa = _modulus(mu_mpa, base.mu, "--mu-mpa"), _modulus(kappa_mpa, base.kappa, "--kappa-mpa")
     if not kappa > 2 * mu / 3:          # a positive Poisson ratio (Material's own rule, in the options' terms)
         raise InputError(f"--kappa-mpa must exceed 2/3 of --mu-mpa (a Poisson ratio > 0), got {kappa / 1e6:g} MPa and "
                          f"{mu / 1e6:g} MPa (an option not given is the preset's)")
     mat = Material.neo_hookean(mu=mu, kappa=kappa, density=base.density)
     with console.status(f"building {mesh.value} mesh and assembler ..."):
-        model = BellowsModel(_geometry(preset), mat, mesh.value, linear_solver=solver, element=element.value)
+        model = BellowsModel(geometry, mat, mesh.value, linear_solver=solver, element=element.value)
     console.print(f"[bold]{model.n_dofs}[/] reduced DOFs, {model.bmesh.n_elements} Hex2 elements")
     plain = not console.is_terminal      # a log file or a pipe: one plain line per load step, as it happens
 
@@ -186,7 +192,7 @@ def solve(
                           locked_lengths=locked, progress=cb, check_limits=not no_limits,
                           time_limit_s=max_time_s)
     summary = res.summary()
-    summary.update(element=element.value, model=model_info(getattr(preset, "value", preset), mu_mpa, kappa_mpa))
+    summary.update(element=element.value, model=model_info(name, mu_mpa, kappa_mpa, source=source))
     if compliance:
         summary["tip_compliance_tension_m_per_N"] = model.tip_compliance(res, "tension").tolist()
         summary["tip_compliance_locked_m_per_N"] = model.tip_compliance(res, "locked").tolist()
@@ -194,7 +200,7 @@ def solve(
         atomic_write_text(out / "result.json", json.dumps(summary, indent=2))
         res.save_vtu(out / "result.vtu")
         if png:
-            from .render import render_result
+            from fem_reference.render import render_result
 
             render_result(res, out / "result.png")
         console.print(f"wrote {out}/result.json, result.vtu" + (", result.png" if png else ""))
@@ -205,7 +211,23 @@ def solve(
             console.print(line, markup=False, highlight=False, soft_wrap=True)     # a log line is not cut
 
 
-def model_info(design: str, mu_mpa: float | None = None, kappa_mpa: float | None = None) -> dict:
+def _design(preset, design: str | None) -> tuple:
+    """(geometry, material, name, source) of ``--preset`` or ``--design`` (not both): a design file is read by
+    :func:`validation.reference.designs.load_design` (its errors name the key)."""
+    if design is not None and preset is not None:
+        raise InputError("give --preset or --design, not both (--design takes a design file or a design preset name)")
+    if design is None:
+        name = preset.value if isinstance(preset, Enum) else str(preset or "paper")
+        return _geometry(name), _presets().paper_material(), name, "design preset"
+    from validation.reference.designs import PRESETS, load_design
+    geometry, material = load_design(design)
+    if design in PRESETS:
+        return geometry, material, design, "design preset"
+    return geometry, material, Path(design).name, f"design file {design}"
+
+
+def model_info(design: str, mu_mpa: float | None = None, kappa_mpa: float | None = None, *,
+               source: str = "design preset") -> dict:
     """Which model and which parameter set produced a result: ``{"kind": "FEM reference", "parameters": the
     bellows design, "source": "design preset", "material": "preset" | the moduli given, "description": one
     line}``, e.g. "FEM reference (3-D hyperelastic), bellows design 'paper' (wall geometry and material)" — the
@@ -213,9 +235,12 @@ def model_info(design: str, mu_mpa: float | None = None, kappa_mpa: float | None
     given = [f"{nm} = {v:g} MPa" for nm, v in (("shear modulus", mu_mpa), ("bulk modulus", kappa_mpa))
              if v is not None]
     material = "and material" if not given else f"and material, {', '.join(given)} given"
-    return {"kind": "FEM reference", "parameters": design, "source": "design preset",
-            "material": "preset" if not given else {"mu_MPa": mu_mpa, "kappa_MPa": kappa_mpa},
-            "description": f"FEM reference (3-D hyperelastic), bellows design '{design}' (wall geometry {material})"}
+    where = "" if source == "design preset" else f", {source}"
+    return {"kind": "FEM reference", "parameters": design, "source": source,
+            "material": ("preset" if source == "design preset" else "design file") if not given
+            else {"mu_MPa": mu_mpa, "kappa_MPa": kappa_mpa},
+            "description": f"FEM reference (3-D hyperelastic), bellows design '{design}' (wall geometry {material}"
+                           f"{where})"}
 
 
 def summary_lines(res) -> list[str]:
@@ -234,7 +259,7 @@ def info(preset: PresetChoice = typer.Option(PresetChoice("paper"), help="geomet
     from rich.console import Console
     from rich.table import Table
 
-    from . import presets
+    from fem_reference import presets
 
     c = Console()
     c.print(_geometry(preset))
@@ -245,8 +270,11 @@ def info(preset: PresetChoice = typer.Option(PresetChoice("paper"), help="geomet
 
 
 def main():  # pragma: no cover
-    clitools.run(app, prog_name="python -m fem_reference.cli")
+    clitools.run(app, prog_name="python -m validation.commands.fem")
 
 
 if __name__ == "__main__":  # pragma: no cover
     main()
+
+
+app.command("profile", short_help="Write a design's built-in wall profile as a table, exact at the mesh rows.")(_profile)
