@@ -111,6 +111,29 @@ def simulate_states(seed: int, targets: Optional[list] = None, *, base: Optional
     return states, opts.params
 
 
+def experiment_states(seed: int, folder, *, base: Optional[ActuatorParams] = None, plan=None,
+                      samples: int = 3) -> tuple:
+    """(run log path, plant ActuatorParams): ``bellows experiment``'s own runner
+    (:func:`~validation.identification.experiment_run.run_experiment`: tensions reached on the measured values,
+    ``samples`` readings averaged, standard errors stated) driving ``plan`` (default: the designed experiment of
+    ``base``, masses :data:`HUNG_MASSES_KG`) on the rig of ``PlantOptions.mismatched(seed)`` with the study's sensor
+    noise; the log is what ``identify --measurements`` reads."""
+    import pathlib
+
+    from hardware.limits import SafetyLimits
+    from validation.identification.experiment import design_experiment
+    from validation.identification.experiment_run import ExperimentOptions, run_experiment
+    base = base or presets.paper()
+    if plan is None:
+        lim = SafetyLimits.around(base.length)
+        plan = design_experiment(base, masses_kg=HUNG_MASSES_KG, travel=(lim.length_min, lim.length_max))
+    opts = PlantOptions.mismatched(seed, base, force_noise_std=TENSION_STD, pressure_noise_std=PRESSURE_STD)
+    log = pathlib.Path(folder) / f"experiment_seed{seed}.h5"
+    with SimulatedRig(opts.params, options=opts) as rig:
+        run_experiment(plan, rig, base, log, options=ExperimentOptions(samples=samples), force=True)
+    return log, opts.params
+
+
 def _move(rig: SimulatedRig, lengths: np.ndarray) -> None:
     """Command ``lengths`` [m] in steps within the rig's largest step, waiting for each move."""
     cur = rig.commanded if rig.commanded is not None else None
@@ -136,12 +159,15 @@ def identification_base(plant: ActuatorParams, weighed: bool = True) -> Actuator
 
 
 def one_seed(seed: int, *, state_input_std: bool = True, forms=("paper",), weighed: bool = False,
-             targets: Optional[list] = None, masses: str = "free", **plant_changes) -> dict:
+             targets: Optional[list] = None, masses: str = "free", driver=None, **plant_changes) -> dict:
     """Simulate ``targets`` (default :func:`designed_targets`), identify and compare one seed: {"hit": {key: bool},
     "width": {key: relative width}, "error": {key: relative error}, "seconds": identification time, "basis":
     what the intervals contain, "chi2": χ²/dof, "masses": fitted (line [kg/m], tip [kg]), "misfit": warning}."""
     from validation.identification.identify import from_measurements
-    states, plant = simulate_states(seed, targets, state_input_std=state_input_std, **plant_changes)
+    if driver is not None:                       # bellows experiment's runner: a run log, as a lab would have it
+        states, plant = driver(seed)
+    else:
+        states, plant = simulate_states(seed, targets, state_input_std=state_input_std, **plant_changes)
     t0 = time.perf_counter()
     res = from_measurements(states, identification_base(plant, weighed), forms=forms, heldout_fraction=0.0,
                             masses=masses)
@@ -179,12 +205,27 @@ def main(argv=None) -> None:
                     help="states: the designed experiment (default) or the fixed grid designed_targets()")
     ap.add_argument("--weighed", action="store_true", help="give the fit the plant's own masses")
     ap.add_argument("--masses", choices=("free", "base"), default="free", help="fit the masses or hold them")
+    ap.add_argument("--runner", action="store_true", help="measure each seed's states with bellows experiment's "
+                    "runner (tension corrections, averaged readings; ~10–30 s a seed) instead of one reading per "
+                    "designed state")
     a = ap.parse_args(argv)
     if a.seeds < 1:
         ap.error("--seeds must be >= 1")
     targets = experiment_targets() if a.targets == "experiment" else designed_targets()
-    c = coverage(range(a.seeds), targets, state_input_std=not a.no_input_std, weighed=a.weighed, masses=a.masses)
-    print(f"{a.seeds} seeds, {len(targets)} states each ({a.targets}); input noise stated: {not a.no_input_std}; "
+    driver = None
+    if a.runner:                                 # the states measured by bellows experiment's runner on the rig
+        import tempfile
+
+        from hardware.limits import SafetyLimits
+        from validation.identification.experiment import design_experiment
+        lim = SafetyLimits.around(presets.paper().length)
+        plan = design_experiment(presets.paper(), masses_kg=HUNG_MASSES_KG, travel=(lim.length_min, lim.length_max))
+        folder = tempfile.mkdtemp(prefix="coverage_")
+        driver = lambda seed: experiment_states(seed, folder, plan=plan)        # noqa: E731
+    c = coverage(range(a.seeds), targets, state_input_std=not a.no_input_std, weighed=a.weighed, masses=a.masses,
+                 driver=driver)
+    print(f"{a.seeds} seeds, {len(targets)} states each ({a.targets}{', bellows experiment runner' if a.runner else ''}); "
+          f"input noise stated: {not a.no_input_std}; "
           f"masses: {'the plant' if a.weighed else 'nominal'} base, {a.masses}")
     print(f"{'':8s}{'coverage':>10s}{'mean 95 % width':>18s}{'RMS error':>12s}")
     for k in REPORTED:

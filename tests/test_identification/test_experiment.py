@@ -126,3 +126,23 @@ def test_the_command_line_end_to_end(tmp_path, monkeypatch, capsys):
         main(["identify", "--measurements", "exp.h5", "--base", "paper", "--forms", "paper", "--out", "fit"])
     assert e.value.code == 0
     assert (tmp_path / "fit" / "actuator.toml").is_file()
+
+
+def test_the_noise_of_a_channel_is_pooled_over_the_states():
+    """Standard errors from the pooled variance: exact on given variances, and over 40 states of one instrument far
+    steadier than each state's own 3-reading estimate (which is uncertain by ~50 %)."""
+    from validation.identification.experiment_run import SE_FLOOR, NoisePool
+    pool = NoisePool()
+    pool.add({"pressure_std": 4.0e4, "tensions_std": np.array([1e-4, 4e-4, 0.0])})
+    pool.add({"pressure_std": 2.0e4, "tensions_std": np.array([3e-4, 0.0, 0.0])})
+    se = pool.standard_errors(3)
+    assert se["pressure_std"] == pytest.approx(np.sqrt(3.0e4 / 3))
+    assert se["tensions_std"] == pytest.approx([np.sqrt(2e-4 / 3), np.sqrt(2e-4 / 3), SE_FLOOR["tensions_std"]])
+    rng, sigma, pooled, own = np.random.default_rng(3), 0.02, NoisePool(), []
+    for _ in range(40):
+        readings = rng.normal(1.0, sigma, 3)
+        pooled.add({"tensions_std": readings.var(ddof=1)})
+        own.append(readings.std(ddof=1) / np.sqrt(3))
+    truth = sigma / np.sqrt(3)
+    assert abs(pooled.standard_errors(3)["tensions_std"] / truth - 1) < 0.15
+    assert np.std(np.array(own) / truth) > 0.3

@@ -147,3 +147,20 @@ def test_misfit_threshold_is_the_larger_of_the_factor_and_the_chi2_quantile():
     assert misfit(30.0 * 146, 146, True).startswith("the model does not fit")
     assert misfit(3.9 * 146, 146, True) == ""
     assert misfit(30.0 * 146, 146, False) == ""                # no stated noise: χ² has no scale
+
+
+def test_a_mass_the_fit_cannot_determine_is_held_at_the_base_value_not_at_its_first_pass_optimum():
+    """States without gravity hold no information on the masses: the fit's own rank rule holds them — at the base
+    actuator's (weighed) values, not where the first pass left them (from a start 1.6× too heavy)."""
+    from validation.identification.fit import fit
+    form = get_form("paper", fit_masses=True)
+    model = Model(BASE.replace(gravity=(0.0, 0.0, 0.0)))
+    cases = [((T, 0.2, 0.2), p) for p in (0.0, 40e3, 80e3) for T in (0.5, 1.5, 3.0)]
+    tips = [model.fk(np.array(T), p).tip for T, p in cases]
+    obs = Observations(tensions=[T for T, _ in cases], pressure=[p for _, p in cases], tip_force=np.zeros((9, 3)),
+                       gravity=[False] * 9, tip=np.array(tips), tip_std=np.full((9, 3), SIG_X))
+    th0 = initial_theta(form, None, BASE)
+    th0[-2:] = 1.6 * BASE.line_mass, 1.6 * BASE.tip_mass
+    f = fit(form, obs, BASE, th0)
+    assert f.held_at["line_mass"] == f.held_at["tip_mass"] == "base actuator's value"
+    assert (f.theta[-2], f.theta[-1]) == (BASE.line_mass, BASE.tip_mass)

@@ -192,3 +192,22 @@ def test_intervals_cover_the_simulated_plant():
     assert all(v >= 0.90 for v in c["coverage"].values()), c["coverage"]
     assert not any(r["misfit"] for r in c["runs"])
     assert max(r["seconds"] for r in c["runs"]) < 60
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured over 50 seeds: EA 96 %, EI 80 %, D_eff 98 % — averaged readings "
+                   "expose a bias of EI that leaves no residual (the plant's tendon friction); docs/identification.md §3c")
+def test_intervals_cover_the_simulated_plant_through_bellows_experiment(tmp_path):
+    """As above, each seed's states measured by ``bellows experiment``'s own runner (run_experiment: tensions reached
+    on the measured values, 3 readings averaged per state, standard errors from the pooled noise) into a run log,
+    identified from the log as ``bellows identify --measurements`` reads it."""
+    from validation.identification.experiment import design_experiment
+    from hardware.limits import SafetyLimits
+    from ancf import presets
+    bench = _benchmark()
+    lim = SafetyLimits.around(presets.paper().length)
+    plan = design_experiment(presets.paper(), masses_kg=bench.HUNG_MASSES_KG, travel=(lim.length_min, lim.length_max))
+    c = bench.coverage(range(50), driver=lambda seed: bench.experiment_states(seed, tmp_path, plan=plan))
+    assert all(v >= 0.90 for v in c["coverage"].values()), c["coverage"]
+    assert not any(r["misfit"] for r in c["runs"])
+    assert max(r["seconds"] for r in c["runs"]) < 60

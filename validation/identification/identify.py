@@ -331,10 +331,9 @@ class IdentificationResult:
                  f"# git revision {self.provenance.get('git_revision', 'unknown')}, "
                  f"created {self.provenance.get('created', '')}"]
         f = self.fit
-        held = ", ".join(f"{nm} held at the first-pass optimum {v:.6g} {dict(zip(f.names, f.form.units))[nm]}"
-                         if f.held_at.get(nm) == "first-pass optimum" else
-                         f"{nm} held at the given value {v:.6g} {dict(zip(f.names, f.form.units))[nm]}"
-                         for nm, v in f.held.items())
+        at = {"first-pass optimum": "first-pass optimum", "base actuator's value": "base actuator's value"}
+        held = ", ".join(f"{nm} held at the {at.get(f.held_at.get(nm), 'given value')} {v:.6g} "
+                         f"{dict(zip(f.names, f.form.units))[nm]}" for nm, v in f.held.items())
         for k, v in self.values.items():
             lo, hi = self.ci95.get(k, (float('nan'), float('nan')))
             unit = REPORTED.get(k, "")
