@@ -140,4 +140,4 @@ def _run(a: SimpleNamespace, cfg, models: dict, plan, options) -> None:
 
 
 def register(app: typer.Typer) -> None:
-    app.command("experiment")(experiment)
+    app.command("experiment", short_help="Measure the static states that identify the actuator, on a rig.")(experiment)
