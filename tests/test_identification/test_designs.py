@@ -188,3 +188,17 @@ def test_any_design_file_gives_a_design_or_a_config_error(tmp_path, top, mat, dr
     except ConfigError:
         return
     assert g.length > 0 and m.mu > 0 and len(set(g.tendon_angles)) == len(g.tendon_angles)
+
+
+def test_a_design_with_fewer_tendons_than_an_actuator_file_takes_is_refused_before_the_fem():
+    """The FEM solves a bellows with 1 or 2 tendons; the reduced model's actuator file takes 3 … 16: identifying it
+    is refused up front (no FEM solve, no file that cannot be written)."""
+    import dataclasses
+    import math
+
+    from ancf.errors import ConfigError
+    from fem_reference import presets as fem_presets
+    from validation.identification.identify import from_fem
+    geo = dataclasses.replace(fem_presets.straight_tube_test(), tendon_angles=(0.0, math.pi))
+    with pytest.raises(ConfigError, match="2 tendon"):
+        from_fem(geo, fem_presets.paper_material())

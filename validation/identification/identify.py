@@ -676,9 +676,15 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     :func:`validation.checks.fem_error.estimate_for_heldout`, which use the other cores); its result is
     ``res.after_sweep``.
     """
+    from ancf.params import TENDONS_MAX, TENDONS_MIN
     from validation.reference.fem_sweep import FemSpec, check_cases, run_cases, run_rod
     from validation.infra.runner import check_workers, in_background
     check_workers(workers)
+    n_tendons = len(geometry.tendon_angles)
+    if not TENDONS_MIN <= n_tendons <= TENDONS_MAX:      # before any FEM solve: the result could not be written
+        raise ConfigError(f"the design has {n_tendons} tendon(s): the reduced model (an actuator file) takes "
+                          f"{TENDONS_MIN} … {TENDONS_MAX}, so it cannot be identified from it; the FEM alone "
+                          f"(bellows fem solve --design) takes it")
     spec = FemSpec(geometry, material, mesh)
     if cases not in ("default", "informative"):
         raise InputError(f"cases must be 'default' or 'informative', got {cases!r}")
