@@ -53,6 +53,8 @@ SHORTER = [
 SAYS = [
     # README: the 20 s control log (one pressure, one tip point) identifies nothing, and the command says why
     (r"^bellows identify --measurements run\.h5", ("one point", "one pressure", "refused")),
+    # the walkthrough: noise-free simulated sensors and an unmodelled friction — the misfit is said
+    (r"^bellows identify --measurements lab_exp\.h5", ("does not fit",)),
 ]
 # FEM sweeps: slow
 FEM_SWEEP = re.compile(r"^bellows (report|validate|calibrate)(?![-\w])|^bellows identify(?![-\w])(?!.*--measurements)")
