@@ -56,16 +56,22 @@ def designed_targets(pressures_kPa: Sequence[float] = (0, 25, 50, 75, 100)) -> l
 HUNG_MASSES_KG = (0.02, 0.05)
 
 
+def experiment_plan(base: Optional[ActuatorParams] = None, masses_kg: Sequence[float] = HUNG_MASSES_KG):
+    """The designed experiment of ``base`` (default the `paper` preset; its default form and size, ``masses_kg``
+    hung) within the simulated rig's travel (``SimulatedRig``'s default limits)."""
+    from hardware.limits import SafetyLimits
+    from validation.identification.experiment import design_experiment
+    base = base or presets.paper()
+    lim = SafetyLimits.around(base.length)
+    return design_experiment(base, masses_kg=masses_kg, travel=(lim.length_min, lim.length_max))
+
+
 def experiment_targets(base: Optional[ActuatorParams] = None, masses_kg: Sequence[float] = HUNG_MASSES_KG) -> list:
     """Targets (tensions (m,) [N], pressure [Pa], tip load (3,) [N]) of the designed experiment of ``base``
     (default the `paper` preset; :func:`~validation.identification.experiment.design_experiment`, its default form
     and size, ``masses_kg`` hung).  A tendon the design leaves slack is held at :data:`PRETENSION` (its sensor
     then reads a tension, not a clipped noise about 0)."""
-    from hardware.limits import SafetyLimits
-    from validation.identification.experiment import design_experiment
-    base = base or presets.paper()
-    lim = SafetyLimits.around(base.length)           # the simulated rig's travel (SimulatedRig's default limits)
-    plan = design_experiment(base, masses_kg=masses_kg, travel=(lim.length_min, lim.length_max))
+    plan = experiment_plan(base, masses_kg)
     return [(np.maximum(np.asarray(st.tensions, float), PRETENSION), float(st.pressure),
              np.asarray(st.tip_force, float)) for st in plan.states]
 
@@ -120,13 +126,9 @@ def experiment_states(seed: int, folder, *, base: Optional[ActuatorParams] = Non
     noise; the log is what ``identify --measurements`` reads."""
     import pathlib
 
-    from hardware.limits import SafetyLimits
-    from validation.identification.experiment import design_experiment
     from validation.identification.experiment_run import ExperimentOptions, run_experiment
     base = base or presets.paper()
-    if plan is None:
-        lim = SafetyLimits.around(base.length)
-        plan = design_experiment(base, masses_kg=HUNG_MASSES_KG, travel=(lim.length_min, lim.length_max))
+    plan = experiment_plan(base) if plan is None else plan
     opts = PlantOptions.mismatched(seed, base, force_noise_std=TENSION_STD, pressure_noise_std=PRESSURE_STD)
     log = pathlib.Path(folder) / f"experiment_seed{seed}.h5"
     with SimulatedRig(opts.params, options=opts) as rig:
@@ -216,10 +218,7 @@ def main(argv=None) -> None:
     if a.runner:                                 # the states measured by bellows experiment's runner on the rig
         import tempfile
 
-        from hardware.limits import SafetyLimits
-        from validation.identification.experiment import design_experiment
-        lim = SafetyLimits.around(presets.paper().length)
-        plan = design_experiment(presets.paper(), masses_kg=HUNG_MASSES_KG, travel=(lim.length_min, lim.length_max))
+        plan = experiment_plan()
         folder = tempfile.mkdtemp(prefix="coverage_")
         driver = lambda seed: experiment_states(seed, folder, plan=plan)        # noqa: E731
     c = coverage(range(a.seeds), targets, state_input_std=not a.no_input_std, weighed=a.weighed, masses=a.masses,

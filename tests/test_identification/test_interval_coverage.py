@@ -200,12 +200,8 @@ def test_intervals_cover_the_simulated_plant_through_bellows_experiment(tmp_path
     on the measured values, 3 readings averaged per state, standard errors from the pooled noise, a tendon left
     slack recorded as 0 N) into a run log, identified from the log as ``bellows identify --measurements`` reads it
     (measured: EA 96 %, EI 96 %, D_eff 98 % of 50 seeds, 3.1 s per identification)."""
-    from validation.identification.experiment import design_experiment
-    from hardware.limits import SafetyLimits
-    from ancf import presets
     bench = _benchmark()
-    lim = SafetyLimits.around(presets.paper().length)
-    plan = design_experiment(presets.paper(), masses_kg=bench.HUNG_MASSES_KG, travel=(lim.length_min, lim.length_max))
+    plan = bench.experiment_plan()
     c = bench.coverage(range(50), driver=lambda seed: bench.experiment_states(seed, tmp_path, plan=plan))
     assert all(v >= 0.90 for v in c["coverage"].values()), c["coverage"]
     assert not any(r["misfit"] for r in c["runs"])
