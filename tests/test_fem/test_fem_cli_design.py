@@ -23,7 +23,7 @@ def _solve(args, capsys):
 def test_a_design_file_solves_as_the_preset_it_writes_down(tmp_path, capsys):
     design = tmp_path / "my_tube.toml"
     design.write_text(design_to_toml(presets.straight_tube_test(), presets.paper_material(), name="my tube"))
-    code_p, out_p, err_p = _solve(["--preset", "tube"], capsys)
+    code_p, out_p, err_p = _solve(["--preset", "straight_tube"], capsys)
     code_d, out_d, err_d = _solve(["--design", str(design)], capsys)
     assert code_p == 0 and code_d == 0, err_p + err_d
     preset, own = json.loads(out_p.splitlines()[-1]), json.loads(out_d.splitlines()[-1])

@@ -10,7 +10,7 @@ from validation.commands.fem import app
 
 
 def test_cli_solve_json_and_files(tmp_path):
-    r = CliRunner().invoke(app, ["solve", "--preset", "tube", "--tensions-n", "0.2,0,0", "--tip-force-n",
+    r = CliRunner().invoke(app, ["solve", "--preset", "straight_tube", "--tensions-n", "0.2,0,0", "--tip-force-n",
                                  "0,0,-0.05", "--no-gravity", "--json", "--out", str(tmp_path)])
     assert r.exit_code == 0, r.output
     line = [ln for ln in r.stdout.splitlines() if ln.startswith("{")][-1]
@@ -31,7 +31,7 @@ def test_cli_rejects_bad_input(capsys):
     from validation.commands.main import main
 
     for args, message in ((["--tensions-n", "1,2"], "expected 3"),
-                          (["--preset", "tube", "--tensions-n", "-1,0,0"], "push")):
+                          (["--preset", "straight_tube", "--tensions-n", "-1,0,0"], "push")):
         with pytest.raises(SystemExit) as info:
             main(["fem", "solve", *args])
         err = capsys.readouterr().err

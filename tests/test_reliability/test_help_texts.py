@@ -62,8 +62,8 @@ def test_help_lists_exactly_the_accepted_values(command, opt, registry):
 
 
 @pytest.mark.parametrize("command, opt, registry", [("fem solve", "--mesh", list(MESH_LEVELS)),
-                                                    ("fem solve", "--preset", ["paper", "paper-deep", "tube"]),
-                                                    ("fem info", "--preset", ["paper", "paper-deep", "tube"])])
+                                                    ("fem solve", "--preset", list(DESIGNS)),
+                                                    ("fem info", "--preset", list(DESIGNS))])
 def test_fem_choices_are_the_registries(command, opt, registry):
     import click
     shown = _option(command, opt).get_help_record(click.Context(COMMANDS[command]))[0]   # "--mesh <a|b|c>"

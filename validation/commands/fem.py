@@ -37,29 +37,18 @@ from fem_reference.assembly import ELEMENTS
 from fem_reference.mesh import MESH_LEVELS
 from fem_reference.model import LINEAR_SOLVERS, OperatingLimits
 from validation.commands.fem_profile import profile as _profile
+# the design presets of ``--preset``: the names load_design accepts (one registry for --preset and --design)
+from validation.reference.designs import PRESETS, load_design
 
 app = typer.Typer(help="scikit-fem 3-D hyperelastic reference model of the bellows actuator.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False,
                   rich_markup_mode=None, context_settings=clitools.HELP_SETTINGS)
 
 
-#: Geometry presets of ``--preset``: name → the geometry (from :mod:`fem_reference.presets`).
-GEOMETRIES = {
-    "paper": lambda: _presets().paper_bellows(),
-    "paper-deep": lambda: _presets().paper_bellows("deep"),
-    "tube": lambda: _presets().straight_tube_test(),
-}
-
-
-def _presets():
-    from fem_reference import presets
-    return presets
-
-
 # the choices of --mesh and --preset are generated from the registries, so --help lists exactly what is accepted
 MeshChoice = Enum("MeshChoice", {name: name for name in MESH_LEVELS}, type=str)
 ElementChoice = Enum("ElementChoice", {name: name for name in ELEMENTS}, type=str)
-PresetChoice = Enum("PresetChoice", {name.replace("-", "_"): name for name in GEOMETRIES}, type=str)
+PresetChoice = Enum("PresetChoice", {name: name for name in PRESETS}, type=str)
 
 
 def _floats(text: str, n: int, name: str) -> list[float]:
@@ -103,7 +92,7 @@ def _modulus(value_mpa: float | None, default_pa: float, option: str) -> float:
 
 
 def _geometry(preset):
-    return GEOMETRIES[preset.value if isinstance(preset, Enum) else str(preset)]()
+    return load_design(preset.value if isinstance(preset, Enum) else str(preset))[0]
 
 
 @app.command(short_help="Solve one static load case: tip pose, tensions, cable lengths, timings.")
@@ -218,8 +207,7 @@ def _design(preset, design: str | None) -> tuple:
         raise InputError("give --preset or --design, not both (--design takes a design file or a design preset name)")
     if design is None:
         name = preset.value if isinstance(preset, Enum) else str(preset or "paper")
-        return _geometry(name), _presets().paper_material(), name, "design preset"
-    from validation.reference.designs import PRESETS, load_design
+        return (*load_design(name), name, "design preset")
     geometry, material = load_design(design)
     if design in PRESETS:
         return geometry, material, design, "design preset"
