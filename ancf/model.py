@@ -563,6 +563,7 @@ class Model:
                          residual_norm=info.residual_norm, energy=ev.energy, solver=solver, slack=slack,
                          active=active, history=info.history, stable=stable)
         eq.__dict__["_stability_matrix"] = Hr
+        eq.__dict__["_params"] = self.params          # the actuator it was solved for (ancf.dynamics.modes)
         return eq
 
     def _verify(self, q, H, JA, solver: str, check_stability: bool, positive_definite: Optional[bool] = None):
@@ -620,7 +621,10 @@ class Model:
         """The ``count`` lowest vibration modes about the equilibrium ``eq`` — frequencies [Hz] (undamped,
         ``.frequencies_hz``), damping ratios (``.damping_ratios``, from ``damping``: None — the actuator's
         coefficients, a dict {alpha, beta, axial} or a ratio ζ of the first mode) and mass-normalised shapes
-        (:func:`ancf.dynamics.modes`; locked tendons as constraints when ``eq`` comes from :meth:`fk_locked`)."""
+        (:func:`ancf.dynamics.modes`; locked tendons as constraints when ``eq`` comes from :meth:`fk_locked`).
+        InputError for a state that is not an equilibrium of this model: solved for another actuator, or with a
+        force residual under its loads above 1e-6 of the forces at the state
+        (:func:`ancf.dynamics.modes.check_equilibrium`)."""
         from .dynamics import modes
         return modes(self, eq, count, damping)
 
@@ -638,7 +642,8 @@ class Model:
         allowed; ``holding_force`` [N]: the motors' force limit — beyond it a motor gives way and the tension
         stays at the limit); ``pressure`` [Pa] (the supply's command when ``pressure_tau`` [s] is given: p' = (p_cmd − p)/τ
         from ``pressure0``, default the command at t = 0); ``tip_force`` [N] (3,).  ``q0`` (ndof,): the start
-        (default: the static equilibrium under the loads at t = 0; required with ``lengths``), ``v0`` (ndof,)
+        (default: the static equilibrium under the loads at t = 0; required with ``lengths``; an
+        :class:`Equilibrium` is checked to be one of this model, an array may be any admissible state), ``v0`` (ndof,)
         [m/s] its velocity (default 0).  ``damping``: None — the actuator's (``rayleigh_alpha`` [1/s],
         ``rayleigh_beta`` [s], ``axial_damping`` [N s]); a dict with those keys (alpha, beta, axial; optionally
         ``stiffness``, the (nz, nz) matrix β multiplies, default the tangent at q0); a number ζ ∈ [0, 1] —
@@ -647,7 +652,10 @@ class Model:
         ``rho_inf`` ∈ [0, 1]: the integrator's high-frequency spectral radius (1: no numerical dissipation).
         Fails fast (InputError/LimitError) on a load outside the limits anywhere on the time grid; raises
         ConvergenceError / CollapsedStateError at the time a step fails after ``max_halvings`` halvings.
-        Ctrl-C returns the rows done so far with ``interrupted=True``."""
+        A step too coarse for the motion (its energy balance creating more energy than the motion has) is
+        repeated in halved substeps, output rows still every ``dt`` (events ``refined``); ConvergenceError naming
+        a step that would do when 64 substeps are not enough.  Ctrl-C (SIGINT, read between steps) returns the
+        rows done so far with ``interrupted=True``."""
         from .dynamics.transient import simulate
         return simulate(self, t_end, dt, q0, v0, tensions=tensions, lengths=lengths, pressure=pressure,
                         pressure_tau=pressure_tau, pressure0=pressure0, tip_force=tip_force, damping=damping,

@@ -109,6 +109,10 @@ class DynamicActuator:
         if len(self.history) > 4000:
             del self.history[:-2000]
         self.state = self.history[-1]
+        if sim.interrupted:
+            # Ctrl-C during the integration ends the run between steps with the rows done (ancf.dynamics.interrupt):
+            # the plant has not reached t1, so the rig must not go on as if it had — the interrupt is raised here
+            raise KeyboardInterrupt
 
     def at(self, t: Optional[float]) -> DynamicState:
         """The state at rig time t (None: now); earlier times interpolate the history linearly."""

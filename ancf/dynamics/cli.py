@@ -6,7 +6,8 @@ or tendons locked with ``--locked``), a table, ``modes.json`` and a figure of th
 ``simulate``: the step response from the equilibrium of ``--start-tensions-n`` to ``--tensions-n`` (applied
 as a step, or a linear ramp over ``--ramp-ms``) at ``--pressure-kpa``, with a progress bar; writes
 ``simulation.csv`` (one row per step, units in the header), ``simulation.json`` (summary) and
-``simulation.png`` (tip motion and energy).  Ctrl-C stops and still writes the rows done.
+``simulation.png`` (tip motion and energy).  Ctrl-C stops between two steps, writes the rows done, says so and
+exits with status 130.
 
 ``--pvd`` (both): ParaView time series of the rod (:mod:`ancf.paraview`): ``simulation.pvd`` with its frames in
 ``simulation/``; ``mode_k.pvd`` per mode, one period of the undamped oscillation in the shape.
@@ -266,6 +267,10 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
                              f"{summary['overshoot_mm']:.2f} mm"))
     console.print(f"wrote {folder / 'simulation.csv'}, {folder / 'simulation.json'} and {folder / 'simulation.png'}"
                   + (f"; {folder / 'simulation.pvd'} (frames in {folder / 'simulation'}/)" if pvd else ""))
+    if sim.interrupted:                  # Ctrl-C: the rows done are written; the shell's status for it
+        typer.secho(f"interrupted at t = {sim.t[-1]:.6g} s: the {len(sim.t)} rows done are in "
+                    f"{folder / 'simulation.csv'}", err=True, fg=typer.colors.YELLOW)
+        raise typer.Exit(130)
 
 
 def _overshoot(sim, tip0, tip1) -> float:

@@ -100,8 +100,7 @@ def modes(model, eq, count: int = 6, damping=None) -> ModalResult:
     if not p.line_mass > 0:
         raise InputError("modes need the actuator's line mass (line_mass > 0 kg/m): without it the mass "
                          "matrix is singular")
-    if np.shape(eq.q) != (model.ndof,):
-        raise InputError(f"the equilibrium has {np.size(eq.q)} coordinates but the model has {model.ndof}")
+    check_equilibrium(model, eq, "modes")
     if not eq.stable:
         raise UnstableEquilibriumError("modes about an unstable equilibrium (a saddle has no vibration modes)",
                                        solver="modes", min_eigenvalue=eq.min_eigenvalue)
@@ -150,6 +149,41 @@ def modes(model, eq, count: int = 6, damping=None) -> ModalResult:
         zeta = np.zeros(count)
     return ModalResult(omega / (2 * np.pi), w2, shapes, shapes @ Jp.T, A if Z is not None or A else (),
                        zeta, coeffs, damping_source(p, damping), axial_share(model, eq, shapes))
+
+
+#: relative residual an equilibrium may have under the model's loads (:func:`check_equilibrium`)
+EQ_RTOL = 1e-6
+
+
+def check_equilibrium(model, eq, what: str) -> None:
+    """InputError unless ``eq`` is an equilibrium of ``model``: its size is the model's (ndof,), it was not
+    solved by a model of other parameters (the actuator it carries, set by every solve of :class:`ancf.Model`,
+    compared with ``model.params``; an equilibrium built by hand carries none and is judged by its residual
+    alone), and its free generalized-force residual under its own loads (tensions, pressure, tip force) in this
+    model is ~0: ‖Q_z‖ ≤ EQ_RTOL · max(‖Q_z,body‖, ‖Q_z,loads‖) + 10 · model.default_tol [N, N m], with
+    Q_body the elastic and gravity forces at eq.q, Q_loads the tendon, pressure and tip-force ones (they
+    balance at an equilibrium; EQ_RTOL = 1e-6, the solvers converge to about 1e-12 of them).  ``what`` names
+    the caller in the message."""
+    q = getattr(eq, "q", None)
+    if q is None or not hasattr(eq, "tensions"):
+        raise InputError(f"{what}: needs an equilibrium of this model (from fk, fk_locked or ik), got "
+                         f"{type(eq).__name__}")
+    if np.shape(q) != (model.ndof,) or np.size(eq.tensions) != model.m:
+        raise InputError(f"{what}: the equilibrium has {np.size(q)} coordinates and {np.size(eq.tensions)} "
+                         f"tensions but this model has {model.ndof} and {model.m}: it belongs to another actuator")
+    solved_by = getattr(eq, "__dict__", {}).get("_params")
+    if solved_by is not None and solved_by is not model.params and solved_by != model.params:
+        raise InputError(f"{what}: the equilibrium was solved for the actuator '{solved_by.name}', not for this "
+                         f"model's '{model.params.name}' (their parameters differ): solve it with this model")
+    ev = model.evaluate(q, eq.tensions, eq.pressure, eq.tip_force)
+    body = model.evaluate(q, np.zeros(model.m), 0.0, np.zeros(3))
+    Qz, Qb = model.reduce_vec(ev.Q), model.reduce_vec(body.Q)
+    res = float(np.linalg.norm(Qz))
+    scale = max(float(np.linalg.norm(Qb)), float(np.linalg.norm(Qz - Qb)))
+    if not res <= EQ_RTOL * scale + 10.0 * model.default_tol:
+        raise InputError(f"{what}: the state is not an equilibrium of this model under its loads (force "
+                         f"residual {res:.3g} N = {res / max(scale, 1e-300):.2g} of the forces at the state, "
+                         f"allowed {EQ_RTOL:g}): pass an equilibrium this model solved (fk, fk_locked, ik)")
 
 
 def strain_energy_split(model, q: np.ndarray, shapes: np.ndarray, pressure: float = 0.0) -> np.ndarray:

@@ -20,7 +20,11 @@ Equations of motion in the free coordinates z (q = q_fix + P z, docs/dynamics.md
 Integration: generalized-α (:mod:`.integrator`), fixed step h = t_end / ceil(t_end / dt) with automatic
 halving (up to ``max_halvings`` times) of a step whose Newton iteration fails; a run that still fails
 raises :class:`~ancf.errors.ConvergenceError` at the time it happened, a state leaving the model's domain
-:class:`~ancf.errors.CollapsedStateError` — never a silent blow-up.
+:class:`~ancf.errors.CollapsedStateError` — never a silent blow-up.  A step too coarse for the motion is found
+by the energy balance below (:class:`_EnergyWatch`: the energy the integration created against the energy of
+the motion, after every output row) and the run repeated in halved substeps (:func:`_run_refined`; output rows
+stay at dt), or refused with a ConvergenceError naming a step that would do.  Ctrl-C sets a flag read between
+steps (:mod:`.interrupt`), never an exception inside a compiled kernel: the rows done are returned.
 
 Energy bookkeeping (all [J]): kinetic K = ½ q̇ᵀ M q̇; potential Π(q; loads(t)) (elastic + gravity + the load
 potentials Σ T_i l_i − p V − F·p_end + the length springs); the work of the time-varying loads
@@ -43,6 +47,7 @@ from ..assembly import assemble
 from ..errors import CollapsedStateError, ConvergenceError, InputError, LimitError, check_finite, check_scalar
 from .damping import UndampedWarning, axial_damping, damping_source, undamped_message
 from .integrator import AlphaCoefficients, StepFailed, StepState, alpha_step
+from .interrupt import StopFlag
 from .mass import consistent_mass, tool_point_inertia
 from .signals import Signal
 
@@ -54,7 +59,8 @@ class Simulation:
     t (N,) [s]; q, v (N, ndof) coordinates and velocities; tip (N, 3) tool point [m]; tensions (N, m) [N]
     (prescribed, or the length springs'); pressure (N,) [Pa]; energy, kinetic, potential, work, dissipated
     (N,) [J] (module docstring: energy + dissipated is conserved); events: list of dicts (t [s], kind,
-    tendon, text) — tendons going slack/taut, steps subdivided; newton_iterations (N,) per output step;
+    tendon, text) — tendons going slack/taut, steps subdivided, the run refined (the energy check);
+    newton_iterations (N,) per output step;
     dt [s] the step used; damping: the coefficients used {alpha [1/s], beta [s], axial [N s]};
     damping_source: where they come from — "given" (the call's ``damping=``), "actuator" (the actuator's
     coefficients) or "none" (the actuator states no damping and none was given: an undamped run, announced
@@ -149,23 +155,21 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
     damping (:func:`_make_plant`), then the time loop (:func:`_integrate`: substeps in :class:`_Stepper`,
     output rows and the energy bookkeeping in :class:`_Recorder`), stopped early by Ctrl-C."""
     wall0 = _time.perf_counter()
-    t_end, rho_inf, h, times = _check_run(model, t_end, dt, rho_inf, max_halvings, tensions, lengths)
-    loads = _make_loads(model, tensions, lengths, pressure, tip_force, pressure_tau, tendon_penalty,
-                        holding_force, check_limits)
-    loads.check_grid(times)
-    p_init = _initial_pressure(loads, pressure0)
-    z, vz = _start_state(model, loads, q0, v0, p_init)
-    source = damping_source(model.params, damping)
-    if source == "none":
-        warnings.warn(UndampedWarning(undamped_message(model.params, "the run is undamped apart from the "
-                                                       "integrator's numerical dissipation (rho_inf < 1)")),
-                      stacklevel=3)
-    plant, coeffs = _make_plant(model, loads, z, p_init, damping)
-    stepper = _Stepper(h, AlphaCoefficients.from_rho(rho_inf), max_halvings, max_iter,
-                       max(model.default_tol, 1e-10))
-    rec = _Recorder(plant, _EnergyParts(model, loads), len(times))
-    state = _initial_acceleration(plant, loads, z, vz, p_init)
-    n_out = _integrate(plant, loads, stepper, rec, state, times, p_init, progress)
+    with StopFlag() as stop:         # a Ctrl-C from here on ends the run between two steps, with row 0 at least
+        t_end, rho_inf, h, times = _check_run(model, t_end, dt, rho_inf, max_halvings, tensions, lengths)
+        loads = _make_loads(model, tensions, lengths, pressure, tip_force, pressure_tau, tendon_penalty,
+                            holding_force, check_limits)
+        loads.check_grid(times)
+        p_init = _initial_pressure(loads, pressure0)
+        z, vz = _start_state(model, loads, q0, v0, p_init)
+        source = damping_source(model.params, damping)
+        if source == "none":
+            warnings.warn(UndampedWarning(undamped_message(model.params, "the run is undamped apart from the "
+                                                           "integrator's numerical dissipation (rho_inf < 1)")),
+                          stacklevel=3)
+        plant, coeffs = _make_plant(model, loads, z, p_init, damping)
+        n_out, rec, stepper = _run_refined(plant, loads, z, vz, p_init, times, h, rho_inf, max_halvings, max_iter,
+                                           progress, stop)
     sl = slice(0, n_out)
     return Simulation(t=times[sl].copy(), q=rec.q[sl], v=rec.v[sl], tip=rec.tip[sl], tensions=rec.T[sl],
                       pressure=rec.p[sl], energy=rec.kinetic[sl] + rec.potential[sl] - rec.work[sl],
@@ -173,6 +177,37 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
                       dissipated=rec.dissipated[sl], newton_iterations=rec.iterations[sl], dt=h, damping=coeffs,
                       rho_inf=rho_inf, events=stepper.events, wall_time=_time.perf_counter() - wall0,
                       interrupted=n_out < len(times), damping_source=source)
+
+
+def _run_refined(plant, loads, z, vz, p_init: float, times: np.ndarray, h: float, rho_inf: float, max_halvings: int,
+                 max_iter: int, progress, stop):
+    """The time loop (:func:`_integrate`) at substeps h / 2^k, k = 0, 1, … until the energy check passes (each
+    refinement an event, the output rows stay at h); ConvergenceError naming the step that would do when it
+    still fails at k = MAX_REFINE.  Returns (rows done, the :class:`_Recorder`, the :class:`_Stepper`)."""
+    model, events = plant.model, []
+    for base in range(MAX_REFINE + 1):
+        stepper = _Stepper(h, AlphaCoefficients.from_rho(rho_inf), max_halvings, max_iter,
+                           max(model.default_tol, 1e-10), base=base)
+        rec = _Recorder(plant, _EnergyParts(model, loads), len(times))
+        n_out, bad = _integrate(plant, loads, stepper, rec, _initial_acceleration(plant, loads, z, vz, p_init),
+                                times, p_init, progress, stop)
+        if bad is None:
+            stepper.events[:0] = events
+            return n_out, rec, stepper
+        t_bad, hs = float(times[bad["row"]]), h / 2 ** base
+        if base == MAX_REFINE:
+            # the energy created grows faster than linearly in the step: a linear estimate with a factor 4
+            h_ok = hs * min(0.5, 0.25 * ENERGY_RTOL * bad["budget"] / bad["created"])
+            raise ConvergenceError(
+                f"the time step is too coarse for this motion: by t = {t_bad:.6g} s the integration created "
+                f"{bad['created']:.3g} J of energy, more than the motion's {bad['budget']:.3g} J, even in "
+                f"substeps of {hs:.3g} s (dt / {2 ** base}); use dt ≤ {h_ok:.2g} s", solver="simulate",
+                iterations=base, residual_norm=bad["created"], tolerance=ENERGY_RTOL * bad["budget"])
+        events.append({"t": t_bad, "kind": "refined", "tendon": None,
+                       "text": f"run repeated in substeps of {h / 2 ** (base + 1):.3g} s: at t = {t_bad:.6g} s "
+                               f"steps of {hs:.3g} s had created {bad['created']:.3g} J of energy (> the "
+                               f"motion's {bad['budget']:.3g} J)"})
+    raise AssertionError("unreachable")
 
 
 # ------------------------------------------------------------------------------------------------ inputs
@@ -314,7 +349,13 @@ def _initial_pressure(loads: _Loads, pressure0) -> float:
 
 def _start_state(model, loads: _Loads, q0, v0, p_init: float) -> tuple[np.ndarray, np.ndarray]:
     """Free coordinates z (nz,) and velocities (nz,) at t = 0: q0 (default: the equilibrium of the start loads)
-    and v0 (default 0); InputError for a v0 that moves the clamp."""
+    and v0 (default 0); InputError for a v0 that moves the clamp.  q0 may be an equilibrium object: then it must
+    be one of this model (:func:`.modes.check_equilibrium`: its actuator and its residual under its own loads);
+    an array is any admissible state (a release from a displaced state is a start that is no equilibrium)."""
+    if q0 is not None and hasattr(q0, "q") and hasattr(q0, "tensions"):
+        from .modes import check_equilibrium
+        check_equilibrium(model, q0, "simulate: q0")
+        q0 = q0.q
     if q0 is None:
         if loads.length_mode:
             raise InputError("lengths= needs q0 (e.g. the equilibrium whose tendon lengths you lock)")
@@ -561,36 +602,47 @@ class _Recorder:
         self.iterations = np.zeros(n_rows, dtype=int)
         self.prev: Optional[dict] = None          # the last row's parts, tensions, power and loads
 
-    def record(self, i: int, st: StepState, t: float, pr: float, F, l0, n_it: int = 0) -> None:
-        """Row i: the state st at time t [s] under pressure pr [Pa], tip force F [N], lengths l0 [m]; the work
-        and dissipation since the previous row."""
+    def point(self, st: StepState, t: float, pr: float, F, l0) -> dict:
+        """The bookkeeping of the state st at time t [s] under pressure pr [Pa], tip force F [N], lengths l0 [m]:
+        q, its velocities vq, tensions T, the energy parts, the dissipated power pw [W] and the loads."""
         plant = self.plant
         q = plant.model._to_full(st.z)
         vq = plant.full_v(st.v)
         T, _ = plant.tendons(q, t, l0)
-        pt = self.energy.parts(q)
+        return {"q": q, "vq": vq, "pt": self.energy.parts(q), "T": T, "pw": plant.dissipation_power(q, vq, st.v),
+                "pr": pr, "F": F, "l0": l0, "t": t}
+
+    def record(self, i: int, st: StepState, t: float, pr: float, F, l0, n_it: int = 0, mids=()) -> None:
+        """Row i: the state st at time t [s] under pressure pr [Pa], tip force F [N], lengths l0 [m]; the work
+        and dissipation since the previous row, summed over the substeps' ends ``mids`` (:meth:`point` dicts)
+        when the row took more than one step."""
+        row = self.point(st, t, pr, F, l0)
+        q, vq, pt, T = row["q"], row["vq"], row["pt"], row["T"]
         self.q[i], self.v[i], self.tip[i], self.T[i], self.p[i] = q, vq, pt[3], T, pr
-        Mf, _ = plant.mass_full(q)
+        Mf, _ = self.plant.mass_full(q)
         self.kinetic[i] = 0.5 * float(vq @ Mf @ vq)
         self.potential[i] = self.energy.potential(pt, T, pr, F, l0)
         self.iterations[i] = n_it
-        row = {"pt": pt, "T": T, "pw": plant.dissipation_power(q, vq, st.v), "pr": pr, "F": F, "l0": l0, "t": t}
         if self.prev is not None:
-            self._accumulate(i, self.prev, row)
+            dW = dD = 0.0
+            chain = [self.prev, *mids, row]
+            for a, b in zip(chain[:-1], chain[1:]):
+                w, d = self._increment(a, b)
+                dW, dD = dW + w, dD + d
+            self.work[i] = self.work[i - 1] + dW
+            self.dissipated[i] = self.dissipated[i - 1] + dD
         self.prev = row
 
-    def _accumulate(self, i: int, a: dict, b: dict) -> None:
-        """Work of the time-varying loads (trapezoid of ∂Π/∂t) and dissipation (trapezoid of the power) from
-        row a to row b = i."""
+    def _increment(self, a: dict, b: dict) -> tuple[float, float]:
+        """(work [J] of the time-varying loads: trapezoid of ∂Π/∂t; dissipation [J]: trapezoid of the power)
+        from the point a to the point b (:meth:`point`)."""
         ld, pot = self.plant.loads, self.energy.potential
+        dW = 0.0
         if ld.varying:
             Tn, Tn1 = ld.tensions(a["t"]), ld.tensions(b["t"])
             dW = 0.5 * ((pot(a["pt"], Tn1, b["pr"], b["F"], b["l0"]) - pot(a["pt"], Tn, a["pr"], a["F"], a["l0"]))
                         + (pot(b["pt"], Tn1, b["pr"], b["F"], b["l0"]) - pot(b["pt"], Tn, a["pr"], a["F"], a["l0"])))
-            self.work[i] = self.work[i - 1] + dW
-        else:
-            self.work[i] = self.work[i - 1]
-        self.dissipated[i] = self.dissipated[i - 1] + 0.5 * (b["pw"] + a["pw"]) * (b["t"] - a["t"])
+        return dW, 0.5 * (b["pw"] + a["pw"]) * (b["t"] - a["t"])
 
     def tendon_events(self, T_prev: np.ndarray, T_now: np.ndarray, t: float) -> list:
         """Tendons gone slack / taut and motors overpowered / holding again between two rows (tendons held by
@@ -614,21 +666,25 @@ class _Recorder:
 
 # ------------------------------------------------------------------------------------------------ time stepping
 class _Stepper:
-    """Advances the state from one output time to the next in substeps h / 2^level: a failed step halves
-    them (up to ``max_halvings`` times; then ConvergenceError or CollapsedStateError naming the time), four
-    good ones in a row double them again.  ``events`` collects the subdivisions (and the recorder's tendon
-    events)."""
+    """Advances the state from one output time to the next in substeps h / 2^(base + level): ``base`` is the
+    run's refinement (the energy check's, :func:`simulate`), ``level`` the halvings of a failed step (up to
+    ``max_halvings`` times; then ConvergenceError or CollapsedStateError naming the time) — four good steps in
+    a row undo one.  ``events`` collects the subdivisions (and the recorder's tendon events)."""
 
-    def __init__(self, h: float, coeff: AlphaCoefficients, max_halvings: int, max_iter: int, tol_abs: float):
+    def __init__(self, h: float, coeff: AlphaCoefficients, max_halvings: int, max_iter: int, tol_abs: float,
+                 base: int = 0):
         self.h, self.coeff, self.max_halvings, self.max_iter, self.tol_abs = h, coeff, max_halvings, max_iter, tol_abs
+        self.base = base
         self.level = self.good = 0
         self.events: list = []
 
-    def advance(self, plant: _Plant, st: StepState, tt: float, pr_s: float, t_target: float):
-        """(state, pressure [Pa], Newton iterations) at t_target from st at tt [s] with pressure pr_s [Pa]."""
-        loads, h, n_it = plant.loads, self.h, 0
+    def advance(self, plant: _Plant, st: StepState, tt: float, pr_s: float, t_target: float, point=None):
+        """(state, pressure [Pa], Newton iterations, the ends of the substeps before t_target) at t_target from st
+        at tt [s] with pressure pr_s [Pa]; ``point(st, t, pr, F, l0)`` makes those ends (a row of one step has
+        none)."""
+        loads, h, n_it, mids = plant.loads, self.h, 0, []
         while t_target - tt > 1e-12 * h:
-            hh = min(h / 2 ** self.level, t_target - tt)
+            hh = min(h / 2 ** (self.base + self.level), t_target - tt)
             if t_target - tt - hh < 1e-9 * hh:
                 hh = t_target - tt
             t1 = t_target if hh == t_target - tt else tt + hh
@@ -643,10 +699,12 @@ class _Stepper:
                 continue
             n_it += k
             st, tt, pr_s = st_new, t1, pr1
+            if point is not None and t1 != t_target:
+                mids.append(point(st, t1, pr1, F1, l01))
             self.good += 1
             if self.level and self.good >= 4:
                 self.level, self.good = self.level - 1, 0
-        return st, pr_s, n_it
+        return st, pr_s, n_it, mids
 
     def _halve(self, exc: StepFailed, tt: float, t1: float, hh: float) -> None:
         """Halve the substep after a failed one (an event), or raise when it was halved often enough."""
@@ -663,21 +721,64 @@ class _Stepper:
         self.level += 1
         self.good = 0
         self.events.append({"t": float(tt), "kind": "subdivided", "tendon": None,
-                            "text": f"step halved to {self.h / 2 ** self.level:.3g} s ({exc.reason})"})
+                            "text": f"step halved to {self.h / 2 ** (self.base + self.level):.3g} s ({exc.reason})"})
+
+
+# ------------------------------------------------------------------------------------------------ energy check
+#: the integration error the energy balance allows: energy created (E + D growing) at most this fraction of
+#: the energy of the motion (module docstring of :func:`simulate`)
+ENERGY_RTOL = 1.0
+#: most refinements of a run whose energy balance fails: substeps down to dt / 2^MAX_REFINE
+MAX_REFINE = 6
+
+
+class _EnergyWatch:
+    """The run's integration error from its energy balance (docs/dynamics.md "Step size"): at row i the energy
+    created, c_i = (E_i + D_i) − (E_0 + D_0) [J] (E = K + Π − W, D the dissipated energy; zero in exact time,
+    negative with the scheme's numerical dissipation), against the energy of the motion
+    B_i = max_{j≤i} K_j + max(D_i − c_i, 0) + max_{j≤i} |W_j| [J] (the kinetic energy reached, the energy truly
+    dissipated, the work of the loads).  A row fails when c_i > ENERGY_RTOL · B_i + atol, atol = 1e-9 |Π_0| +
+    1e-12 EA(1) L [J] the round-off of the energies (a state at rest stays at rest)."""
+
+    def __init__(self, rec: _Recorder, model, rtol: float = ENERGY_RTOL):
+        self.rec, self.rtol = rec, rtol
+        self.start = rec.kinetic[0] + rec.potential[0] - rec.work[0] + rec.dissipated[0]
+        pa = model.params
+        self.atol = 1e-9 * abs(rec.potential[0]) + 1e-12 * abs(float(pa.stiffness.EA(1.0))) * pa.length
+        self.k_max = rec.kinetic[0]
+        self.w_max = 0.0
+
+    def check(self, i: int) -> Optional[dict]:
+        """None when row i passes, else {t [s], created [J], budget [J]}."""
+        r = self.rec
+        self.k_max = max(self.k_max, r.kinetic[i])
+        self.w_max = max(self.w_max, abs(r.work[i]))
+        created = r.kinetic[i] + r.potential[i] - r.work[i] + r.dissipated[i] - self.start
+        budget = self.k_max + max(r.dissipated[i] - created, 0.0) + self.w_max
+        if created > self.rtol * budget + self.atol:
+            return {"row": i, "created": float(created), "budget": float(budget)}
+        return None
 
 
 def _integrate(plant: _Plant, loads: _Loads, stepper: _Stepper, rec: _Recorder, state: StepState,
-               times: np.ndarray, p_init: float, progress) -> int:
-    """The time loop: row 0 at t = 0, then one row per output time.  Returns the number of rows done — all of
-    them, or those before the one a Ctrl-C (KeyboardInterrupt) stopped."""
+               times: np.ndarray, p_init: float, progress, stop) -> tuple[int, Optional[dict]]:
+    """The time loop: row 0 at t = 0, then one row per output time.  Returns (the number of rows done — all of
+    them, or those before a Ctrl-C: ``stop.requested`` read between steps, or a KeyboardInterrupt from
+    ``progress`` —, None or the energy check's failure {row, created [J], budget [J]} that ended the loop)."""
     rec.record(0, state, 0.0, p_init, loads.F_sig(0.0), loads.lengths(0.0))
+    watch = _EnergyWatch(rec, plant.model)
     t_prev, pr_prev, done = 0.0, p_init, 1
     try:
         for i in range(1, len(times)):
+            if stop.requested:
+                break
             t_target = times[i]
-            state, pr_prev, n_it = stepper.advance(plant, state, t_prev, pr_prev, t_target)
+            state, pr_prev, n_it, mids = stepper.advance(plant, state, t_prev, pr_prev, t_target, rec.point)
             T_prev = rec.prev["T"]
-            rec.record(i, state, t_target, pr_prev, loads.F_sig(t_target), loads.lengths(t_target), n_it)
+            rec.record(i, state, t_target, pr_prev, loads.F_sig(t_target), loads.lengths(t_target), n_it, mids)
+            bad = watch.check(i)
+            if bad is not None:
+                return i + 1, bad
             stepper.events.extend(rec.tendon_events(T_prev, rec.prev["T"], t_target))
             t_prev = t_target
             if progress is not None:
@@ -685,4 +786,4 @@ def _integrate(plant: _Plant, loads: _Loads, stepper: _Stepper, rec: _Recorder, 
             done = i + 1                      # a row whose progress report was interrupted is not kept
     except KeyboardInterrupt:
         pass
-    return done
+    return done, None

@@ -181,3 +181,25 @@ def test_a_weak_motor_gives_way_on_the_dynamic_plant(model, ref):
     weak.advance(2.0)
     assert weak.equilibrium().tensions[0] == pytest.approx(2.2, abs=1e-9)
     assert weak.true_tip()[2] < strong.true_tip()[2] - 1e-4
+
+
+def test_ctrl_c_inside_the_plant_integration_stops_the_rig_and_keeps_its_rows(model, ref, monkeypatch):
+    """A Ctrl-C while the dynamic plant integrates ends Model.simulate between steps with the rows done
+    (interrupted=True); the rig must not carry on as if the plant had reached the end of the interval: it raises
+    KeyboardInterrupt, with the rows done in its history."""
+    import dataclasses
+    dyn = SimulatedRig(model, P, load=step_load, dynamics=True, options=PlantOptions(damping=0.05))
+    dyn.command(ref.tendon_lengths)
+    dyn.advance(0.005)                                       # the plant has started and integrated once
+    plant = dyn._plant.dyn
+    real = plant.model.simulate
+
+    def interrupted_halfway(t_end, dt, **kw):
+        sim = real(t_end / 2, dt, **kw)                    # half the interval done, then "Ctrl-C"
+        return dataclasses.replace(sim, interrupted=True)
+
+    monkeypatch.setattr(plant.model, "simulate", interrupted_halfway)
+    t_before = plant.state.t
+    with pytest.raises(KeyboardInterrupt):
+        dyn.advance(0.02)
+    assert t_before < plant.state.t < t_before + 0.02        # the rows done are kept, the end was not reached
