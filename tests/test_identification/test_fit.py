@@ -172,7 +172,7 @@ def test_held_out_evidence_chooses_the_pressure_form_when_ei_grows_with_pressure
     res, rows = _identify_synthetic("pressure_ei", truth, ("separate", "pressure_ei"))
     assert res.form == "pressure_ei"
     assert rows["pressure_ei"]["heldout_rms_tip_m"] < 1e-8
-    assert rows["separate"]["heldout_rms_tip_m"] > 1e-3                  # millimetres off
+    assert rows["separate"]["heldout_rms_tip_m"] > 3e-4                  # 0.7 mm off (1.0 mm before the bends at p_max)
     f = res.fits["pressure_ei"]
     np.testing.assert_allclose(f.theta, truth, rtol=1e-6)
     assert f.identifiable["pI1"] and f.identifiable["pI2"]

@@ -58,7 +58,13 @@ def test_intervals_after_freezing_cover_the_truth():
     on the held value cover ~83 %)."""
     form = get_form("paper")
     theta = np.array([100.0, 1336.0, 0.02959, 0.02605])
-    cases = [c for c in default_design().training if c.pressure > 50e3]
+    # the scenario's states, named (not "every training case above 50 kPa": the default design grows): pressure
+    # alone, equal tensions with pressure, one bend and one lateral force, all at high pressure, without gravity
+    scenario = {"T=0/0/0 N, p=60 kPa", "T=0/0/0 N, p=90 kPa", "T=0/0/0 N, p=120 kPa", "T=4/4/4 N, p=60 kPa",
+                "T=5/5/5 N, p=120 kPa", "T=2/2/2 N, p=120 kPa", "T=4/0/0 N, p=60 kPa",
+                "T=0/0/0 N, p=90 kPa, F=(0,0,-0.301) N"}
+    cases = [c for c in default_design().training if c.label in scenario]
+    assert len(cases) == len(scenario)
     hits, n_frozen = [], 0
     for seed in range(50):
         obs = synthetic(form, theta, cases, noise=2e-3, seed=seed)

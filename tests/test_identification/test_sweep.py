@@ -38,6 +38,16 @@ def test_axisymmetric_cases_are_chained_apart_and_last(rows, length):
 
 
 @settings(max_examples=40, deadline=None)
+@given(loads, st.lists(st.booleans(), min_size=30, max_size=30), st.integers(1, 6))
+def test_gravity_cases_are_chained_apart(rows, weights, length):
+    """A chain never passes between a case with gravity and one without (the self-weight is no small step:
+    a warm start across it took three times the Newton iterations of a cold start)."""
+    cases = [LoadCase((a, b, c), p, gravity=g) for (a, b, c, p), g in zip(rows, weights)]
+    for ch in fem_sweep.plan_chains(cases, length):
+        assert len({cases[i].gravity for i in ch}) == 1
+
+
+@settings(max_examples=40, deadline=None)
 @given(loads, st.integers(2, 6))
 def test_a_chain_never_steps_farther_than_a_cold_start(rows, length):
     """Each warm start of a chain is at most as far (in the scaled load space) as a start from the unloaded

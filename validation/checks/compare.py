@@ -12,11 +12,18 @@ For every held-out state (loads never used in the fit) both models are solved an
 * per-direction stiffness k(u) = 1/(uᵀ C u) along x, y, z [N/m] and its relative error; the relative error of
   the whole matrix ‖C_ANCF − C_FEM‖_F / ‖C_FEM‖_F; the locked/constant-tension stiffness ratio along z, per
   state side by side (``ratio_per_state``: FEM, reduced model, their difference and the taut tendons of each;
-  on a straight tube the difference is the FEM's rotation-free lateral compliance, docs/identification.md §4b).
+  on a straight tube the difference is the FEM's rotation-free lateral compliance, docs/identification.md §4b);
+* for a state with a slack tendon, the locked compliance of both signs of the load direction, each with the taut
+  set that sign makes taut (a slack tendon that −z stretches is slack under +z), both models by the same rule
+  (:func:`locked_both_signs`; ``locked_by_sign`` of each row and of the result).
 
 Targets (the paper, against experiments): shape error < 2.5 % of L, compliance error < 5 %.  A target is
 ``"met"`` only when it was checked on every held-out state; a state that failed (FEM or ANCF) or gave a NaN
 makes it ``"incomplete"`` (``met`` False, the states listed under ``incomplete``), never met.
+
+Gravity acts in both models exactly as in the FEM state: a held-out state with gravity loads the rod with its
+weight along the identified actuator's gravity vector (the design's mounting), a gravity-free state runs the rod
+without weight; every row states which (``gravity``: on/off, ``gravity_m_per_s2``: the vector the rod used).
 
 The Fig. 9 analogue (:func:`stiffness_vs_tension`): the vertical tip stiffness vs the top tendon's tension
 T1 ∈ {0, …, 5} N at p ∈ {0, 25, 50} kPa, with gravity, tensions held and tendons locked, both models.
@@ -40,8 +47,8 @@ from validation.reference.experiments import EXTRAPOLATION, Design, LoadCase, de
 from validation.reference.fem_sweep import FemRecord, FemSpec, run_cases
 from validation.identification.forms import position_matrix
 
-__all__ = ["ValidationResult", "validate", "compare_records", "ratio_row", "stiffness_vs_tension", "SHAPE_TARGET_PCT",
-           "COMPLIANCE_TARGET_PCT"]
+__all__ = ["ValidationResult", "validate", "compare_records", "ratio_row", "locked_both_signs", "stiffness_vs_tension",
+           "SHAPE_TARGET_PCT", "COMPLIANCE_TARGET_PCT"]
 
 SHAPE_TARGET_PCT = 2.5
 COMPLIANCE_TARGET_PCT = 5.0
@@ -67,6 +74,11 @@ class ValidationResult:
     extrapolation : held-out states outside the training hull (experiment ``"extrapolation"``,
     :mod:`validation.identification.design_select`), reported apart and left out of every figure above: ``states`` (labels),
     ``tip_error_pct``, ``shape_error_pct``, ``compliance_error_pct`` ({"mean", "max"}); empty without such states
+    locked_by_sign : states with a slack tendon, whose locked response is piecewise linear (a slack tendon is taut
+    for one sign of the load and not the other): ``states`` (labels), ``directions`` (the load direction u and −u),
+    ``error_pct`` ({"u"|"-u": {"mean", "max"}} of the Frobenius error of the locked compliance with the taut set of
+    that sign) and ``along_error_pct`` (the same for the compliance along the load, uᵀ C u); per state in the
+    row's ``locked_by_sign`` (:func:`locked_both_signs`); empty without such states or FEM data for −u
     """
     rows: list
     length: float
@@ -81,11 +93,13 @@ class ValidationResult:
     failures: list = field(default_factory=list)
     fem_error: dict = field(default_factory=dict)
     extrapolation: dict = field(default_factory=dict)
+    locked_by_sign: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         return to_jsonable({k: getattr(self, k) for k in ("rows", "length", "tip_error_pct", "shape_error_pct",
                                                          "compliance_error_pct", "stiffness_error_pct", "ratio",
-                                                         "ratio_per_state", "targets", "failures", "extrapolation")}
+                                                         "ratio_per_state", "targets", "failures", "extrapolation",
+                                                         "locked_by_sign")}
                            | {"params": self.params.to_toml()}
                            | {"fem_discretisation_error": self.fem_error or None})
 
@@ -102,6 +116,9 @@ class ValidationResult:
             rows.append((f"target {name} < {t['target']:g} %", f"{t['value']:.2f} %: {t.get('status', '')}"))
         if self.failures:
             rows.append(("not compared", ", ".join(f"{f['label']} ({f['model']})" for f in self.failures)))
+        if self.locked_by_sign:
+            rows += [(f"locked compliance, slack tendon taut as load {k} makes it [%]",
+                      pct(self.locked_by_sign["error_pct"][k])) for k in ("u", "-u")]
         if self.extrapolation:
             rows.append(("extrapolation, tip error [% L]", pct(self.extrapolation.get("tip_error_pct"))))
         return rows
@@ -154,6 +171,9 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
     if not isinstance(params, ActuatorParams):
         raise InputError(f"params must be ActuatorParams, got {type(params).__name__}")
     L = params.length
+    # gravity as the FEM state had it, in both models alike: a state with gravity loads the rod with its weight
+    # along params.gravity (the design's mounting), a gravity-free state runs the rod without weight; each row
+    # says which ("gravity", "gravity_m_per_s2")
     model_g = Model(params)
     model_0 = Model(params.replace(gravity=(0.0, 0.0, 0.0))) if np.any(params.gravity) else model_g
     s = np.linspace(0.0, L, N_SHAPE_POINTS)
@@ -175,6 +195,7 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
         d_shape = np.linalg.norm(shape_ancf - shape_fem, axis=1)
         row = {"label": c.label, "experiment": c.experiment, "tensions_N": list(c.tensions),
                "pressure_Pa": c.pressure, "tip_force_N": list(c.tip_force), "gravity": c.gravity,
+               "gravity_m_per_s2": list(model.params.gravity),
                "tip_fem_m": rec.tip_position, "tip_ancf_m": eq.tip,
                "tip_error_m": float(np.linalg.norm(eq.tip - rec.tip_position)),
                "shape_error_m": float(d_shape.max()), "shape_s_m": s, "shape_deviation_m": d_shape,
@@ -195,6 +216,8 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
                     row[f"k_{mode}_{ax}_error_pct"] = _stiffness_error_pct(ka, kf)
             for who in ("ancf", "fem"):
                 row[f"ratio_z_{who}"] = row[f"k_locked_z_{who}_N_per_m"] / row[f"k_tension_z_{who}_N_per_m"]
+            if "compliance_locked_opposite" in rec.extra:      # a slack tendon: the taut set depends on the sign
+                row["locked_by_sign"] = locked_both_signs(model, eq, rec, load_direction, Cl)
         rows.append(row)
     out = ValidationResult(rows, L, params, failures=failures)
     failed = [f["label"] for f in failures]
@@ -223,6 +246,7 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
                                    for m in ("tension", "locked")}
         out.ratio = {"ancf": _stats([r["ratio_z_ancf"] for r in with_c]), "fem": _stats([r["ratio_z_fem"] for r in with_c])}
         out.ratio_per_state = [ratio_row(r) for r in with_c]
+        out.locked_by_sign = _sign_summary([r for r in with_c if "locked_by_sign" in r], load_direction)
     bad_shape = failed + [r["label"] for r in rows if not np.isfinite(r["shape_error_pct"])]
     out.targets = {"shape_pct": _target(SHAPE_TARGET_PCT, out.shape_error_pct["max"], bad_shape)}
     if with_c:
@@ -232,6 +256,41 @@ def compare_records(params: ActuatorParams, records: Sequence[FemRecord], *, loa
             np.isfinite(r["C_tension_error_pct"]) and np.isfinite(r["C_locked_error_pct"]))]
         out.targets["compliance_pct"] = _target(COMPLIANCE_TARGET_PCT, worst, bad_c)
     return out
+
+
+def locked_both_signs(model: Model, eq, rec: FemRecord, load_direction, locked_u: cp.Compliance) -> list:
+    """The locked tip compliance of a state with a slack tendon for both signs of the load direction u (3,):
+    each with the taut set that sign makes taut, by the same complementarity rule in both models (the FEM's:
+    :func:`validation.reference.fem_sweep.locked_compliance`; the rod's: :func:`ancf.compliance.locked`).  One
+    dict per sign ("u" then "-u"): ``direction``, ``taut_fem`` / ``taut_ancf`` (tendon indices),
+    ``C_fem_m_per_N`` / ``C_ancf_m_per_N`` (3, 3), ``error_pct`` (Frobenius, 100 ‖C_ANCF − C_FEM‖/‖C_FEM‖),
+    ``along_fem_m_per_N`` / ``along_ancf_m_per_N`` (uᵀ C u) and ``along_error_pct`` = 100 (ancf/fem − 1)."""
+    u = np.asarray(load_direction, float) / np.linalg.norm(load_direction)
+    locked_opp = cp.locked(model, eq, method="exact", load_direction=-u)
+    out = []
+    for name, d, Cf, taut_f, Ca in (
+            ("u", u, rec.compliance_locked, rec.extra.get("locked_active", []), locked_u),
+            ("-u", -u, rec.extra["compliance_locked_opposite"], rec.extra.get("locked_active_opposite", []),
+             locked_opp)):
+        cf, ca = float(d @ Cf @ d), float(d @ Ca.C_p @ d)
+        out.append({"sign": name, "direction": d, "taut_fem": [int(i) for i in taut_f],
+                    "taut_ancf": [int(i) for i in Ca.active], "C_fem_m_per_N": Cf, "C_ancf_m_per_N": Ca.C_p,
+                    "error_pct": float(100 * np.linalg.norm(Ca.C_p - Cf) / np.linalg.norm(Cf)),
+                    "along_fem_m_per_N": cf, "along_ancf_m_per_N": ca,
+                    "along_error_pct": 100 * (ca / cf - 1) if cf > 0 else float("nan")})
+    return out
+
+
+def _sign_summary(rows: list, load_direction) -> dict:
+    """:attr:`ValidationResult.locked_by_sign` from the rows that carry both signs."""
+    if not rows:
+        return {}
+    u = np.asarray(load_direction, float) / np.linalg.norm(load_direction)
+    return {"states": [r["label"] for r in rows], "directions": {"u": u, "-u": -u},
+            "error_pct": {k: _stats([s["error_pct"] for r in rows for s in r["locked_by_sign"] if s["sign"] == k])
+                          for k in ("u", "-u")},
+            "along_error_pct": {k: _stats([abs(s["along_error_pct"]) for r in rows for s in r["locked_by_sign"]
+                                           if s["sign"] == k]) for k in ("u", "-u")}}
 
 
 def ratio_row(row: dict) -> dict:

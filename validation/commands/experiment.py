@@ -78,12 +78,34 @@ def experiment(
     cfg, models, masses, options = _checked(a)
     from validation.identification.experiment import design_experiment
     params = cfg.actuator_params()
+    info = _run_info(a, models, params, masses)
+    if a.resume:                    # before the design (10–40 s) and before the rig: the options must match the log's
+        from dataclasses import asdict
+        from validation.identification.experiment_run import check_resume
+        check_resume(a.log, {**asdict(options), **info}, OPTION_NAMES)
     t0 = time.monotonic()
     lim = cfg.safety_limits()
     plan = design_experiment(params, states, form=form, masses_kg=masses, travel=(lim.length_min, lim.length_max))
     typer.echo(f"design: {len(plan.states)} states for form {plan.form} from {plan.n_candidates} candidates "
                f"(log det information {plan.logdet:.2f}), {time.monotonic() - t0:.1f} s", err=True)
-    _run(a, cfg, models, plan, options)
+    _run(a, cfg, plan, options, info)
+
+
+#: the command-line option of each entry of the options stored in an experiment log (``--resume`` names them)
+OPTION_NAMES = {"samples": "--samples", "settle_s": "--settle-s", "tension_tolerance": "--tension-tolerance-n",
+                "max_corrections": "--corrections", "rig": "--rig", "form": "--form", "states": "--states",
+                "loads_g": "--loads-g", "seed": "--seed", "mismatch": "--mismatch", "actuator": "--actuator",
+                "plant": "--plant"}
+
+
+def _run_info(a: SimpleNamespace, models: dict, params, masses: list) -> dict:
+    """What the log stores of the command's options and must match on ``--resume`` (the form and the masses as the
+    design resolves them: :func:`validation.identification.experiment.default_form`, sorted masses [g])."""
+    from validation.identification.experiment import _check_masses, default_form
+    resolved = _check_masses(masses, params)
+    return {"rig": a.rig, "form": a.form or default_form(resolved), "states": a.states,
+            "loads_g": [m * 1e3 for m in resolved], "seed": a.seed, "mismatch": a.mismatch,
+            **{k: models[k] for k in ("actuator", "plant")}}
 
 
 def _checked(a: SimpleNamespace):
@@ -116,7 +138,7 @@ def _checked(a: SimpleNamespace):
     return cfg, _model_records(ns, cfg), masses, options
 
 
-def _run(a: SimpleNamespace, cfg, models: dict, plan, options) -> None:
+def _run(a: SimpleNamespace, cfg, plan, options, info: dict) -> None:
     from hardware.build import build_rig
     from hardware.errors import RunAborted
     from validation.commands.control import _sim_overrides
@@ -125,8 +147,6 @@ def _run(a: SimpleNamespace, cfg, models: dict, plan, options) -> None:
     ns = SimpleNamespace(load_mass_g=None, load_profile="none", seed=a.seed, mismatch=a.mismatch, dynamics=False,
                          plant_damping_ratio=None)
     the_rig = build_rig(cfg, **(_sim_overrides(ns, cfg) if sim else {}))
-    info = {"rig": a.rig, "form": plan.form, "states": a.states, "loads_g": [m * 1e3 for m in plan.masses],
-            "seed": a.seed, "mismatch": a.mismatch, **{k: models[k] for k in ("actuator", "plant")}}
     try:
         with the_rig:
             res = run_experiment(plan, the_rig, cfg.actuator_params(), a.log, options=options, force=a.force,

@@ -49,7 +49,8 @@ from ancf.errors import BellowsError, InputError
 
 from validation.identification.experiment import SLACK_MARGIN, ExperimentPlan, ExperimentState
 
-__all__ = ["ExperimentOptions", "ExperimentResult", "run_experiment", "read_plan", "SE_FLOOR", "FD_STEP"]
+__all__ = ["ExperimentOptions", "ExperimentResult", "run_experiment", "read_plan", "check_resume", "SE_FLOOR",
+           "FD_STEP"]
 
 #: smallest recorded standard error of each mean (tensions [N], pressure [Pa], tip [m]): below the resolution
 #: of any force sensor, pressure sensor and tracker the product drives
@@ -115,9 +116,29 @@ def read_plan(path) -> tuple:
     return exp["plan"], exp["options"], labels
 
 
-def _differences(stored: dict, now: dict) -> list:
-    return [f"{k}: {stored.get(k)!r} in the log, {now.get(k)!r} now" for k in sorted(set(stored) | set(now))
-            if stored.get(k) != now.get(k)]
+def _differences(stored: dict, now: dict, names: Optional[dict] = None) -> list:
+    """'samples: 3 in the log, 5 now' for every entry that differs (``names``: how to call each key, e.g. its
+    command-line option)."""
+    names = names or {}
+    return [f"{names.get(k, k)}: {stored.get(k)!r} in the log, {now.get(k)!r} now"
+            for k in sorted(set(stored) | set(now)) if stored.get(k) != now.get(k)]
+
+
+def check_resume(path, info: dict, names: Optional[dict] = None) -> tuple:
+    """Whether the experiment log at ``path`` can be resumed with the options ``info`` (the ``run_info`` of
+    :func:`run_experiment` merged with its options, as stored in the log): (stored plan dict, labels recorded);
+    :class:`InputError` naming every option that differs, with the value stored in the log (``names``: the
+    option's name to show for each key).  Needs no design: ``bellows experiment --resume`` calls it before any
+    design or rig work."""
+    path = pathlib.Path(path)
+    if not path.is_file():
+        raise InputError(f"--resume: no experiment log {path}")
+    old_plan, old_opts, labels = read_plan(path)
+    diff = _differences(old_opts, info, names)
+    if diff:
+        raise InputError(f"--resume: {path} was started with other options ({'; '.join(diff)}); resume with the "
+                         "same options, or start again with --force")
+    return old_plan, labels
 
 
 # ------------------------------------------------------------------------------------------------ the log
@@ -132,13 +153,10 @@ def _open_log(path, rig, params: ActuatorParams, plan: ExperimentPlan, info: dic
         return RunLog(path, force=force, **kw), set()
     if force:
         raise InputError("give --resume (continue the log) or --force (start it again), not both")
-    if not path.is_file():
-        raise InputError(f"--resume: no experiment log {path}")
-    old_plan, old_opts, labels = read_plan(path)
-    diff = _differences(old_opts, info) + (["the designed states differ"] if old_plan != plan.to_dict() else [])
-    if diff:
-        raise InputError(f"--resume: {path} was started with other options ({'; '.join(diff)}); resume with the "
-                         "same options, or start again with --force")
+    old_plan, labels = check_resume(path, info)
+    if old_plan != plan.to_dict():
+        raise InputError(f"--resume: {path} was started with other options (the designed states differ); resume "
+                         "with the same options, or start again with --force")
     tmp = path.with_name(f".{path.name}.resume.h5")
     log = RunLog(tmp, force=True, **kw)
     try:

@@ -63,7 +63,11 @@ reflective method rejects, shrinking the trust region to a quarter of the step (
 updated from a θ whose states all solved.  At the initial θ the same failure is an error (scipy needs finite
 residuals there): the fit cannot start, and the error — the first failure's type — names every state without an
 equilibrium there, each with its own failure, and the starting parameters (attributes ``failed_states``,
-``parameters``).
+``parameters``).  Those states are then left out of a first pass and re-admitted from its optimum
+(``FitResult.readmitted``: a state past a limit point of the start — a start softer than the actuator, a
+pressure near the maximum with high tensions — is reached once the parameters moved); the error stands, with
+the reason added, when too few states remain without them or when they have no equilibrium at that optimum
+either.
 """
 
 from __future__ import annotations
@@ -274,6 +278,9 @@ class FitResult:
     #: "" or the warning that the form does not fit the data within their stated noise
     #: (:func:`validation.identification.uncertainty.misfit`)
     misfit: str = ""
+    #: labels of the states without an equilibrium at the start: fitted first without them, then re-admitted
+    #: from that optimum (:func:`_fit_readmitting`); empty when every state solved at the start
+    readmitted: list = field(default_factory=list)
 
     @property
     def chi2_per_dof(self) -> float:
@@ -354,7 +361,7 @@ class _Evaluator:
             model = m_g if obs.gravity[i] else m_0
             eq, err = self._fk(model, i)
             if eq is None:
-                failures.append((obs.labels[i], err))
+                failures.append((obs.labels[i], err, i))
                 if all_failures:
                     continue
                 raise _retyped(err, f"FK of state '{obs.labels[i]}' failed for {form.name} parameters "
@@ -449,12 +456,14 @@ def _start_failure(form: ModelForm, theta, failures: list, n_states: int) -> Exc
     """The typed error of a fit that cannot start: every state without an equilibrium at the starting θ, with
     its own failure, and the parameters (the type is the first failure's; ``failed_states`` [(label, text)]
     and ``parameters`` {name: value [SI]} as attributes)."""
-    listed = "; ".join(f"'{label}' ({type(e).__name__}: {e})" for label, e in failures)
-    exc = _retyped(failures[0][1],
-                   f"the fit of form {form.name} cannot start: {len(failures)} of {n_states} states have no "
-                   f"verified equilibrium at the starting parameters ({_parameter_text(form, theta)}): {listed}. "
-                   "Start closer to the data (other starting values) or leave these states out")
-    exc.failed_states = [(label, f"{type(e).__name__}: {e}") for label, e in failures]
+    listed = "; ".join(f"'{label}' ({type(e).__name__}: {e})" for label, e, _ in failures)
+    message = (f"the fit of form {form.name} cannot start: {len(failures)} of {n_states} states have no "
+               f"verified equilibrium at the starting parameters ({_parameter_text(form, theta)}): {listed}. "
+               "Start closer to the data (other starting values) or leave these states out")
+    exc = _retyped(failures[0][1], message)
+    exc.start_message = message
+    exc.failed_states = [(label, f"{type(e).__name__}: {e}") for label, e, _ in failures]
+    exc.failed_index = [i for _, _, i in failures]
     exc.parameters = {nm: float(v) for nm, v in zip(form.names, theta)}
     return exc
 
@@ -470,7 +479,7 @@ def _observed(obs: Observations) -> np.ndarray:
 
 def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, absolute_sigma: Optional[bool] = None,
         fixed: Sequence[str] = (), max_nfev: int = 200, scale=None, _refit: bool = True,
-        _marginal: Optional[np.ndarray] = None, _warm: Optional[list] = None) -> FitResult:
+        _marginal: Optional[np.ndarray] = None, _warm: Optional[list] = None, _readmit: bool = True) -> FitResult:
     """Fit ``form`` to ``obs`` from ``theta0`` (everything else from ``base``); see the module docstring.
 
     ``absolute_sigma`` (default: whether ``obs`` states uncertainties) — treat σ as known.
@@ -482,7 +491,17 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
 
     Steps: check the inputs (:func:`_checked_start`), minimise (:func:`_optimise`), then at the optimum either
     claim nothing (too few data, :func:`_too_few_data`), or test identifiability and hold the parameters the data
-    do not determine (:func:`_refit_holding`), or report every interval (:func:`_full_result`)."""
+    do not determine (:func:`_refit_holding`), or report every interval (:func:`_full_result`).  States without
+    an equilibrium at ``theta0`` are left out of a first pass and re-admitted from its optimum
+    (:func:`_fit_readmitting`; ``FitResult.readmitted``)."""
+    if _readmit and _refit and _warm is None:
+        kw = dict(absolute_sigma=absolute_sigma, fixed=fixed, max_nfev=max_nfev, scale=scale)
+        try:
+            return fit(form, obs, base, theta0, _readmit=False, **kw)
+        except INFEASIBLE as exc:
+            if not getattr(exc, "failed_index", None):
+                raise
+            return _fit_readmitting(form, obs, base, theta0, exc, kw)
     theta0, lo, hi, typical = _checked_start(form, obs, base, theta0, fixed, scale)
     absolute = obs.has_sigma if absolute_sigma is None else bool(absolute_sigma)
     free = np.array([nm not in fixed for nm in form.names])
@@ -528,6 +547,46 @@ def fit(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, *, abs
         "describe the best compromise)" if loud else "")
     out.misfit = loud
     return out
+
+
+def _fit_readmitting(form: ModelForm, obs: Observations, base: ActuatorParams, theta0, exc: Exception,
+                     kw: dict) -> FitResult:
+    """The fit when states have no equilibrium at ``theta0`` (``exc``: that start failure, with ``failed_index``):
+    first without them, then with every state from the first pass's optimum — a state past a limit point of the
+    start (a start softer than the actuator, a pressure near its maximum with high tensions) is reached once
+    the parameters moved.  Raises the start failure's type naming the states when too few remain for the first
+    pass (:func:`_too_few_data`), or when they have no equilibrium at its optimum either."""
+    out_idx = sorted(set(exc.failed_index))
+    labels = [obs.labels[i] for i in out_idx]
+    keep = np.setdiff1d(np.arange(obs.n), out_idx)
+    n_free = form.n - len(kw.get("fixed") or ())
+    short = _too_few_data(keep.size, keep.size * obs.weights().shape[1], n_free)
+    if short:
+        raise _readmit_failure(exc, f"{exc.start_message}; without them too few states remain for a first pass "
+                               f"({'; '.join(short)})", labels)
+    first = fit(form, obs.subset(keep), base, theta0, _readmit=False, **kw)
+    try:
+        out = fit(form, obs, base, first.theta, _readmit=False, **kw)
+    except INFEASIBLE as again:
+        if not getattr(again, "failed_index", None):
+            raise
+        still = [obs.labels[i] for i in again.failed_index]
+        raise _readmit_failure(exc, f"{exc.start_message}; left out of a first pass, state(s) {still} have no "
+                               f"equilibrium at its optimum either ({_parameter_text(form, first.theta)}): the "
+                               "model cannot hold them — check their loads, or leave them out", still) from None
+    out.readmitted = labels
+    out.rejected += first.rejected
+    return out
+
+
+def _readmit_failure(exc: Exception, message: str, labels: list) -> Exception:
+    """``exc``'s type (a typed error) with ``message``; its ``failed_states`` and starting ``parameters`` kept,
+    ``failed_labels``: the states the message is about."""
+    new = _retyped(exc, message) if isinstance(exc, _RETRY) else type(exc)(message)
+    new.failed_states = list(getattr(exc, "failed_states", []))
+    new.parameters = dict(getattr(exc, "parameters", {}))
+    new.failed_labels = list(labels)
+    return new
 
 
 def _basis_text(obs: Observations, absolute: bool, scale_text: str) -> str:

@@ -15,7 +15,10 @@ Protocol (``docs/identification.md``):
    reported as such.
 4. **Model selection** on held-out states: each form predicts the held-out states it was not fitted to; the
    form with the smallest held-out RMS error wins, except that a simpler form (fewer parameters) is preferred
-   when its held-out error is within 10 % of the best — evidence, not a default, sets the form.  A form that
+   when its held-out error is within 10 % of the best — evidence, not a default, sets the form.  From the FEM
+   the held-out tip compliances (tensions held, tendons locked) count too: a form must be within 10 % of the best
+   on the tip error and on the mean compliance error (a rotation-free tip compliance hardly moves the held-out
+   tips of tendon bends but sets the locked compliance; docs/identification.md §4b).  A form that
    had too few states for its parameters (:data:`validation.identification.fit.MIN_SPARE_STATES`, ``MIN_DOF``) identified
    nothing and is chosen only when every form did.
 
@@ -115,24 +118,75 @@ def compile_fit_kernels() -> None:
     warm_up()
 
 
+def fem_masses(geometry, material) -> dict:
+    """The FEM design's masses as the reduced model takes them (the FEM's own: its wall's weight is the density
+    times the wall's volume, its cap's a point weight at the cap's centre of mass, fem_reference.loads.gravity):
+
+    ``line_mass_kg_per_m`` = wall volume × density / L (:meth:`fem_reference.BellowsGeometry.wall_volume`, the wall
+    spread evenly along the axis); ``tip_mass_kg`` = the cap's mass; ``tip_mass_offset_m`` = how far the cap's
+    centre of mass lies beyond the tip point along the tip tangent (``cap_com_offset − tip_offset``).  The reduced
+    model puts the tip mass at the tip point: the offset's share of the self-weight sag is < 1 %
+    (docs/identification.md §Gravity)."""
+    return {"line_mass_kg_per_m": float(geometry.wall_volume() * material.density / geometry.length),
+            "tip_mass_kg": float(geometry.cap_mass),
+            "tip_mass_offset_m": float(geometry.cap_com_offset - geometry.tip_offset)}
+
+
 def fem_base_params(geometry, material, *, n_elements: int = 6, tension_max: float = 5.0,
-                    pressure_max: float = 120e3, rod: Optional[dict] = None, name: str = "identified") -> ActuatorParams:
+                    pressure_max: float = 120e3, rod: Optional[dict] = None, name: str = "identified",
+                    gravity=(0.0, 0.0, -9.81)) -> ActuatorParams:
     """Reduced-model parameters for the FEM design: its length, tendon routing and tip offset, the wall's line
-    mass and the cap as tip mass (known from the geometry and material, not fitted), and the stiffness of the
-    closed-form equivalent rod ``rod`` (``EA``, ``EI``, ``D_a``, ``D_eff``) as the starting point."""
+    mass and the cap as tip mass (:func:`fem_masses`: known from the geometry and material, not fitted), the
+    gravity vector (3,) [m/s²] of its mounting, and the stiffness of the closed-form equivalent rod ``rod``
+    (``EA``, ``EI``, ``D_a``, ``D_eff``) as the starting point."""
     from ancf import StiffnessLaw
     from ancf.params import Tendon
     g = geometry
     EA = rod["EA"] if rod else 700.0
     EI = rod["EI"] if rod else 0.08
     D_eff = rod["D_eff"] if rod and rod.get("D_eff", 0) > 1e-4 else 0.02
-    mass = (rod or {}).get("wall_mass_kg", g.wall_volume() * material.density)
+    masses = fem_masses(g, material)
     return ActuatorParams(
         name=name, description=f"identified from the FEM of a {describe_geometry(g)}",
         length=g.length, n_elements=n_elements, stiffness=StiffnessLaw.constant(EA=EA, EI=EI), D_eff=D_eff,
         tendons=tuple(Tendon(distance=g.tendon_radius, angle=a) for a in g.tendon_angles),
-        line_mass=mass / g.length, tip_mass=g.cap_mass, tool_offset=g.tip_offset, tension_max=tension_max,
-        pressure_max=pressure_max)
+        line_mass=masses["line_mass_kg_per_m"], tip_mass=masses["tip_mass_kg"], tool_offset=g.tip_offset,
+        tension_max=tension_max, pressure_max=pressure_max, gravity=tuple(float(v) for v in gravity))
+
+
+#: the weight is validated when every held-out state with gravity has a tip error within this share of the
+#: length [%] (the paper's shape target, validation.checks.compare.SHAPE_TARGET_PCT)
+GRAVITY_TOLERANCE_PCT = 2.5
+
+
+def gravity_check(train_gravity, heldout_gravity, heldout_errors_m, length: float,
+                  tolerance_pct: float = GRAVITY_TOLERANCE_PCT) -> dict:
+    """Whether the identification validated the actuator's weight, and so whether its file may state gravity.
+
+    train_gravity (N,) bool, heldout_gravity (K,) bool: which states had gravity; heldout_errors_m (K,) [m]: the
+    held-out tip errors (None: no held-out states); length [m].  Returns ``{"status", "stated", "states",
+    "max_tip_error_pct", "text"}`` with status ``"validated"`` (held-out states with gravity, each within
+    ``tolerance_pct`` % of L: stated), ``"failed"`` (one is not, or is NaN: not stated), ``"trained"`` (no
+    held-out state with gravity, but training states had it: the fit explained them with the weight acting —
+    stated, and said to be not checked on held-out states) or ``"absent"`` (no state had gravity: not stated)."""
+    hg = np.asarray(heldout_gravity if heldout_gravity is not None else [], bool).reshape(-1)
+    err = np.asarray(heldout_errors_m if heldout_errors_m is not None else np.full(hg.size, np.nan), float)
+    if err.shape != hg.shape:
+        raise InputError(f"gravity_check: {err.size} held-out errors for {hg.size} held-out states")
+    pct = 100.0 * err[hg] / float(length)
+    worst = float(np.max(pct)) if pct.size and np.all(np.isfinite(pct)) else float("nan")
+    if pct.size:
+        ok = bool(np.all(np.isfinite(pct)) and np.all(pct <= tolerance_pct))
+        status = "validated" if ok else "failed"
+        text = (f"gravity {'validated' if ok else 'NOT VALIDATED'} on {pct.size} held-out state(s) with gravity: "
+                f"largest tip error {worst:.3g} % of L (tolerance {tolerance_pct:g} %)")
+    elif np.any(np.asarray(train_gravity, bool)):
+        status, text = "trained", ("gravity acted in training states only: the fit explained them with the "
+                                   "weight acting; no held-out state with gravity checked it")
+    else:
+        status, text = "absent", "gravity NOT VALIDATED: no state of the identification had gravity"
+    return {"status": status, "stated": status in ("validated", "trained"), "states": int(pct.size),
+            "max_tip_error_pct": worst, "text": text}
 
 
 def initial_shear(rod: Optional[dict], base: ActuatorParams) -> float:
@@ -249,6 +303,14 @@ class IdentificationResult:
         row = next(r for r in self.comparison if r["form"] == self.form)
         return None if row.get("heldout_tip_errors_m") is None else np.asarray(row["heldout_tip_errors_m"])
 
+    @property
+    def gravity_validation(self) -> dict:
+        """Whether the identification validated the actuator's weight, and so whether :meth:`to_toml` states
+        gravity (:func:`gravity_check` on the training and held-out states of the chosen form)."""
+        held = self.heldout is not None and self.heldout_errors is not None
+        return gravity_check(self.train.gravity, self.heldout.gravity if held else None,
+                             self.heldout_errors if held else None, self.params.length)
+
     # -------------------------------------------------------------------- display
     def _value_text(self, key: str) -> str:
         """A reported value with its unit (lengths in mm), or "not identifiable"."""
@@ -304,7 +366,8 @@ class IdentificationResult:
         import hashlib
         rec = {"source": self.source, "form": self.form, "created": self.provenance.get("created", ""),
                "bellows_version": self.provenance.get("versions", {}).get("bellows", "unknown"),
-               "git_revision": self.provenance.get("git_revision", "unknown")}
+               "git_revision": self.provenance.get("git_revision", "unknown"),
+               "gravity": self.gravity_validation["status"]}
         if self.source == "fem":
             rec.update(design=str(self.meta.get("design_name", "")), design_description=self.meta.get("design", ""),
                        mesh=self.meta.get("mesh", ""))
@@ -361,11 +424,25 @@ class IdentificationResult:
             lines.append(f"# WARNING: {f.misfit}")
         if held:
             lines.append(f"# held: {held}; the intervals above are {f.intervals}")
+        lines += self._gravity_lines()
+        if not self.gravity_validation["stated"]:
+            params = params.replace(gravity=(0.0, 0.0, 0.0))
         text = "\n".join(lines) + "\n" + params.to_toml() + self.provenance_toml()
         if path is not None:
             p = prepare_output_file(path, force=force, suffixes=(".toml",))
             atomic_write_text(p, text)
         return text
+
+    def _gravity_lines(self) -> list:
+        """The comment lines of :meth:`to_toml` on gravity: what validated it, or why the file does not state it."""
+        gv = self.gravity_validation
+        p = self.params
+        masses = f"line_mass {p.line_mass:.6g} kg/m, tip_mass {p.tip_mass:.6g} kg"
+        if gv["stated"]:
+            return [f"# {gv['text']}; gravity {list(p.gravity)} m/s², {masses}"]
+        return [f"# {gv['text']}.", f"# gravity_m_per_s2 is therefore 0 in this file: state the gravity of your mounting "
+                f"(the design's: {list(p.gravity)} m/s²) only after checking it; the masses ({masses}) are the "
+                "design's, for the dynamics"]
 
     def to_dict(self) -> dict:
         fits = {}
@@ -379,12 +456,12 @@ class IdentificationResult:
                           "held": {nm: {"value": v, "unit": dict(zip(f.names, f.form.units))[nm],
                                         "held_at": f.held_at.get(nm, "")} for nm, v in f.held.items()},
                           "intervals": f.intervals, "interval_basis": f.interval_basis, "misfit": f.misfit,
-                          "chi2_per_dof": f.chi2_per_dof,
+                          "chi2_per_dof": f.chi2_per_dof, "readmitted_states": list(f.readmitted),
                           "residuals_m": f.residuals, "description": f.form.description}
         return to_jsonable({
             "source": self.source, "form": self.form, "values": self.values, "ci95": self.ci95,
             "identifiable": self.identifiable, "units": REPORTED, "comparison": self.comparison, "fits": fits,
-            "misfit": self.fit.misfit, "warnings": self.warnings,
+            "misfit": self.fit.misfit, "warnings": self.warnings, "gravity_validation": self.gravity_validation,
             "training_labels": self.train.labels,
             "heldout_labels": None if self.heldout is None else self.heldout.labels,
             "design": None if self.design is None else self.design.to_dict(),
@@ -454,7 +531,8 @@ def restricted_starts(form, fitted: dict) -> list:
 def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Observations] = None,
              forms: Sequence[str] = FORMS, rod: Optional[dict] = None, fit_distance: bool = False,
              absolute_sigma: Optional[bool] = None, source: str = "data", progress: Optional[Callable[[str], Any]] = None,
-             check_information: bool = False, fit_masses: bool = False) -> IdentificationResult:
+             check_information: bool = False, fit_masses: bool = False,
+             heldout_compliance: Optional[Sequence] = None, workers: Optional[int] = 1) -> IdentificationResult:
     """Fit every form in ``forms`` to ``train``, compare them on ``heldout`` (or on the training error when
     there is no held-out set) and return the chosen form's result (see the module docstring).  Each form is
     fitted from its own start, from the optimum of the richest nested form fitted before it
@@ -466,13 +544,18 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
     reported as not determined with the reason; a form with nothing determined is not fitted (its row says
     ``refused``).  progress : ``progress(line)`` after each form's fit and after the refits (which form, how
     long, the result).  fit_masses : the line and tip mass are parameters of every form
-    (:func:`~validation.identification.forms.with_masses`; rig data under gravity), starting at ``base``'s."""
+    (:func:`~validation.identification.forms.with_masses`; rig data under gravity), starting at ``base``'s.
+    heldout_compliance : per held-out state None or the reference's tip compliances (C_tension, C_locked), each
+    (3, 3) [m/N], locked along −z by the exact taut-set rule (the FEM's, :mod:`validation.reference.fem_sweep`);
+    then the form is chosen on them too (:func:`_choose`).  workers : processes fitting forms side by side
+    (None: one per core; 1: in this process); the result does not depend on it (:func:`_fit_all`)."""
     if not forms:
         raise InputError("identify: no model form given")
     all_forms = [get_form(name, fit_distance, fit_masses) for name in forms]
     info, information = ({}, None) if not check_information else _check_information(all_forms, train, base, rod)
     say = progress or (lambda line: None)
-    fits, errors = _fit_all(all_forms, train, base, rod, absolute_sigma, info, say)
+    fits, errors = _fit_all(all_forms, train, base, rod, absolute_sigma, info, say,
+                            _fit_workers(workers, len(all_forms)))
     rows, failures = [], {}
     for form in all_forms:
         if form.name not in fits:
@@ -481,11 +564,24 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
             rows.append({"form": form.name, "n_params": form.n, "failed": failures[form.name]})
             continue
         rows.append(_comparison_row(form, fits[form.name], heldout, info.get(form.name)))
+        if heldout is not None and heldout_compliance is not None:
+            rows[-1].update(heldout_compliance_errors(fits[form.name].params, heldout, heldout_compliance))
     if not fits:
         raise ConfigError(f"no model form could be fitted: {failures}")
     chosen = _choose(rows, heldout is not None)
     return IdentificationResult(chosen["form"], fits, rows, fits[chosen["form"]].params, source, train, heldout,
                                 rod=rod, provenance=provenance(), information=information)
+
+
+def _fit_workers(workers: Optional[int], n_forms: int) -> int:
+    """The fit processes for ``workers`` (None: one per core), at most one per form; 1 inside a daemonic process
+    (which cannot start any: :func:`from_fem` fits beside the FEM's solves in one)."""
+    import multiprocessing as mp
+    import os
+    from validation.infra.runner import check_workers
+    check_workers(workers)
+    n = (os.cpu_count() or 1) if workers is None else int(workers)
+    return 1 if mp.current_process().daemon else max(1, min(n, n_forms))
 
 
 def _check_information(all_forms, train: Observations, base: ActuatorParams, rod: Optional[dict]) -> tuple:
@@ -514,58 +610,302 @@ def _check_information(all_forms, train: Observations, base: ActuatorParams, rod
                   "warnings": warnings}
 
 
-def _fit_all(all_forms, train: Observations, base: ActuatorParams, rod, absolute_sigma, info: dict, say) -> tuple:
+def _fit_all(all_forms, train: Observations, base: ActuatorParams, rod, absolute_sigma, info: dict, say,
+             workers: int = 1) -> tuple:
     """({form: best FitResult}, {form: first error}): each form from its own start, then the nested refits
     (:data:`NESTED_ROUNDS`); parameters the data do not determine (``info``) held at their start; a refused
-    form evaluated at its start only (:func:`validation.identification.fit.prior_result`)."""
+    form evaluated at its start only (:func:`validation.identification.fit.prior_result`).
+
+    Each fit (one form, one start: a pure function of them) is a task on ``workers`` processes; a form's batch of
+    starts is formed when every fit they are taken from is in (:class:`_FitPlan`) and merged when its fits are,
+    so the result is the one of the sequential order for any ``workers``
+    (tests/test_identification/test_forms_parallel.py).  A worker with nothing ready meanwhile fits the starts
+    the fits so far suggest (:meth:`_FitPlan.speculative`); a batch takes such a fit when it has the same start,
+    and one it has not is dropped unused."""
+    import time
+    held = {form.name: tuple(info[form.name].held) if form.name in info else () for form in all_forms}
+    ctx = _FitContext(list(all_forms), train, base, absolute_sigma, held,
+                      {f.name: dict(info[f.name].held) for f in all_forms if f.name in info})
+    plan = _FitPlan(all_forms, rod, base, info, held)
+    run = _FitTasks(ctx, workers)
+    t_refits, batches = None, []
+    try:
+        while True:
+            for index, rnd, starts in plan.ready():
+                if rnd == 1 and t_refits is None:
+                    t_refits = time.perf_counter()
+                batches.append((index, rnd, [run.submit(index, s) for s in starts]))
+            done = [b for b in batches if all(f.done() for f in b[2])]
+            for b in done:
+                batches.remove(b)
+                results = [f.result() for f in b[2]]
+                plan.merge(b[0], results)
+                if b[1] == 0:
+                    name = all_forms[b[0]].name
+                    say(_progress_line(name, plan.fits.get(name), plan.errors.get(name), results[0][1]))
+            if not batches:
+                if done:
+                    continue
+                break
+            run.speculate(plan.speculative())
+            if not done:
+                run.wait([f for b in batches for f in b[2]])
+    finally:
+        run.close()
+    if plan.n_refits:
+        say(f"{plan.n_refits} refit(s) from the nested forms' optima: {time.perf_counter() - t_refits:.1f} s; "
+            + (f"improved {', '.join(sorted(plan.better))}" if plan.better else "no fit improved"))
+    return plan.fits, plan.errors
+
+
+class _FitTasks:
+    """The fits of :func:`_fit_all` as futures, one per (form, start): on a process pool of ``workers`` (started
+    as the task runner starts its own, :mod:`validation.infra.runner`: ``fork`` where safe, one BLAS thread
+    each), or run here at once (``workers`` 1).  A fit asked again is the same future."""
+
+    def __init__(self, ctx: "_FitContext", workers: int):
+        import concurrent.futures as cf
+        import multiprocessing as mp
+        from validation.infra.runner import _single_thread_env, _start_method
+        self.ctx, self.workers, self.futures, self.pool = ctx, workers, {}, None
+        if workers > 1:
+            with _single_thread_env():
+                self.pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context(_start_method()),
+                                                   initializer=_init_fit_worker, initargs=(ctx,))
+
+    def submit(self, index: int, start: np.ndarray):
+        """The future of the fit of form ``index`` from ``start``: (FitResult or its error, seconds)."""
+        import concurrent.futures as cf
+        key = (index, start.tobytes())
+        if key not in self.futures:
+            if self.pool is None:
+                fut = cf.Future()
+                fut.set_result(_fit_one(self.ctx, index, start))
+            else:
+                fut = self.pool.submit(_fit_one, None, index, start)
+            self.futures[key] = fut
+        return self.futures[key]
+
+    def speculate(self, candidates: list) -> None:
+        """Start fits of ``candidates`` [(form index, start)] on the workers that would idle (none without a pool)."""
+        if self.pool is None:
+            return
+        busy = sum(not f.done() for f in self.futures.values())
+        for index, start in candidates:
+            if busy >= self.workers:
+                break
+            if (index, start.tobytes()) not in self.futures:
+                self.submit(index, start)
+                busy += 1
+
+    def wait(self, futures: list) -> None:
+        import concurrent.futures as cf
+        cf.wait(futures, return_when=cf.FIRST_COMPLETED)
+
+    def close(self) -> None:
+        """Stop the workers (fits still running were speculative or the run was interrupted: not waited for)."""
+        if self.pool is not None:
+            from validation.infra.runner import _kill_pool
+            if all(f.done() for f in self.futures.values()):
+                self.pool.shutdown(wait=True)
+            else:
+                _kill_pool(self.pool)
+
+
+def _related(a, b) -> bool:
+    """Whether a fit of form ``a`` may start from one of form ``b`` or the other way round (nested forms: the
+    parameters of one a strict subset of the other's; :func:`starting_points`, :func:`restricted_starts`)."""
+    return set(a.names) < set(b.names) or set(b.names) < set(a.names)
+
+
+@dataclass
+class _FitContext:
+    """What every fit of :func:`_fit_all` shares (given once to each worker process)."""
+    forms: list
+    train: Observations
+    base: ActuatorParams
+    absolute_sigma: Optional[bool]
+    held: dict                    # {form: names held at their prior}
+    held_reasons: dict            # {form: {name: why it is not determined}}
+
+
+_WORKER_CONTEXT: Optional[_FitContext] = None
+
+
+def _init_fit_worker(ctx: _FitContext) -> None:
+    """A worker process of :func:`_fit_all`: one BLAS thread, the shared context."""
+    global _WORKER_CONTEXT
+    from validation.infra.runner import limit_threads
+    limit_threads()
+    _WORKER_CONTEXT = ctx
+
+
+def _fit_one(ctx: Optional[_FitContext], index: int, start: np.ndarray) -> tuple:
+    """(FitResult or the BellowsError it raised, seconds) of the fit of form ``index`` from ``start``, with
+    ``ctx`` (None in a worker process: its own).  An error that would not survive the way back to the parent
+    process is sent as a ConfigError with its type and text."""
+    import pickle
     import time
     from validation.identification.fit import prior_result
-    fits, errors, tried = {}, {}, {}
-    held = {form.name: tuple(info[form.name].held) if form.name in info else () for form in all_forms}
+    remote = ctx is None
+    ctx = _WORKER_CONTEXT if remote else ctx
+    form = ctx.forms[index]
+    held = ctx.held[form.name]
+    t0 = time.perf_counter()
+    try:
+        if len(held) == form.n:
+            g = prior_result(form, ctx.train, ctx.base, start, ctx.held_reasons[form.name])
+        else:
+            g = fit(form, ctx.train, ctx.base, start, absolute_sigma=ctx.absolute_sigma, fixed=held)
+    except BellowsError as exc:
+        g = exc
+        if remote:
+            try:
+                pickle.loads(pickle.dumps(exc))
+            except Exception:
+                g = ConfigError(f"{type(exc).__name__}: {exc}")
+    return g, time.perf_counter() - t0
 
-    def attempt(form, start) -> bool:
-        th0 = prior_theta(form, rod, base)
-        start = np.asarray(start, float).copy()
-        for nm in held[form.name]:          # a parameter the data do not determine stays at its prior
-            start[form.names.index(nm)] = th0[form.names.index(nm)]
-        seen = tried.setdefault(form.name, set())
-        if start.tobytes() in seen:
-            return False
-        seen.add(start.tobytes())
-        try:
-            if len(held[form.name]) == form.n:
-                g = prior_result(form, train, base, start, info[form.name].held)
-            else:
-                g = fit(form, train, base, start, absolute_sigma=absolute_sigma, fixed=held[form.name])
-                _mark_prior(g, info.get(form.name))
-        except BellowsError as exc:
-            errors.setdefault(form.name, exc)
-            return False
-        if form.name not in fits or g.rss < fits[form.name].rss * (1 - 1e-9):
-            fits[form.name] = g
-            return True
-        return False
 
-    for form in all_forms:
-        t0 = time.perf_counter()
-        attempt(form, initial_theta(form, rod, base))
-        say(_progress_line(form.name, fits.get(form.name), errors.get(form.name), time.perf_counter() - t0))
-    t0, better, n_before = time.perf_counter(), set(), sum(len(v) for v in tried.values())
-    for _ in range(NESTED_ROUNDS):    # up from the richest nested form, down from a better richer one, until stable
+class _FitPlan:
+    """The order of :func:`_fit_all`'s fits as a graph, and their results.
+
+    Sequentially the fits run as: every form from its own start (round 0), then up to :data:`NESTED_ROUNDS`
+    rounds, each refitting the forms in order from the starts the fits so far give (:func:`starting_points`,
+    :func:`restricted_starts`), until a round improves nothing.  A form's starts read only the fits of forms
+    nested with it (:func:`_related`), so (1) the round-0 fits are independent; (2) in a round, the batch of a
+    form waits only for the batches of the earlier related forms of that round; (3) groups of forms that are not
+    related (connected components) run their rounds apart — a group whose round improved nothing would only
+    meet starts it has tried in the next one.  Batches started in this order and merged per form (a batch only
+    changes its own form's fit) give the sequential result."""
+
+    def __init__(self, all_forms, rod, base: ActuatorParams, info: dict, held: dict):
+        self.forms, self.info, self.held = list(all_forms), info, held
+        self.theta0 = [initial_theta(f, rod, base) for f in self.forms]
+        self.prior = [prior_theta(f, rod, base) for f in self.forms]
+        self.fits, self.errors, self.tried, self.better, self.n_refits = {}, {}, {}, set(), 0
+        self.first: dict = {}         # {form: (round, form index) of its first fit}
+        n = len(self.forms)
+        self.rel = [[_related(self.forms[i], self.forms[j]) for j in range(n)] for i in range(n)]
+        self.groups = [dict(members=g, round=0, started=set(), merged=set(), improved=False, done=False)
+                       for g in _groups(self.rel)]
+
+    def _at_prior(self, i: int, starts: list) -> list:
+        """``starts`` of form ``i`` with the parameters the data do not determine at their prior."""
+        form = self.forms[i]
+        out = []
+        for start in starts:
+            s = np.asarray(start, float).copy()
+            for nm in self.held[form.name]:
+                s[form.names.index(nm)] = self.prior[i][form.names.index(nm)]
+            out.append(s)
+        return out
+
+    def _new_starts(self, i: int, starts: list) -> list:
+        """``starts`` of form ``i`` (:meth:`_at_prior`) less those tried before, recorded as tried."""
+        seen = self.tried.setdefault(self.forms[i].name, set())
+        out = []
+        for s in self._at_prior(i, starts):
+            if s.tobytes() not in seen:
+                seen.add(s.tobytes())
+                out.append(s)
+        return out
+
+    def _refit_starts(self, i: int) -> list:
+        form = self.forms[i]
+        return starting_points(form, self.theta0[i], self.fits)[1:] + restricted_starts(form, self.fits)
+
+    def speculative(self) -> list:
+        """[(form index, start)] that a batch not yet formed may ask for, from the fits so far: the refit starts
+        of the forms whose batch of this round has not started (of round 1 during round 0), not tried yet.
+        Nothing is recorded: only :meth:`ready` decides what the result uses."""
+        out = []
+        for g in self.groups:
+            for i in ([] if g["done"] else g["members"]):
+                if g["round"] and i in g["started"]:
+                    continue
+                seen = self.tried.get(self.forms[i].name, set())
+                out += [(i, s) for s in self._at_prior(i, self._refit_starts(i)) if s.tobytes() not in seen]
+        return out
+
+    def ready(self) -> list:
+        """[(form index, round, new starts)] of the batches that can start now (each returned once); a batch
+        without new starts is merged at once."""
+        out = []
+        for g in self.groups:
+            progressed = True
+            while progressed and not g["done"]:
+                progressed = False
+                for i in g["members"]:
+                    earlier = [j for j in g["members"] if j < i and self.rel[i][j]]
+                    if i in g["started"] or (g["round"] and not set(earlier) <= g["merged"]):
+                        continue
+                    g["started"].add(i)
+                    cand = [self.theta0[i]] if g["round"] == 0 else self._refit_starts(i)
+                    starts = self._new_starts(i, cand)
+                    if g["round"]:
+                        self.n_refits += len(starts)
+                    if starts or g["round"] == 0:
+                        out.append((i, g["round"], starts))
+                    else:
+                        progressed |= self._merged(g, i, False)
+        return out
+
+    def merge(self, i: int, results: list) -> None:
+        """The results of form ``i``'s batch, in the order of its starts: keep the best (sequential rule)."""
+        form = self.forms[i]
         improved = False
-        for form in all_forms:
-            for start in (starting_points(form, initial_theta(form, rod, base), fits)[1:]
-                          + restricted_starts(form, fits)):
-                if attempt(form, start):
-                    improved = True
-                    better.add(form.name)
-        if not improved:
-            break
-    n_refits = sum(len(v) for v in tried.values()) - n_before
-    if n_refits:
-        say(f"{n_refits} refit(s) from the nested forms' optima: {time.perf_counter() - t0:.1f} s; "
-            + (f"improved {', '.join(sorted(better))}" if better else "no fit improved"))
-    return fits, errors
+        for g, _ in results:
+            if isinstance(g, BaseException):
+                self.errors.setdefault(form.name, g)
+                continue
+            if len(self.held[form.name]) < form.n:
+                _mark_prior(g, self.info.get(form.name))
+            if form.name not in self.fits or g.rss < self.fits[form.name].rss * (1 - 1e-9):
+                improved = True
+                self._keep(i, g)
+        group = next(g for g in self.groups if i in g["members"])
+        if improved and group["round"]:
+            self.better.add(form.name)
+        self._merged(group, i, improved)
+
+    def _keep(self, i: int, g: FitResult) -> None:
+        """Keep ``g`` as form ``i``'s fit; ``fits`` in the order the sequential loop fills it (by the round, then
+        the form of each form's first fit): the starts read it in that order (:func:`restricted_starts`)."""
+        name = self.forms[i].name
+        if name not in self.fits:
+            group = next(gr for gr in self.groups if i in gr["members"])
+            self.first[name] = (group["round"], i)
+        self.fits[name] = g
+        self.fits = {n: self.fits[n] for n in sorted(self.fits, key=self.first.get)}
+
+    def _merged(self, g: dict, i: int, improved: bool) -> bool:
+        """Record form ``i``'s batch of group ``g``'s round as merged; at the end of the round start the next
+        one (or end the group).  Returns True (something changed)."""
+        g["merged"].add(i)
+        g["improved"] |= improved
+        if g["merged"] == set(g["members"]):
+            if g["round"] and (not g["improved"] or g["round"] == NESTED_ROUNDS):
+                g["done"] = True
+            g.update(round=g["round"] + 1, started=set(), merged=set(), improved=False)
+        return True
+
+
+def _groups(rel: list) -> list:
+    """Connected components (sorted index lists) of the symmetric relation ``rel`` (n × n bools)."""
+    n, seen, out = len(rel), set(), []
+    for i in range(n):
+        if i in seen:
+            continue
+        comp, todo = set(), [i]
+        while todo:
+            k = todo.pop()
+            if k not in comp:
+                comp.add(k)
+                todo += [j for j in range(n) if rel[k][j] and j not in comp]
+        seen |= comp
+        out.append(sorted(comp))
+    return out
 
 
 def _progress_line(name: str, f: Optional[FitResult], err, seconds: float) -> str:
@@ -576,7 +916,15 @@ def _progress_line(name: str, f: Optional[FitResult], err, seconds: float) -> st
         return f"form {name}: refused — nothing determined by these data (training RMS at the prior {1e3 * f.rms_tip:.3g} mm)"
     held = [nm for nm, at in f.held_at.items() if at == PRIOR]
     return (f"form {name}: {seconds:.1f} s, training RMS {1e3 * f.rms_tip:.3g} mm ({f.nfev} solves)"
-            + (f", held at the prior: {', '.join(held)}" if held else ""))
+            + (f", held at the prior: {', '.join(held)}" if held else "") + _readmitted_text(f))
+
+
+def _readmitted_text(f: FitResult) -> str:
+    """'; state(s) … had no equilibrium at the start: …' when the fit re-admitted states (``f.readmitted``)."""
+    if not f.readmitted:
+        return ""
+    return (f"; state(s) {', '.join(map(repr, f.readmitted))} had no equilibrium at the starting parameters: fitted "
+            "first without them, then with them from that optimum")
 
 
 #: ``FitResult.held_at`` of a parameter the data do not determine (held at the base actuator's value).
@@ -624,20 +972,59 @@ def _comparison_row(form, f: FitResult, heldout: Optional[Observations], inf) ->
     return row
 
 
+def heldout_compliance_errors(params: ActuatorParams, heldout: Observations, reference: Sequence) -> dict:
+    """{"heldout_compliance_error_pct": mean over the held-out states and both modes (tensions held, tendons
+    locked along −z, exact taut-set rule) of 100 ‖C_model − C_ref‖_F / ‖C_ref‖_F, plus the mean per mode} for
+    the states whose ``reference`` entry is (C_tension, C_locked) (3, 3) [m/N]; {} when any of them fails (the
+    form is then chosen on the tip alone)."""
+    from ancf import Model
+    from ancf import compliance as cp
+    err = {"tension": [], "locked": []}
+    models = {True: Model(params), False: Model(params.replace(gravity=(0.0, 0.0, 0.0)))}   # as each state was
+    for i, ref in enumerate(reference):
+        if ref is None or ref[0] is None or (heldout.gravity[i] and not np.any(params.gravity)):
+            continue
+        model = models[bool(heldout.gravity[i])]
+        try:
+            eq = model.fk(heldout.tensions[i], heldout.pressure[i], heldout.tip_force[i], check_limits=False)
+            mine = (cp.tension(model, eq).C_p, cp.locked(model, eq, method="exact", load_direction=(0, 0, -1)).C_p)
+        except BellowsError:
+            return {}
+        for mode, C, Cr in zip(("tension", "locked"), mine, ref):
+            err[mode].append(100 * np.linalg.norm(C - np.asarray(Cr)) / np.linalg.norm(Cr))
+    if not err["locked"]:
+        return {}
+    return {"heldout_compliance_error_pct": float(np.mean(err["tension"] + err["locked"])),
+            "heldout_compliance_tension_error_pct": float(np.mean(err["tension"])),
+            "heldout_compliance_locked_error_pct": float(np.mean(err["locked"]))}
+
+
+#: the held-out measures a form is chosen on, when every candidate has them (tip error always)
+CHOICE_KEYS = ("heldout_rms_tip_m", "heldout_compliance_error_pct")
+
+
 def _choose(rows: list, by_heldout: bool) -> dict:
     """The chosen row: the simplest form within :data:`PARSIMONY` × the best error; forms that identified
-    nothing (too few data, refused) only when every form did."""
+    nothing (too few data, refused) only when every form did.  With held-out compliances for every candidate
+    (:func:`heldout_compliance_errors`) a form must be within PARSIMONY of the best on the tip error *and* on the
+    compliance error (the tip states alone are blind to a rotation-free tip compliance, which the locked
+    compliance sees, docs/identification.md §4b); when no form is, the one closest to that (the smallest largest
+    ratio to the best) is taken."""
     key = "heldout_rms_tip_m" if by_heldout else "train_rms_tip_m"
     ok = [r for r in rows if key in r]
     if not ok:
         raise ConfigError(f"no fitted form could predict the held-out states: "
                           f"{[r.get('heldout_failed') for r in rows]}")
     ok = [r for r in ok if "too_few_data" not in r and "refused" not in r] or ok
-    best = min(r[key] for r in ok)
+    keys = [key] + [k for k in CHOICE_KEYS[1:] if by_heldout and all(k in r for r in ok)]
+    best = {k: min(r[k] for r in ok) for k in keys}
+    ratio = lambda r: max(r[k] / best[k] if best[k] > 0 else (1.0 if r[k] <= 0 else math.inf)  # noqa: E731
+                          for k in keys)
     if all("refused" in r for r in ok):      # nothing fitted: the first form asked for, at the base's values
         chosen = ok[0]
     else:
-        chosen = min((r for r in ok if r[key] <= PARSIMONY * best + 1e-15), key=lambda r: (r["n_params"], r[key]))
+        near = [r for r in ok if ratio(r) <= PARSIMONY + 1e-12] or [min(ok, key=ratio)]
+        chosen = min(near, key=lambda r: (r["n_params"], r[key]))
     for r in rows:
         r["chosen"] = r is chosen
     return chosen
@@ -660,7 +1047,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
              design: Optional[Design] = None, forms: Sequence[str] = FORMS, n_elements: int = 6,
              tension_max: float = 5.0, pressure_max: float = 120e3, fit_distance: bool = False,
              progress: bool = True, compliance: bool = True, cases: str = "default",
-             after_sweep: Optional[Callable[[list], Any]] = None) -> IdentificationResult:
+             after_sweep: Optional[Callable[[list], Any]] = None, mounting: str = "horizontal") -> IdentificationResult:
     """Identify the reduced model from virtual experiments on the FEM of ``geometry`` and ``material``.
 
     mesh : FEM mesh level ("coarse" for minutes, "reference" for the full report); workers / scheduler :
@@ -674,9 +1061,11 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     do not choose the form.  after_sweep : ``after_sweep(records)`` is run here while the forms are fitted in
     a worker process (:func:`validation.infra.runner.run_beside`; e.g. the FEM's refined solves of
     :func:`validation.checks.fem_error.estimate_for_heldout`, which use the other cores); its result is
-    ``res.after_sweep``.
+    ``res.after_sweep``.  mounting : how the actuator is held (:data:`validation.reference.designs.MOUNTINGS`;
+    the gravity vector of the states with gravity, in the FEM and in the reduced model alike).
     """
     from ancf.params import TENDONS_MAX, TENDONS_MIN
+    from validation.reference.designs import mounting_gravity
     from validation.reference.fem_sweep import FemSpec, check_cases, run_cases, run_rod
     from validation.infra.runner import check_workers, in_background
     check_workers(workers)
@@ -685,7 +1074,8 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
         raise ConfigError(f"the design has {n_tendons} tendon(s): the reduced model (an actuator file) takes "
                           f"{TENDONS_MIN} … {TENDONS_MAX}, so it cannot be identified from it; the FEM alone "
                           f"(bellows fem solve --design) takes it")
-    spec = FemSpec(geometry, material, mesh)
+    g_vec = mounting_gravity(mounting)
+    spec = FemSpec(geometry, material, mesh, gravity=g_vec)
     if cases not in ("default", "informative"):
         raise InputError(f"cases must be 'default' or 'informative', got {cases!r}")
     if design is None and cases == "default":
@@ -702,7 +1092,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     with in_background(compile_fit_kernels, nice=0):
         rod = run_rod(spec, cache_dir=cache_dir)
         base = fem_base_params(geometry, material, n_elements=n_elements, tension_max=tension_max,
-                               pressure_max=pressure_max, rod=rod)
+                               pressure_max=pressure_max, rod=rod, gravity=g_vec)
         if design is None:
             from validation.identification.design_select import informative_design
             richest = max((get_form(f, fit_distance) for f in forms), key=lambda fm: fm.n)
@@ -727,7 +1117,9 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     heldout = observations_from_records(ho, marker_s) if ho else None
     fit_base = base.replace(gravity=(0.0, 0.0, 0.0)) if not np.any(train.gravity) else base
     fit_kw = dict(train=train, base=fit_base, heldout=heldout, forms=forms, rod=rod, fit_distance=fit_distance,
-                  absolute_sigma=False, source="fem")
+                  absolute_sigma=False, source="fem",
+                  heldout_compliance=[None if r.compliance_tension is None else
+                                      (r.compliance_tension, r.compliance_locked) for r in ho] if ho else None)
     if after_sweep is None:
         res = identify(**fit_kw)
     else:
@@ -738,7 +1130,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     res.design, res.records = design, records
     res.meta = {"mesh": str(mesh), "design": describe_geometry(geometry), "geometry": to_jsonable(_geometry_meta(geometry)),
                 "material": to_jsonable(vars(material)),
-                "marker_s_m": marker_s, "failed_cases": failed}
+                "marker_s_m": marker_s, "failed_cases": failed, "mounting": mounting}
     return res
 
 
@@ -746,7 +1138,8 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
 def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Sequence[str] = FORMS,
                       heldout_fraction: float = 0.25, seed: int = 0, fit_distance: bool = False,
                       gravity: bool = True, absolute_sigma: Optional[bool] = None,
-                      progress: Optional[Callable[[str], Any]] = None, masses: str = "free") -> IdentificationResult:
+                      progress: Optional[Callable[[str], Any]] = None, masses: str = "free",
+                      workers: Optional[int] = None) -> IdentificationResult:
     """Identify the reduced model from measured static states (HDF5 run log / static-states file or CSV;
     ``docs/data-formats.md``).
 
@@ -760,6 +1153,8 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
     form fitted (:func:`identify`).  masses : ``"free"`` (default, under gravity) — the line mass [kg/m] and the
     tip mass [kg] are parameters of the fit, starting at ``base``'s (held there, and said so, when the states do
     not determine them: known tip loads at several pressures do); ``"base"`` — held at ``base``'s values.
+    workers : processes fitting the forms side by side (default: one per core; the result is the same for any
+    number, :func:`identify`).
     """
     from hardware.static_states import StaticStates, read_static_states
     if base is None:
@@ -786,7 +1181,7 @@ def from_measurements(path, base: Optional[ActuatorParams] = None, *, forms: Seq
     fit_base = base if gravity else base.replace(gravity=(0.0, 0.0, 0.0))
     res = identify(train, fit_base, heldout=heldout, forms=forms, fit_distance=fit_distance,
                    absolute_sigma=absolute_sigma, source="measurements", progress=progress, check_information=True,
-                   fit_masses=masses == "free" and gravity and bool(np.any(base.gravity)))
+                   fit_masses=masses == "free" and gravity and bool(np.any(base.gravity)), workers=workers)
     _finalise_params(res, base)
     res.meta = {"path": str(path) if not isinstance(path, StaticStates) else "<StaticStates>",
                 "n_states": obs.n, "n_heldout": int(ho.sum()), "seed": seed}

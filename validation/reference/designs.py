@@ -15,6 +15,7 @@ unknown keys and missing units are errors)::
     cap_mass_g = 18
     cap_com_offset_mm = 2.5
     tip_offset_mm = 0
+    mounting = "horizontal"      # or "vertical_down" (hanging, tip below the base), "vertical_up"
 
     [material]
     model = "neo_hookean"        # or "mooney_rivlin" (with c10_MPa, c01_MPa)
@@ -37,6 +38,12 @@ the design then states ``n_convolutions`` and ``collar_length_*`` (mesh blocks, 
 unit mistake: the message names the key and the range in its unit), ``n_convolutions`` against 1 … 100,
 ``tendon_angles_*`` must be a list of 1 … 16 distinct angles (two tendons at one angle would make the tension →
 tip map singular), the other keys single numbers.
+
+**Mounting.**  ``mounting`` states how the actuator is held, which sets the gravity vector of its gravity load cases
+in the world frame of the FEM and of the reduced model (axis along ``+x``, :data:`MOUNTINGS`): ``"horizontal"`` (the
+default, as on the paper's rig: gravity ``−z``), ``"vertical_down"`` (hanging, the tip below the base: gravity
+``+x``) or ``"vertical_up"`` (standing on its base: gravity ``−x``); :func:`design_mounting` reads it,
+:func:`mounting_gravity` gives the vector [m/s²].  Any other value is a :class:`ConfigError`.
 
 The operating range (:func:`design_limits`; default 5 N, 120 kPa) sets the loads of the virtual experiments.
 The ``paper`` preset (the soft, calibrated bellows) states 100 kPa: its FEM has an inflation limit point
@@ -66,7 +73,15 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["load_design", "design_to_toml", "design_limits", "PRESETS", "DEFAULT_LIMITS"]
+__all__ = ["load_design", "design_to_toml", "design_limits", "design_mounting", "mounting_gravity", "PRESETS",
+           "DEFAULT_LIMITS", "MOUNTINGS", "DEFAULT_MOUNTING"]
+
+#: standard gravity [m/s²]
+G_STANDARD = 9.81
+#: gravity vector [m/s²] of each mounting, in the world frame with the undeformed axis along +x
+MOUNTINGS = {"horizontal": (0.0, 0.0, -G_STANDARD), "vertical_down": (G_STANDARD, 0.0, 0.0),
+             "vertical_up": (-G_STANDARD, 0.0, 0.0)}
+DEFAULT_MOUNTING = "horizontal"
 
 GEOMETRY_FIELDS = {"name": None, "description": None, "profile_file": None, "profile_unit": None, "length": "length",
                    "n_convolutions": None,
@@ -86,7 +101,7 @@ PLAUSIBLE = {
     "mu": (1e3, 1e9, False), "kappa": (1e3, 1e11, False), "c10": (-1e9, 1e9, True), "c01": (-1e9, 1e9, True),
     "density": (100.0, 20000.0, False), "tension_max": (1e-3, 1e3, False), "pressure_max": (1e3, 10e6, False),
 }
-TEXT_KEYS = ("name", "description", "profile_file", "profile_unit", "model", "formulation")
+TEXT_KEYS = ("name", "description", "profile_file", "profile_unit", "model", "formulation", "mounting")
 #: keys a design with a profile_file must not state (read off the table)
 TABLE_DERIVED = ("length", "root_radius", "crest_radius", "wall_thickness")
 
@@ -160,6 +175,24 @@ def design_limits(source) -> dict:
     return dict(DEFAULT_LIMITS, **parsed)
 
 
+def mounting_gravity(mounting: str) -> tuple:
+    """Gravity vector (3,) [m/s²] of the mounting ``mounting`` (:data:`MOUNTINGS`); ConfigError for another name."""
+    if not isinstance(mounting, str) or mounting not in MOUNTINGS:
+        raise ConfigError(f"mounting must be one of {', '.join(MOUNTINGS)}, got {mounting!r}")
+    return MOUNTINGS[mounting]
+
+
+def design_mounting(source) -> str:
+    """How the design is mounted (module docstring): a preset's is ``"horizontal"``; a design file's is its
+    ``mounting`` key (default ``"horizontal"``), checked — ConfigError for an unknown value."""
+    if isinstance(source, str) and source in PRESETS:
+        return DEFAULT_MOUNTING
+    value = _read(source).get("mounting", DEFAULT_MOUNTING)
+    if not isinstance(value, str) or value not in MOUNTINGS:
+        raise ConfigError(f"{source}: mounting must be one of {', '.join(MOUNTINGS)} (text in quotes), got {value!r}")
+    return value
+
+
 def _read(source) -> dict:
     path = pathlib.Path(source)
     if path.suffix.lower() != ".toml":
@@ -180,7 +213,9 @@ def load_design(source):
     path = pathlib.Path(source)
     raw = _read(source)
     design_limits(source)                      # the optional [limits] table is checked here too
+    design_mounting(source)                    # and the mounting
     raw.pop("limits", None)
+    raw.pop("mounting", None)
     mat_raw = raw.pop("material", None)
     if not isinstance(mat_raw, dict):
         raise ConfigError(f"{path}: missing [material] table")
@@ -273,9 +308,12 @@ def _material(mat_raw: dict, where: str):
     return material
 
 
-def design_to_toml(geometry, material, name: str = "bellows", limits: dict | None = None) -> str:
+def design_to_toml(geometry, material, name: str = "bellows", limits: dict | None = None,
+                   mounting: str = DEFAULT_MOUNTING) -> str:
     """The design as TOML in the format of :func:`load_design`, in SI units (m, kg, rad, Pa) so that it reads
-    back exactly (a table profile is referred to by the absolute path of its file); ``limits`` ({"tension_max": N, "pressure_max": Pa}) adds the [limits] table."""
+    back exactly (a table profile is referred to by the absolute path of its file); ``limits`` ({"tension_max": N,
+    "pressure_max": Pa}) adds the [limits] table; ``mounting`` (:data:`MOUNTINGS`) is written as given."""
+    mounting_gravity(mounting)
     g = geometry
     if getattr(g, "is_table", False):
         if not g.profile.source:
@@ -290,7 +328,7 @@ def design_to_toml(geometry, material, name: str = "bellows", limits: dict | Non
     lines = [f"name = {json.dumps(str(name))}", *shape, f"n_convolutions = {int(g.n_convolutions)}", f"collar_length_m = {g.collar_length!r}",
              f"tendon_radius_m = {g.tendon_radius!r}", f"tendon_angles_rad = {list(g.tendon_angles)!r}",
              f"cap_mass_kg = {g.cap_mass!r}", f"cap_com_offset_m = {g.cap_com_offset!r}",
-             f"tip_offset_m = {g.tip_offset!r}", "", "[material]"]
+             f"tip_offset_m = {g.tip_offset!r}", f"mounting = {json.dumps(mounting)}", "", "[material]"]
     if material.c01:
         lines += ['model = "mooney_rivlin"', f"c10_Pa = {material.mu / 2 - material.c01!r}", f"c01_Pa = {material.c01!r}"]
     else:

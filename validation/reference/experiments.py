@@ -16,16 +16,24 @@ experiment         training cases                                      what it d
 ``combined``       (0.5 p_max, 0.8 T_max ×3), (p_max, T_max ×3),        separates k(λ) from A_eff: the same
                    (p_max, 0.4 T_max ×3)                                stretch reached by different loads
 ``bending``        T1 = 0.4, 1.0 T_max at p = 0; T1 = 0.8 T_max at       EI (D_a), with the tendon's own
-                   0.5 p_max; T2 = 0.6 T_max at 0.25 p_max               axial load; two tendon directions
-``lateral``        F = −0.35 F_ref e_z, +0.35 F_ref e_y at p = 0;        EI under a tip force (shear included),
-                   −0.35 F_ref e_z at 0.75 p_max                        and its pressure dependence
+                   0.5 p_max; T2 = 0.6 T_max at 0.25 p_max; T3 = 0.8     axial load; three tendon directions
+                   T_max at p_max
+``lateral``        F = −0.35 F_ref e_z, +0.35 F_ref e_y at p = 0;        EI under a tip force and the rotation-
+                   +0.7 F_ref e_y at 0.5 p_max; −0.35 F_ref e_z at       free tip compliance s(p) beside the
+                   0.75 p_max; −0.7 F_ref e_z at p_max                  tendon bends at the same pressures
 =================  ==================================================  ========================================
 
 Held out (never used in a fit): mixed states across the range — one and two tendons with pressure, a
 tip load with a tendon, full-range combinations (see :data:`HELD_OUT`).  Both signs of axial strain are
-covered (equal tensions shorten the actuator, pressure lengthens it).  Gravity is off in every case
-unless a design asks for it (``gravity=True``): the fit then needs the actuator's weight, which the
-reduced model takes from the FEM's wall and cap masses.
+covered (equal tensions shorten the actuator, pressure lengthens it).
+
+**Gravity.**  The mounted actuator always carries its own weight, so the default design has states with gravity
+on (the weight along the design's mounting, default horizontal: −z with the axis along +x) in both sets:
+:data:`GRAVITY_TRAINING` (experiment ``gravity``: self-weight alone at 0 and p_max, and at 0.5 p_max against
+0.6 T_max on the top tendon) and :data:`GRAVITY_HELD_OUT` (self-weight alone at 0.5 p_max; at 0.25 p_max with
+0.5 T_max on the second tendon).  The reduced model takes the weight from the FEM design's wall and cap masses
+(not fitted; :func:`validation.identification.identify.fem_masses`), so these states check the masses too.
+Every other state is gravity-free (``gravity=True`` turns the weight on in all of them).
 """
 
 from __future__ import annotations
@@ -42,7 +50,8 @@ from ancf.errors import InputError, check_finite
 #: chosen by validation.identification.design_select)
 EXTRAPOLATION = "extrapolation"
 
-__all__ = ["LoadCase", "Design", "default_design", "TRAINING", "HELD_OUT", "force_reference"]
+__all__ = ["LoadCase", "Design", "default_design", "TRAINING", "HELD_OUT", "GRAVITY_TRAINING", "GRAVITY_HELD_OUT",
+           "force_reference"]
 
 
 @dataclass(frozen=True)
@@ -93,11 +102,13 @@ class LoadCase:
 
 @dataclass(frozen=True)
 class _Spec:
-    """A load case in fractions of the operating range: tensions/T_max, pressure/p_max, force/F_ref."""
+    """A load case in fractions of the operating range: tensions/T_max, pressure/p_max, force/F_ref; gravity: the
+    actuator's weight acts (along the design's mounting, :data:`validation.reference.designs.MOUNTINGS`)."""
     experiment: str
     tensions: tuple
     pressure: float
     force: tuple = (0.0, 0.0, 0.0)
+    gravity: bool = False
 
 
 #: Training cases of the default design (fractions of the range; see the module docstring).
@@ -108,9 +119,10 @@ TRAINING: tuple[_Spec, ...] = (
     _Spec("combined", (0.8, 0.8, 0.8), 0.5), _Spec("combined", (1.0, 1.0, 1.0), 1.0),
     _Spec("combined", (0.4, 0.4, 0.4), 1.0),
     _Spec("bending", (0.4, 0, 0), 0.0), _Spec("bending", (1.0, 0, 0), 0.0), _Spec("bending", (0.8, 0, 0), 0.5),
-    _Spec("bending", (0, 0.6, 0), 0.25),
+    _Spec("bending", (0, 0.6, 0), 0.25), _Spec("bending", (0, 0, 0.8), 1.0),
     _Spec("lateral", (0, 0, 0), 0.0, (0, 0, -0.35)), _Spec("lateral", (0, 0, 0), 0.0, (0, 0.35, 0)),
-    _Spec("lateral", (0, 0, 0), 0.75, (0, 0, -0.35)),
+    _Spec("lateral", (0, 0, 0), 0.5, (0, 0.7, 0)), _Spec("lateral", (0, 0, 0), 0.75, (0, 0, -0.35)),
+    _Spec("lateral", (0, 0, 0), 1.0, (0, 0, -0.7)),
 )
 
 #: Held-out cases of the default design.
@@ -119,6 +131,20 @@ HELD_OUT: tuple[_Spec, ...] = (
     _Spec("heldout", (0.8, 0.8, 0.8), 0.833), _Spec("heldout", (0.4, 0, 0), 0.25, (0, 0, -0.57)),
     _Spec("heldout", (0.2, 0.5, 0), 0.125), _Spec("heldout", (1.0, 1.0, 0), 1.0),
     _Spec("heldout", (0.5, 0.5, 0.5), 0.167), _Spec("heldout", (0, 0, 0.3), 0.625, (0, 0.3, 0)),
+)
+
+
+#: Training cases with the actuator's own weight (experiment ``gravity``): the self-weight sag alone at 0 and p_max
+#: and against the top tendon — they check the masses taken from the FEM design and make the fit see the load the
+#: mounted actuator always carries.
+GRAVITY_TRAINING: tuple[_Spec, ...] = (
+    _Spec("gravity", (0, 0, 0), 0.0, gravity=True), _Spec("gravity", (0, 0, 0), 1.0, gravity=True),
+    _Spec("gravity", (0.6, 0, 0), 0.5, gravity=True),
+)
+
+#: Held-out cases with the actuator's own weight (experiment ``heldout``, gravity on).
+GRAVITY_HELD_OUT: tuple[_Spec, ...] = (
+    _Spec("heldout", (0, 0, 0), 0.5, gravity=True), _Spec("heldout", (0, 0.5, 0), 0.25, gravity=True),
 )
 
 
@@ -161,7 +187,8 @@ def _materialise(specs: Iterable[_Spec], role: str, n_tendons: int, T_max: float
         T[:3] = np.asarray(s.tensions) * T_max
         # rounded to 0.01 N, 0.1 kPa and 1 mN: readable labels, reproducible cache keys
         out.append(LoadCase(tuple(np.round(T, 2)), round(s.pressure * p_max, -2),
-                            tuple(np.round(np.asarray(s.force) * F_ref, 3)), gravity, s.experiment, role))
+                            tuple(np.round(np.asarray(s.force) * F_ref, 3)), gravity or s.gravity, s.experiment,
+                            role))
     return out
 
 
@@ -178,14 +205,19 @@ def check_range(who: str, tension_max, pressure_max, tendon_distance, length, n_
 
 def default_design(*, tension_max: float = 5.0, pressure_max: float = 120e3, tendon_distance: float = 0.0275,
                    length: float = 0.16, n_tendons: int = 3, gravity: bool = False,
-                   training: Optional[Sequence[_Spec]] = None, heldout: Optional[Sequence[_Spec]] = None) -> Design:
+                   training: Optional[Sequence[_Spec]] = None, heldout: Optional[Sequence[_Spec]] = None,
+                   self_weight: bool = True) -> Design:
     """The default design of virtual experiments for an actuator with the given operating range
-    (T_max [N], p_max [Pa]), tendon routing distance d [m] and length L [m] (see the module docstring)."""
+    (T_max [N], p_max [Pa]), tendon routing distance d [m] and length L [m] (see the module docstring).
+    ``training`` / ``heldout`` replace :data:`TRAINING` / :data:`HELD_OUT`; ``self_weight`` adds
+    :data:`GRAVITY_TRAINING` and :data:`GRAVITY_HELD_OUT` (the actuator's weight along its mounting);
+    ``gravity`` turns the weight on in every case."""
     check_range("default_design", tension_max, pressure_max, tendon_distance, length, n_tendons)
     F_ref = force_reference(tension_max, tendon_distance, length)
-    cases = (_materialise(TRAINING if training is None else training, "train", n_tendons, tension_max,
-                          pressure_max, F_ref, gravity)
-             + _materialise(HELD_OUT if heldout is None else heldout, "heldout", n_tendons, tension_max,
-                            pressure_max, F_ref, gravity))
-    return Design(tuple(cases), "default design: axial, pressure, combined, bending and lateral experiments",
+    train = tuple(TRAINING if training is None else training) + (GRAVITY_TRAINING if self_weight else ())
+    held = tuple(HELD_OUT if heldout is None else heldout) + (GRAVITY_HELD_OUT if self_weight else ())
+    cases = (_materialise(train, "train", n_tendons, tension_max, pressure_max, F_ref, gravity)
+             + _materialise(held, "heldout", n_tendons, tension_max, pressure_max, F_ref, gravity))
+    return Design(tuple(cases), "default design: axial, pressure, combined, bending, lateral and self-weight "
+                  "experiments",
                   {"tension_max_N": tension_max, "pressure_max_Pa": pressure_max, "force_reference_N": F_ref})

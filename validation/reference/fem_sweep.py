@@ -58,6 +58,9 @@ class FemSpec:
     material: object
     mesh: str = "coarse"
     element: str = "mixed"
+    #: gravity vector (3,) [m/s²] of the gravity load cases (the design's mounting,
+    #: validation.reference.designs.MOUNTINGS; default horizontal: −z with the axis along +x)
+    gravity: tuple = (0.0, 0.0, -9.81)
 
     def __post_init__(self):
         from fem_reference.assembly import check_element
@@ -65,9 +68,16 @@ class FemSpec:
         if not (isinstance(self.mesh, MeshLevel) or (isinstance(self.mesh, str) and self.mesh in MESH_LEVELS)):
             raise ConfigError(f"unknown mesh level {self.mesh!r}; choose from {sorted(MESH_LEVELS)}")
         check_element(self.element, self.material)
+        g = np.asarray(self.gravity, float)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise ConfigError(f"FemSpec.gravity must be 3 finite numbers [m/s²], got {self.gravity!r}")
+        object.__setattr__(self, "gravity", tuple(float(v) for v in g))
 
     def key(self) -> dict:
-        return {"geometry": self.geometry, "material": self.material, "mesh": self.mesh, "element": self.element}
+        k = {"geometry": self.geometry, "material": self.material, "mesh": self.mesh, "element": self.element}
+        if self.gravity != (0.0, 0.0, -9.81):   # the horizontal default keeps the cache keys it always had
+            k["gravity"] = self.gravity
+        return k
 
 
 @dataclass
@@ -77,7 +87,9 @@ class FemRecord:
     tip_position (3,) [m]; cap_rotation (3, 3); centreline (k, 3) [m] with centreline_s (k,) the
     undeformed arc length of each point from the base [m]; tensions (m,) [N]; tendon_lengths (m,) [m];
     compliance_tension / compliance_locked (3, 3) [m/N] (tip compliance with tensions held / tendons
-    locked, if asked) and locked_active (indices of the tendons locked); iterations, seconds; error: the
+    locked, if asked) and locked_active (indices of the tendons locked); with a slack tendon also
+    ``extra["compliance_locked_opposite"]`` / ``extra["locked_active_opposite"]``: the same for the opposite
+    load direction (+z by default), whose taut set can differ; iterations, seconds; error: the
     failure message if the solve failed (then the arrays are NaN).
     """
     case: LoadCase
@@ -121,7 +133,8 @@ def fem_model(spec: FemSpec):
     k = task_key(spec.key())
     if k not in _MODELS:
         _MODELS.clear()                       # one model per worker at a time (memory)
-        _MODELS[k] = BellowsModel(spec.geometry, spec.material, mesh=spec.mesh, element=spec.element)
+        _MODELS[k] = BellowsModel(spec.geometry, spec.material, mesh=spec.mesh, element=spec.element,
+                                  gravity_vector=spec.gravity)
     return _MODELS[k]
 
 
@@ -209,8 +222,12 @@ def solve_chain(task: dict) -> list:
             rec.extra["started_from_other_mesh"] = started
         if want_c:
             rec.compliance_tension = model.tip_compliance(res, mode="tension")
-            locked, active = locked_compliance(model, res, task.get("locked_direction", (0.0, 0.0, -1.0)))
-            rec.compliance_locked, rec.extra["locked_active"] = locked, active
+            u = np.asarray(task.get("locked_direction", (0.0, 0.0, -1.0)), float)
+            slack = bool(np.any(res.state.T <= 1e-12))      # then the taut set depends on the load's sign
+            both = locked_compliance(model, res, (u, -u) if slack else (u,))
+            rec.compliance_locked, rec.extra["locked_active"] = both[0]
+            if slack:
+                rec.extra["compliance_locked_opposite"], rec.extra["locked_active_opposite"] = both[1]
         rec.seconds = time.perf_counter() - t0
         out.append(rec)
     return out
@@ -253,7 +270,10 @@ def plan_chains(cases: Sequence[LoadCase], max_length: int = 4) -> list[list[int
     (measured: a lateral tip force at 0 kPa reached from a 5 N single-tendon bend took 155 Newton iterations,
     from the unloaded state 15).  Axisymmetric cases (:func:`axisymmetric`) are chained apart from the others: a warm start from a bent
     state would keep the FEM from solving them in its 6-fold symmetric subspace (measured 1.3–2× per solve,
-    docs/fem.md §4).  Their chains come last: they are the cheap ones, so the parallel workers finish together."""
+    docs/fem.md §4).  Their chains come last: they are the cheap ones, so the parallel workers finish together.
+    Cases with gravity are chained apart from those without: the self-weight of the whole wall is not a small
+    step from a weightless state (measured: 3 N on one tendon at 50 kPa with gravity, warm-started from the same
+    tendon without gravity, took 57 Newton iterations and 43 s; from the unloaded state 21 and 14 s)."""
     if max_length < 1:
         raise InputError("max_length must be >= 1")
     n = len(cases)
@@ -262,9 +282,9 @@ def plan_chains(cases: Sequence[LoadCase], max_length: int = 4) -> list[list[int
     raw = np.array([_load_vector(c, 1.0) for c in cases])
     scale = np.maximum(np.abs(raw).max(axis=0), 1e-12)
     X = raw / scale
-    axi = [axisymmetric(c) for c in cases]
-    return [ch for cls in (False, True)
-            for ch in _nearest_chains(X, [i for i in range(n) if axi[i] == cls], max_length)]
+    cls = [(axisymmetric(c), bool(c.gravity)) for c in cases]
+    return [ch for key in ((False, False), (False, True), (True, False))
+            for ch in _nearest_chains(X, [i for i in range(n) if cls[i] == key], max_length)]
 
 
 def _nearest_chains(X: np.ndarray, indices: list, max_length: int) -> list[list[int]]:
@@ -284,12 +304,14 @@ def _nearest_chains(X: np.ndarray, indices: list, max_length: int) -> list[list[
     return chains
 
 
-def locked_compliance(model, res, direction) -> tuple[np.ndarray, list]:
-    """FEM tip compliance with *all* tendons locked at their current lengths, the taut set chosen by the
-    complementarity rule of the reduced model's exact locked compliance (:func:`ancf.compliance.active_set`,
-    ``rule="exact"``), so that both models run the same experiment: tendons carrying tension stay taut; a
-    slack one is taut iff a small tip load along ``direction`` would stretch it and its tension increment is
-    ≥ 0."""
+def locked_compliance(model, res, direction):
+    """FEM tip compliance (3, 3) [m/N] with *all* tendons locked at their current lengths, and the taut tendons
+    (list of indices), chosen by the complementarity rule of the reduced model's exact locked compliance
+    (:func:`ancf.compliance.active_set`, ``rule="exact"``), so that both models run the same experiment: tendons
+    carrying tension stay taut; a slack one is taut iff a small tip load along ``direction`` (3,) would stretch it
+    and its tension increment is ≥ 0.  ``direction`` may also be a tuple of directions (one factorisation):
+    then a list of (compliance, taut) pairs, one per direction — with a slack tendon the locked response is
+    piecewise linear, and ±u can make different tendons taut."""
     from fem_reference.solver import factorize
     st = res.state
     ev = model.evaluate(st, res.loadcase, tangent=True)
@@ -298,10 +320,17 @@ def locked_compliance(model, res, direction) -> tuple[np.ndarray, list]:
     Y = fac.solve(Jp.T)                              # K⁻¹ J_pᵀ
     g_all = ev["g"]                                   # (n_dofs, m): ∂L_i/∂q
     Z_all = fac.solve(g_all)                          # K⁻¹ g
+    taut = {i for i in range(g_all.shape[1]) if st.T[i] > 1e-12}
+    if isinstance(direction, tuple) and len(direction) and np.ndim(direction[0]) == 1:
+        return [_locked_along(Jp, Y, g_all, Z_all, taut, d) for d in direction]
+    return _locked_along(Jp, Y, g_all, Z_all, taut, direction)
+
+
+def _locked_along(Jp, Y, g_all, Z_all, taut: set, direction) -> tuple[np.ndarray, list]:
+    """The active-set loop of :func:`locked_compliance` for one load direction (3,)."""
     u = np.asarray(direction, float)
     u = u / np.linalg.norm(u)
     m = g_all.shape[1]
-    taut = {i for i in range(m) if st.T[i] > 1e-12}
 
     def response(A):
         if not A:
@@ -354,7 +383,8 @@ def check_cases(spec: FemSpec, cases: Sequence[LoadCase]) -> None:
 
 def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, workers: Optional[int] = None,
               scheduler=None, cache_dir=None, progress: bool = True, on_result=None,
-              chain_length: int = 4, starts: Optional[Sequence] = None) -> list[FemRecord]:
+              chain_length: int = 4, starts: Optional[Sequence] = None,
+              specs: Optional[Sequence[FemSpec]] = None) -> list[FemRecord]:
     """Solve every load case on the FEM of ``spec``; returns one :class:`FemRecord` per case, in order.
 
     compliance : also compute the tip compliances (tension held, all tendons locked) of each state (a bool,
@@ -363,18 +393,33 @@ def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, wor
     finishes;  chain_length : cases per warm-start chain (1: every case solved from the unloaded state);
     starts : one :class:`fem_reference.transfer.StateSnapshot` or None per case — the case's equilibrium on
         another mesh of the design (a :class:`FemRecord`'s ``state``), from which it is solved first
-        (:func:`start_solve`).  The cache key does not include it: the equilibrium does not depend on the start.
+        (:func:`start_solve`).  The cache key does not include it: the equilibrium does not depend on the start;
+    specs : one :class:`FemSpec` per case instead of ``spec`` (e.g. the same design on several refined meshes), so
+        that cases on different meshes share one pool of workers; chains never pass between specs.
     Raises :class:`validation.infra.runner.RunInterrupted` on Ctrl-C (finished chains are in the cache)."""
     cases = list(cases)
     if not cases:
         raise InputError("run_cases: no load cases")
-    check_cases(spec, cases)
+    per_case = [spec] * len(cases) if specs is None else list(specs)
+    if len(per_case) != len(cases) or not all(isinstance(sp, FemSpec) for sp in per_case):
+        raise InputError(f"run_cases: specs must be one FemSpec per case ({len(cases)})")
+    distinct = []                                   # the specs, each once, in order of first use
+    for sp in per_case:
+        if not any(sp == d for d in distinct):
+            distinct.append(sp)
+    for sp in distinct:
+        check_cases(sp, [c for c, s2 in zip(cases, per_case) if s2 == sp])
     want = compliance if callable(compliance) else (lambda c, v=bool(compliance): v)
     if starts is not None and len(starts) != len(cases):
         raise InputError(f"run_cases: {len(starts)} starts for {len(cases)} cases")
-    chains = plan_chains(cases, chain_length)
-    tasks = [{"kind": "chain", "spec": spec, "cases": [cases[i] for i in ch],
-              "compliance": [bool(want(cases[i])) for i in ch]} for ch in chains]
+    chains, chain_specs = [], []
+    for sp in distinct:
+        idx = [i for i, s2 in enumerate(per_case) if s2 == sp]
+        for ch in plan_chains([cases[i] for i in idx], chain_length):
+            chains.append([idx[j] for j in ch])
+            chain_specs.append(sp)
+    tasks = [{"kind": "chain", "spec": sp, "cases": [cases[i] for i in ch],
+              "compliance": [bool(want(cases[i])) for i in ch]} for ch, sp in zip(chains, chain_specs)]
     if starts is not None:
         for t, ch in zip(tasks, chains):
             t["starts"] = [starts[i] for i in ch]
@@ -388,7 +433,8 @@ def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, wor
 
     try:
         out = run_tasks(solve_task, tasks, workers=workers, scheduler=scheduler, progress=progress,
-                        description=f"FEM ({spec.mesh} mesh, {len(cases)} cases)", cache=cache, key_inputs=key_inputs,
+                        description=f"FEM ({_meshes_text(distinct)}, {len(cases)} cases)", cache=cache,
+                        key_inputs=key_inputs,
                         on_result=on_result, weights=[len(t["cases"]) for t in tasks])
     except RunInterrupted as exc:
         done = sum(len(tasks[i]["cases"]) for i in exc.completed)
@@ -401,6 +447,17 @@ def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, wor
         for i, r in zip(ch, recs):
             records[i] = r
     return records
+
+
+def _meshes_text(specs: Sequence[FemSpec]) -> str:
+    from fem_reference.mesh import MESH_LEVELS
+    names = []
+    for sp in specs:
+        m = sp.mesh
+        name = next((k for k, v in MESH_LEVELS.items() if v == m), None) if not isinstance(m, str) else m
+        names.append(name or (f"{m.n_per_conv} per convolution × {m.n_thick} through the wall × {m.n_theta} around"
+                              if hasattr(m, "n_thick") else str(m)))
+    return f"{names[0]} mesh" if len(names) == 1 else f"meshes {' | '.join(names)}"
 
 
 def run_rod(spec: FemSpec, *, cache_dir=None) -> dict:

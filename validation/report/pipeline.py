@@ -169,21 +169,25 @@ def _from_fem(fem: FemDesign, names, *, quick: bool, fem_error: bool, mesh: str,
     from validation.checks.fem_error import FULL_CASES, QUICK_CASES, assess, estimate_for_heldout, for_validation
     from validation.identification.identify import from_fem
     from validation.reference.fem_sweep import FemSpec
+    from validation.reference.designs import design_mounting, mounting_gravity
     name, geo, mat, limits = fem
-    spec = FemSpec(geo, mat, mesh)
+    mounting = design_mounting(name)                 # the gravity of the states with gravity, both models alike
+    spec = FemSpec(geo, mat, mesh, gravity=mounting_gravity(mounting))
     n_fe = QUICK_CASES if quick else FULL_CASES
-    fe_kw = dict(workers=workers, scheduler=scheduler, cache_dir=cache_dir)
+    # --quick: one state, its two refined solves side by side on the two cores, "around" left to the full report
+    fe_kw = dict(workers=workers, scheduler=scheduler, cache_dir=cache_dir, check_around=not quick)
 
     def fem_error_beside(records):     # the refined solves run while the forms are fitted (identify.from_fem)
-        log(f"FEM discretisation error: {n_fe} held-out states on a mesh refined 2× along the profile, beside the "
-            "fits …")
+        log(f"FEM discretisation error: {n_fe} held-out state(s) on meshes refined 2× along the profile and through "
+            "the wall" + (" (around: checked by the full report)" if quick else " (the most deformed also around)")
+            + ", beside the fits …")
         return estimate_for_heldout(spec, records, n_fe, **fe_kw)
 
     log(f"design {name}: operating range {limits['tension_max']:g} N, {limits['pressure_max'] / 1e3:g} kPa")
     res = from_fem(geo, mat, mesh, workers=workers, scheduler=scheduler, cache_dir=cache_dir, forms=names,
                    fit_distance=fit_distance, progress=True, tension_max=limits["tension_max"],
                    pressure_max=limits["pressure_max"], cases=cases,
-                   after_sweep=fem_error_beside if fem_error else None)
+                   after_sweep=fem_error_beside if fem_error else None, mounting=mounting)
     res.meta["design_name"] = name                  # the identified actuator's name and provenance (to_toml)
     val = compare_records(res.params, [r for r in res.records if r.case.role == "heldout"])
     if fem_error:
