@@ -297,3 +297,18 @@ def test_a_real_quick_report_headline_and_dynamics_match_its_files(tmp_path_fact
     run = run_report(tmp_path_factory.mktemp("rq") / "report", quick=True, cache_dir=cache, command="bellows report")
     check_real_report(run.out, PRESSURE_EI if run.identification.form == "pressure_ei" else None)
     assert run.report.read_text().count("<td class=\"l\">command</td>") == 1
+
+
+def test_the_choice_rule_sentence_follows_what_the_forms_were_compared_on():
+    """The report's model-selection sentence is made from the comparison rows: with a held-out compliance error on
+    every fitted form the choice weighed it (and the sentence says so); without, the tip error alone."""
+    from types import SimpleNamespace
+    from validation.report.build import choice_rule
+    both = SimpleNamespace(comparison=[{"form": "a", "heldout_rms_tip_m": 1e-3, "heldout_compliance_error_pct": 5.0},
+                                       {"form": "b", "heldout_rms_tip_m": 2e-3, "heldout_compliance_error_pct": 4.0}])
+    tip = SimpleNamespace(comparison=[{"form": "a", "heldout_rms_tip_m": 1e-3},
+                                      {"form": "b", "heldout_rms_tip_m": 2e-3, "heldout_compliance_error_pct": 4.0}])
+    train = SimpleNamespace(comparison=[{"form": "a", "train_rms_tip_m": 1e-3}])
+    assert "compliance" in choice_rule(both) and "held-out RMS tip error" in choice_rule(both)
+    assert "compliance" not in choice_rule(tip) and "held-out RMS tip error" in choice_rule(tip)
+    assert "training" in choice_rule(train)

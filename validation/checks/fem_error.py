@@ -467,6 +467,21 @@ def _estimated_fem(d: Optional[float], ratios: dict, L: float) -> tuple[dict, st
     return fem, ("estimate — " + "; ".join(words)) if words else "no measured state to estimate from"
 
 
+def estimate_rule(ratios: dict, L: float) -> str:
+    """How every state not measured gets its FEM error (:func:`_estimated_fem`), in words, once for all states."""
+    words = []
+    for q in ("tip", "shape"):
+        if ratios[q] is not None:
+            words.append(f"{QUANTITIES[q][0]}: {ratios[q][0] * L / 100:.3g} × the state's deformation (the largest FEM "
+                         f"error per unit deformation measured, on {ratios[q][1]})")
+        elif ratios[q + "_max"] is not None:
+            words.append(f"{QUANTITIES[q][0]}: the largest measured, on {ratios[q + '_max'][1]}")
+    for q in ("C_tension", "C_locked"):
+        if ratios[q] is not None:
+            words.append(f"{QUANTITIES[q][0]}: the largest measured, on {ratios[q][1]}")
+    return "; ".join(words) if words else "no measured state to estimate from"
+
+
 def _state_row(v: dict, fem: dict, measured: bool, basis: str, deform, targets: dict) -> dict:
     """One held-out state: model and FEM errors per quantity and their verdicts (FEM error missing: taken as 0,
     said so in ``basis``)."""
@@ -595,11 +610,11 @@ def assess(validation, estimate: Optional[FemErrorEstimate], records: Sequence[F
         out["statements"] = (["The FEM's discretisation error was not estimated" + (f" ({reason})" if reason else "")
                               + ": the verdicts assume the FEM is exact."] + _tally_statements(quantities, rows))
         return out
+    out["estimate_basis"] = estimate_rule(ratios, L)
     statements = _measured_statements(estimate, measured)
     unmeasured = [r["label"] for r in rows if not r["measured"]]
     if unmeasured:
-        statements.append(f"Not measured: {', '.join(unmeasured)} — each carries an estimate, its basis in its "
-                          "row.")
+        statements.append(f"Not measured: {', '.join(unmeasured)} — each carries an estimate ({out['estimate_basis']}).")
     statements.append(f"The rule: {RULE}.")
     out.update(method=estimate.method, n_measured=len(measured), around=estimate.extra.get("around"),
                max_fem_tip_error_pct=max((r["tip_error_pct"] for r in measured.values()), default=None),

@@ -118,6 +118,20 @@ def derived_rows(ident: IdentificationResult) -> list[dict]:
     return rows
 
 
+def choice_rule(ident: IdentificationResult) -> str:
+    """How the form was chosen, from what the comparison rows hold: on the held-out tip error alone, or on the tip
+    error and the mean held-out compliance error when every fitted form has the latter
+    (:func:`validation.identification.identify._choose`)."""
+    pct = round(100 * (PARSIMONY - 1))
+    fitted = [r for r in ident.comparison if "heldout_rms_tip_m" in r]
+    if fitted and all("heldout_compliance_error_pct" in r for r in fitted):
+        return (f"the simplest form within {pct} % of the best on both the held-out RMS tip error and the mean "
+                f"held-out compliance error (tensions held and tendons locked) is chosen")
+    if fitted:
+        return f"the simplest form within {pct} % of the best held-out RMS tip error is chosen"
+    return f"the simplest form within {pct} % of the best training RMS tip error is chosen (no held-out states)"
+
+
 def _form_rows(ident: IdentificationResult) -> list[dict]:
     rows = []
     for r in ident.comparison:
@@ -175,7 +189,10 @@ def _fem_error_rows(val: ValidationResult) -> list[dict]:
         e = est.get(r["label"], {})
         by = r.get("fem_by_direction") or {}
         out.append({"label": r["label"], "deformation_mm": _mm(r.get("deformation_m")),
-                    "basis": r.get("basis", ""), "measured": bool(r.get("measured")),
+                    # the estimate's rule is stated once above the table (fem_error["estimate_basis"])
+                    "basis": "measured" if r.get("measured") else ("estimate" if fe.get("estimate_basis")
+                                                                    else r.get("basis", "")),
+                    "measured": bool(r.get("measured")),
                     "model_tip_pct": _fmt(r.get("model_tip_error_pct"), digits=3),
                     "along_pct": _fmt((by.get("along") or {}).get("tip_error_pct"), digits=3),
                     "through_pct": _fmt((by.get("through") or {}).get("tip_error_pct"), digits=3),
@@ -509,8 +526,7 @@ def _diagnostics(ident: IdentificationResult, val: Optional[ValidationResult], s
                  + "; ".join(f"{f['label']} ({f['model']}: {f['error']})" for f in val.failures))
     if stiffness is not None and stiffness.get("failures"):
         d.append(f"{len(stiffness['failures'])} state(s) of the stiffness study failed.")
-    d.append(f"Model selection: the simplest form within {round(100 * (PARSIMONY - 1))} % of the best held-out "
-             f"RMS tip error wins (chosen: '{ident.form}').")
+    d.append(f"Model selection: {choice_rule(ident)} (chosen: '{ident.form}').")
     return d
 
 
@@ -613,7 +629,7 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "derived_rows": derived_rows(ident), "fem_name": FEM_NAME, "reduced_name": REDUCED_NAME,
         "absolute_sigma": bool(ident.train.has_sigma), "toml_name": toml_name, "toml_text": ident.to_toml(),
         "n_train": ident.train.n, "n_heldout": 0 if ident.heldout is None else ident.heldout.n,
-        "parsimony_pct": round(100 * (PARSIMONY - 1)), "form_rows": _form_rows(ident), "figures": b64,
+        "choice_rule": choice_rule(ident), "form_rows": _form_rows(ident), "figures": b64,
         "validation": validation, "validation_rows": [] if validation is None else _validation_rows(validation),
         "ratio_rows": [] if validation is None else _ratio_rows(validation),
         "fem_error": None if validation is None else (validation.fem_error or None),
