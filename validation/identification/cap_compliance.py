@@ -52,7 +52,8 @@ import numpy as np
 
 from ancf.errors import InputError
 
-__all__ = ["locked_from_cap", "shear_compliance", "remove_shear", "ratio_with_shear", "point_jacobian"]
+__all__ = ["locked_from_cap", "shear_compliance", "lateral_shear", "fit_shear_law", "remove_shear", "ratio_with_shear",
+           "point_jacobian"]
 
 _EX = np.array([1.0, 0.0, 0.0])
 
@@ -106,6 +107,31 @@ def shear_compliance(C6, lateral, axis=(1.0, 0.0, 0.0)) -> float:
     c_dF, c_tF = u @ C6[:3, :3] @ u, w @ C6[3:, :3] @ u
     c_dM, c_tM = u @ C6[:3, 3:] @ w, w @ C6[3:, 3:] @ w
     return float(c_dF - 4.0 / 3.0 * c_tF * c_dM / c_tM)
+
+
+def lateral_shear(C6) -> float:
+    """Rotation-free lateral compliance s [m/N] of a straight tube along e_x: the mean of
+    :func:`shear_compliance` toward e_y and e_z (equal on an axisymmetric state)."""
+    return 0.5 * (shear_compliance(C6, (0.0, 0.0, 1.0)) + shear_compliance(C6, (0.0, 1.0, 0.0)))
+
+
+def fit_shear_law(pressures, s, *, degree: int = 1, p_ref: float = 100e3) -> np.ndarray:
+    """Coefficients (degree + 1,) [m/N] of s(p) = Σ_k c_k p̂^k, p̂ = p / ``p_ref``, fitted to the measured
+    rotation-free compliances ``s`` (n,) [m/N] at ``pressures`` (n,) [Pa] by non-negative least squares
+    (every c_k ≥ 0, so s(p) ≥ 0 over p ≥ 0 — the bound of ``ActuatorParams.shear_compliance``).  Needs
+    n ≥ degree + 1 finite values at distinct pressures ≥ 0."""
+    from scipy.optimize import nnls
+    p = np.asarray(pressures, float).ravel()
+    s = np.asarray(s, float).ravel()
+    if p.shape != s.shape or not (np.all(np.isfinite(p)) and np.all(np.isfinite(s))):
+        raise InputError(f"fit_shear_law: pressures and s must be finite and of one length, got {p.size} and {s.size}")
+    if int(degree) != degree or degree < 0 or not p_ref > 0:
+        raise InputError(f"fit_shear_law: degree must be an integer ≥ 0 and p_ref > 0, got {degree!r}, {p_ref!r}")
+    if np.any(p < 0) or np.unique(p).size < degree + 1:
+        raise InputError(f"fit_shear_law: a law of degree {degree} needs {degree + 1} distinct pressures ≥ 0, "
+                         f"got {sorted(set(p.tolist()))} Pa")
+    A = np.vander(p / p_ref, int(degree) + 1, increasing=True)
+    return nnls(A, s)[0]
 
 
 def remove_shear(C6, s_by_direction: dict) -> np.ndarray:

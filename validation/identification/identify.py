@@ -197,9 +197,59 @@ def initial_shear(rod: Optional[dict], base: ActuatorParams) -> float:
     C6 = None if not rod else rod.get("cap_compliance")
     if C6 is None:
         return float(base.shear_compliance[0]) if base.shear_compliance else 0.0
-    from validation.identification.cap_compliance import shear_compliance
-    s = 0.5 * (shear_compliance(C6, (0.0, 0.0, 1.0)) + shear_compliance(C6, (0.0, 1.0, 0.0)))
+    from validation.identification.cap_compliance import lateral_shear
+    s = lateral_shear(C6)
     return max(float(s), 0.0) if math.isfinite(s) else 0.0
+
+
+#: ``FitResult.held_at`` (and reason) of the shear coefficients measured on the FEM's straight states
+MEASURED_SHEAR = "measured on the FEM's straight states"
+
+
+def straight_states(records) -> list:
+    """The training records of straight pressure-only states (tensions 0, no tip force, no gravity, p > 0) that
+    the FEM solved: where its rotation-free lateral compliance is measured (:func:`measure_straight_shear`)."""
+    return [r for r in records if r.case.role == "train" and r.ok and r.case.pressure > 0
+            and not np.any(r.case.tensions) and not np.any(r.case.tip_force) and not r.case.gravity]
+
+
+def straight_shear_task(task: dict) -> float:
+    """Worker: the FEM's rotation-free lateral compliance s [m/N] about one straight state (``task``: spec, case,
+    start — its equilibrium snapshot or None): the 6×6 cap compliance there
+    (:meth:`fem_reference.BellowsModel.cap_compliance`) through
+    :func:`validation.identification.cap_compliance.lateral_shear`."""
+    from validation.identification.cap_compliance import lateral_shear
+    from validation.reference.fem_sweep import fem_model, start_solve
+    model, case = fem_model(task["spec"]), task["case"]
+    loads = dict(tensions=case.tensions, pressure=case.pressure, tip_force=case.tip_force, gravity=case.gravity)
+    res = start_solve(model, task["start"], loads)[0] if task.get("start") is not None else None
+    if res is None:
+        res = model.solve(**loads)
+    return float(lateral_shear(model.cap_compliance(res)))
+
+
+def measure_straight_shear(spec, records, rod: Optional[dict], *, cache_dir=None) -> Optional[dict]:
+    """The FEM's shear law s(p) = s0 + s1 p̂ [m/N] (p̂ = p / 100 kPa) from its straight states: s at 0 kPa from
+    the unloaded cap compliance (``rod["cap_compliance"]``), at each straight pressure-only training state
+    (:func:`straight_states`) from the cap compliance about it (:func:`straight_shear_task`: re-solved from the
+    record's equilibrium in one step, cached like the load cases), fitted by non-negative least squares
+    (:func:`validation.identification.cap_compliance.fit_shear_law`; docs/identification.md §4b).  Returns
+    ``{"pressures_Pa", "s_m_per_N", "coeffs_m_per_N"}``, or None without the unloaded cap compliance or any
+    straight state."""
+    from validation.identification.cap_compliance import fit_shear_law, lateral_shear
+    from validation.infra.runner import ResultCache, run_tasks
+    from validation.reference.fem_sweep import fem_fingerprint
+    recs = straight_states(records)
+    C6 = None if not rod else rod.get("cap_compliance")
+    if C6 is None or not recs:
+        return None
+    cache = None if cache_dir is None else ResultCache(cache_dir, version=fem_fingerprint())
+    tasks = [{"spec": spec, "case": r.case, "start": r.state} for r in recs]
+    out = run_tasks(straight_shear_task, tasks, workers=1, progress=False, cache=cache,
+                    key_inputs=lambda t: {**t["spec"].key(), "kind": "straight_shear", "case": t["case"]})
+    p = [0.0] + [float(r.case.pressure) for r in recs]
+    s = [float(lateral_shear(np.asarray(C6, float)))] + [float(v) for v in out.results]
+    return {"pressures_Pa": p, "s_m_per_N": s, "coeffs_m_per_N": fit_shear_law(p, s, degree=1).tolist()}
 
 
 def initial_theta(form, rod: Optional[dict], base: ActuatorParams, *, slopes: bool = False) -> np.ndarray:
@@ -394,13 +444,16 @@ class IdentificationResult:
                  f"# git revision {self.provenance.get('git_revision', 'unknown')}, "
                  f"created {self.provenance.get('created', '')}"]
         f = self.fit
-        at = {"first-pass optimum": "first-pass optimum", "base actuator's value": "base actuator's value"}
+        at = {"first-pass optimum": "first-pass optimum", "base actuator's value": "base actuator's value",
+              MEASURED_SHEAR: "value " + MEASURED_SHEAR + ":"}
         held = ", ".join(f"{nm} held at the {at.get(f.held_at.get(nm), 'given value')} {v:.6g} "
                          f"{dict(zip(f.names, f.form.units))[nm]}" for nm, v in f.held.items())
         for k, v in self.values.items():
             lo, hi = self.ci95.get(k, (float('nan'), float('nan')))
             unit = REPORTED.get(k, "")
-            if v is not None:
+            if v is not None and not (math.isfinite(lo) and math.isfinite(hi)) and k in f.reasons:
+                lines.append(f"#   {k:6s} = {v:.6g} {unit}  ({f.reasons[k]})")
+            elif v is not None:
                 lines.append(f"#   {k:6s} = {v:.6g} {unit}  (95 % CI {lo:.6g} .. {hi:.6g})")
             elif held:
                 lines.append(f"#   {k:6s} NOT IDENTIFIABLE from these data: the value below follows from {held}")
@@ -532,7 +585,8 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
              forms: Sequence[str] = FORMS, rod: Optional[dict] = None, fit_distance: bool = False,
              absolute_sigma: Optional[bool] = None, source: str = "data", progress: Optional[Callable[[str], Any]] = None,
              check_information: bool = False, fit_masses: bool = False,
-             heldout_compliance: Optional[Sequence] = None, workers: Optional[int] = 1) -> IdentificationResult:
+             heldout_compliance: Optional[Sequence] = None, workers: Optional[int] = 1,
+             measured: Optional[dict] = None) -> IdentificationResult:
     """Fit every form in ``forms`` to ``train``, compare them on ``heldout`` (or on the training error when
     there is no held-out set) and return the chosen form's result (see the module docstring).  Each form is
     fitted from its own start, from the optimum of the richest nested form fitted before it
@@ -548,14 +602,17 @@ def identify(train: Observations, base: ActuatorParams, *, heldout: Optional[Obs
     heldout_compliance : per held-out state None or the reference's tip compliances (C_tension, C_locked), each
     (3, 3) [m/N], locked along −z by the exact taut-set rule (the FEM's, :mod:`validation.reference.fem_sweep`);
     then the form is chosen on them too (:func:`_choose`).  workers : processes fitting forms side by side
-    (None: one per core; 1: in this process); the result does not depend on it (:func:`_fit_all`)."""
+    (None: one per core; 1: in this process); the result does not depend on it (:func:`_fit_all`).
+    measured : {parameter name: (value, reason)} held at the value given in every form that has it and reported
+    held with the reason (e.g. the shear coefficients s0, s1 measured on the FEM's straight states,
+    :func:`from_fem`); the others are fitted given them."""
     if not forms:
         raise InputError("identify: no model form given")
     all_forms = [get_form(name, fit_distance, fit_masses) for name in forms]
     info, information = ({}, None) if not check_information else _check_information(all_forms, train, base, rod)
     say = progress or (lambda line: None)
     fits, errors = _fit_all(all_forms, train, base, rod, absolute_sigma, info, say,
-                            _fit_workers(workers, len(all_forms)))
+                            _fit_workers(workers, len(all_forms)), measured)
     rows, failures = [], {}
     for form in all_forms:
         if form.name not in fits:
@@ -611,10 +668,11 @@ def _check_information(all_forms, train: Observations, base: ActuatorParams, rod
 
 
 def _fit_all(all_forms, train: Observations, base: ActuatorParams, rod, absolute_sigma, info: dict, say,
-             workers: int = 1) -> tuple:
+             workers: int = 1, measured: Optional[dict] = None) -> tuple:
     """({form: best FitResult}, {form: first error}): each form from its own start, then the nested refits
     (:data:`NESTED_ROUNDS`); parameters the data do not determine (``info``) held at their start; a refused
-    form evaluated at its start only (:func:`validation.identification.fit.prior_result`).
+    form evaluated at its start only (:func:`validation.identification.fit.prior_result`); the ``measured``
+    parameters ({name: (value, reason)}) held at their value in every form that has them.
 
     Each fit (one form, one start: a pure function of them) is a task on ``workers`` processes; a form's batch of
     starts is formed when every fit they are taken from is in (:class:`_FitPlan`) and merged when its fits are,
@@ -623,10 +681,13 @@ def _fit_all(all_forms, train: Observations, base: ActuatorParams, rod, absolute
     the fits so far suggest (:meth:`_FitPlan.speculative`); a batch takes such a fit when it has the same start,
     and one it has not is dropped unused."""
     import time
+    measured = dict(measured or {})
     held = {form.name: tuple(info[form.name].held) if form.name in info else () for form in all_forms}
+    held = {form.name: held[form.name] + tuple(nm for nm in form.names if nm in measured and nm not in held[form.name])
+            for form in all_forms}
     ctx = _FitContext(list(all_forms), train, base, absolute_sigma, held,
                       {f.name: dict(info[f.name].held) for f in all_forms if f.name in info})
-    plan = _FitPlan(all_forms, rod, base, info, held)
+    plan = _FitPlan(all_forms, rod, base, info, held, measured)
     run = _FitTasks(ctx, workers)
     t_refits, batches = None, []
     try:
@@ -779,10 +840,10 @@ class _FitPlan:
     meet starts it has tried in the next one.  Batches started in this order and merged per form (a batch only
     changes its own form's fit) give the sequential result."""
 
-    def __init__(self, all_forms, rod, base: ActuatorParams, info: dict, held: dict):
-        self.forms, self.info, self.held = list(all_forms), info, held
-        self.theta0 = [initial_theta(f, rod, base) for f in self.forms]
-        self.prior = [prior_theta(f, rod, base) for f in self.forms]
+    def __init__(self, all_forms, rod, base: ActuatorParams, info: dict, held: dict, measured: Optional[dict] = None):
+        self.forms, self.info, self.held, self.measured = list(all_forms), info, held, dict(measured or {})
+        self.theta0 = [_with_measured(f, initial_theta(f, rod, base), self.measured) for f in self.forms]
+        self.prior = [_with_measured(f, prior_theta(f, rod, base), self.measured) for f in self.forms]
         self.fits, self.errors, self.tried, self.better, self.n_refits = {}, {}, {}, set(), 0
         self.first: dict = {}         # {form: (round, form index) of its first fit}
         n = len(self.forms)
@@ -861,6 +922,7 @@ class _FitPlan:
                 continue
             if len(self.held[form.name]) < form.n:
                 _mark_prior(g, self.info.get(form.name))
+                _mark_measured(g, self.measured)
             if form.name not in self.fits or g.rss < self.fits[form.name].rss * (1 - 1e-9):
                 improved = True
                 self._keep(i, g)
@@ -943,6 +1005,36 @@ def _mark_prior(f: FitResult, inf) -> None:
     for k, ok in f.values_identifiable.items():
         if not ok and k not in f.reasons:
             f.reasons[k] = "depends on " + ", ".join(inf.held) + ", not determined by the data"
+
+
+def _with_measured(form, theta, measured: dict) -> np.ndarray:
+    """``theta`` of ``form`` with its ``measured`` parameters ({name: (value, reason)}) at their value."""
+    th = np.array(theta, float)
+    for nm, (v, _) in measured.items():
+        if nm in form.names:
+            th[form.names.index(nm)] = float(v)
+    return th
+
+
+def _mark_measured(f: FitResult, measured: dict) -> None:
+    """Record on ``f`` the parameters it held at a measured value ({name: (value, reason)}) with that reason, and
+    the derived values that follow from them alone (e.g. s at 0 and 100 kPa from s0, s1) with their value."""
+    mine = {nm: why for nm, (_, why) in measured.items() if nm in f.held}
+    if not mine:
+        return
+    for nm, why in mine.items():
+        f.held_at[nm] = why
+        f.reasons[nm] = why
+    names = list(f.form.names)
+    keys, D = f.form.derived_jacobian(f.theta)
+    vals = f.form.derived(f.theta)
+    other = np.array([nm not in mine for nm in names])
+    for i, k in enumerate(keys):
+        uses = np.abs(D[i]) > 1e-12 * (np.abs(D[i]).max() + 1e-300)
+        if uses.any() and not (uses & other).any() and math.isfinite(vals[k]):
+            f.values[k] = float(vals[k])
+            f.values_identifiable[k], f.values_ci95[k] = True, (float("nan"), float("nan"))   # given, not fitted
+            f.reasons[k] = "from " + ", ".join(nm for nm, u in zip(names, uses) if u) + ", " + next(iter(mine.values()))
 
 
 def _comparison_row(form, f: FitResult, heldout: Optional[Observations], inf) -> dict:
@@ -1063,6 +1155,12 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     :func:`validation.checks.fem_error.estimate_for_heldout`, which use the other cores); its result is
     ``res.after_sweep``.  mounting : how the actuator is held (:data:`validation.reference.designs.MOUNTINGS`;
     the gravity vector of the states with gravity, in the FEM and in the reduced model alike).
+
+    A form with the series shear compliance (``pressure_ei_shear``) does not fit it: s(p) = s0 + s1 p̂ is measured
+    on the FEM's straight pressure-only states (:func:`measure_straight_shear`; the tips and markers of the fit
+    see only part of the FEM's rotation-free motion, which is spread along the body, docs/identification.md §4b)
+    and held there, reported as held at the value measured on the FEM's straight states
+    (``res.meta["straight_shear"]``: the pressures, the values and the law); the rest is fitted given it.
     """
     from ancf.params import TENDONS_MAX, TENDONS_MIN
     from validation.reference.designs import mounting_gravity
@@ -1104,6 +1202,8 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
             check_cases(spec, design.cases)
         records = run_cases(spec, design.cases, compliance=(lambda c: c.role == "heldout") if compliance else False,
                             workers=workers, scheduler=scheduler, cache_dir=cache_dir, progress=progress)
+        shear = measure_straight_shear(spec, records, rod, cache_dir=cache_dir) if any(
+            "s0" in get_form(f, fit_distance).names for f in forms) else None
     marker_s = [f * geometry.length for f in MARKER_FRACTIONS]
     failed = [{"label": r.case.label, "role": r.case.role, "error": r.error} for r in records if not r.ok]
     tr = [r for r in records if r.case.role == "train" and r.ok]
@@ -1117,7 +1217,7 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     heldout = observations_from_records(ho, marker_s) if ho else None
     fit_base = base.replace(gravity=(0.0, 0.0, 0.0)) if not np.any(train.gravity) else base
     fit_kw = dict(train=train, base=fit_base, heldout=heldout, forms=forms, rod=rod, fit_distance=fit_distance,
-                  absolute_sigma=False, source="fem",
+                  absolute_sigma=False, source="fem", measured=_measured_shear(shear),
                   heldout_compliance=[None if r.compliance_tension is None else
                                       (r.compliance_tension, r.compliance_locked) for r in ho] if ho else None)
     if after_sweep is None:
@@ -1130,8 +1230,17 @@ def from_fem(geometry, material, mesh="coarse", workers: Optional[int] = None, s
     res.design, res.records = design, records
     res.meta = {"mesh": str(mesh), "design": describe_geometry(geometry), "geometry": to_jsonable(_geometry_meta(geometry)),
                 "material": to_jsonable(vars(material)),
-                "marker_s_m": marker_s, "failed_cases": failed, "mounting": mounting}
+                "marker_s_m": marker_s, "failed_cases": failed, "mounting": mounting, "straight_shear": shear}
     return res
+
+
+def _measured_shear(shear: Optional[dict]) -> Optional[dict]:
+    """The ``measured`` argument of :func:`identify` from :func:`measure_straight_shear`'s result: s0, s1 held at the
+    FEM's straight-state law (None: nothing measured, the fit identifies them)."""
+    if not shear:
+        return None
+    s0, s1 = shear["coeffs_m_per_N"][:2]
+    return {"s0": (float(s0), MEASURED_SHEAR), "s1": (float(s1), MEASURED_SHEAR)}
 
 
 # ---------------------------------------------------------------------------------------------- from rig data

@@ -39,7 +39,7 @@ from ancf.outputs import atomic_write_text, prepare_output_file
 from validation.report import figures as figs
 from validation.checks.compare import N_SHAPE_POINTS, SHAPE_TARGET_PCT, ValidationResult
 from validation.identification.forms import MEANINGS, REPORTED, display_unit
-from validation.identification.identify import PARSIMONY, IdentificationResult
+from validation.identification.identify import MEASURED_SHEAR, PARSIMONY, IdentificationResult
 from validation.checks.modes_compare import modes_sentences, pressure_factor_text
 
 __all__ = ["build_report", "write_report", "report_figures", "headline", "sections"]
@@ -99,9 +99,10 @@ def param_rows(ident: IdentificationResult) -> list[dict]:
         scale, shown = display_unit(unit)
         lo, hi = f.ci95.get(k, (None, None))
         est = rod.get(ROD_ESTIMATE.get(k, ""))
+        given = f.held_at.get(k) == MEASURED_SHEAR          # held at a measured value: shown with it
         rows.append({"name": k, "meaning": MEANINGS.get(k, ""), "value": _fmt(v, scale),
-                     "ci": f"{_fmt(lo, scale)} … {_fmt(hi, scale)}", "unit": shown,
-                     "identifiable": bool(f.identifiable.get(k, False)),
+                     "ci": MEASURED_SHEAR if given else f"{_fmt(lo, scale)} … {_fmt(hi, scale)}", "unit": shown,
+                     "identifiable": bool(f.identifiable.get(k, False)) or given,
                      "estimate": "" if est is None else _fmt(est, scale)})
     return rows
 
@@ -112,8 +113,9 @@ def derived_rows(ident: IdentificationResult) -> list[dict]:
     for k, v in ident.values.items():
         scale, unit = DISPLAY.get(k, (1.0, ""))
         lo, hi = ident.ci95.get(k, (None, None))
+        given = MEASURED_SHEAR in ident.fit.reasons.get(k, "") and v is not None
         rows.append({"name": k, "meaning": MEANINGS.get(k, ""), "value": _fmt(v, scale),
-                     "ci": f"{_fmt(lo, scale)} … {_fmt(hi, scale)}", "unit": unit,
+                     "ci": ident.fit.reasons[k] if given else f"{_fmt(lo, scale)} … {_fmt(hi, scale)}", "unit": unit,
                      "identifiable": bool(ident.identifiable.get(k, False)) and v is not None})
     return rows
 
