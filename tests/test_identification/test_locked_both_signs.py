@@ -116,3 +116,15 @@ def test_fem_locked_compliance_of_each_sign_matches_a_locked_solve():
         assert np.linalg.norm(fd - C @ d) < 2e-3 * np.linalg.norm(C @ d)
         assert sorted(i for i in range(3) if loaded.tensions[i] > 1e-9) == sorted(active)
     assert sorted(both[0][1]) != sorted(both[1][1])
+
+
+def test_the_report_shows_each_sign_with_the_tendons_it_makes_taut():
+    """The validation table's cell for a state with a slack tendon names, per sign of the load direction, the
+    locked-compliance error and the taut tendons (numbered from 1), both models' sets when they differ."""
+    from validation.report.build import _locked_by_sign_cell
+    row = {"locked_by_sign": [
+        {"sign": "u", "direction": [0.0, 0.0, -1.0], "taut_fem": [0], "taut_ancf": [0], "error_pct": 2.18},
+        {"sign": "-u", "direction": [0.0, 0.0, 1.0], "taut_fem": [0, 1, 2], "taut_ancf": [1, 2], "error_pct": 5.06}]}
+    cell = _locked_by_sign_cell(row)
+    assert cell == "−z: 2.2 (taut 1) · +z: 5.1 (taut FEM 1,2,3, model 2,3)"
+    assert _locked_by_sign_cell({"locked_by_sign": []}) == "" and _locked_by_sign_cell({}) == ""

@@ -162,7 +162,7 @@ def _fem_error_cell(fe: Optional[dict]) -> tuple[str, str]:
     if fe.get("measured"):
         parts = ", ".join(f"{d} {x['tip_error_pct']:.3f}" for d, x in (fe.get("fem_by_direction") or {}).items())
         return f"{fe['fem_tip_error_pct']:.3f} (measured{': ' + parts if parts else ''})", ""
-    return f"{fe['fem_tip_error_pct']:.3f} (estimate)", "na"
+    return f"{fe['fem_tip_error_pct']:.3f} (estimate)", "muted"
 
 
 #: a state's verdicts as the validation table shows them
@@ -207,6 +207,21 @@ def _fem_error_rows(val: ValidationResult) -> list[dict]:
     return out
 
 
+def _locked_by_sign_cell(r: dict) -> str:
+    """A state with a slack tendon: the locked-compliance error for each sign of the load direction, with the tendons
+    that sign makes taut (numbered from 1; the same set in both models, else both are shown) — '' otherwise."""
+    parts = []
+    for s in r.get("locked_by_sign") or []:
+        d = np.asarray(s["direction"], float)
+        axis = "xyz"[int(np.argmax(np.abs(d)))]
+        sign = "+" if d[int(np.argmax(np.abs(d)))] > 0 else "−"
+        tf = ",".join(str(i + 1) for i in s["taut_fem"]) or "none"
+        ta = ",".join(str(i + 1) for i in s["taut_ancf"]) or "none"
+        taut = tf if tf == ta else f"FEM {tf}, model {ta}"
+        parts.append(f"{sign}{axis}: {s['error_pct']:.1f} (taut {taut})")
+    return " · ".join(parts)
+
+
 def _validation_rows(val: ValidationResult) -> list[dict]:
     out = []
     fem = {r["label"]: r for r in (val.fem_error or {}).get("rows", [])}
@@ -218,6 +233,7 @@ def _validation_rows(val: ValidationResult) -> list[dict]:
                     "gravity": "on" if r.get("gravity") else "off", "fem_error": cell, "fem_error_class": css, "verdict": vtext, "verdict_class": vcss,
                     "tip_pct": f"{r['tip_error_pct']:.2f}", "shape_pct": f"{r['shape_error_pct']:.2f}",
                     "ct": _fmt(r.get("C_tension_error_pct"), digits=3), "cl": _fmt(r.get("C_locked_error_pct"), digits=3),
+                    "cl_signs": _locked_by_sign_cell(r),
                     "ratio_fem": _fmt(r.get("ratio_z_fem"), digits=3), "ratio_ancf": _fmt(r.get("ratio_z_ancf"), digits=3)})
     return out
 
