@@ -60,7 +60,7 @@ from ancf.errors import InputError
 from ancf.export import to_jsonable
 
 from validation.reference.experiments import LoadCase
-from validation.reference.fem_sweep import FemRecord, FemSpec, run_cases
+from validation.reference.fem_sweep import FemRecord, FemSpec, describe_level, mesh_level, run_cases
 
 __all__ = ["for_validation", "estimate_for_heldout", "QUICK_CASES", "FULL_CASES", "ASSUMED_RATE", "AROUND_SHARE",
            "DEFAULT_DIRECTIONS", "QUANTITIES", "VERDICTS", "FemErrorEstimate", "mesh_level", "refined_level",
@@ -90,16 +90,6 @@ N_POINTS = 17
 QUICK_CASES, FULL_CASES = 1, 4
 
 
-def mesh_level(mesh):
-    """A mesh level name or :class:`fem_reference.MeshLevel` → the MeshLevel."""
-    from fem_reference.mesh import MESH_LEVELS, MeshLevel
-    if isinstance(mesh, MeshLevel):
-        return mesh
-    if isinstance(mesh, str) and mesh in MESH_LEVELS:
-        return MESH_LEVELS[mesh]
-    raise InputError(f"unknown mesh level {mesh!r}; choose from {sorted(MESH_LEVELS)} or give a MeshLevel")
-
-
 def refined_level(mesh, factor: int = 2, directions: Sequence[str] = ("along",)):
     """``mesh`` with its element counts in ``directions`` (``"along"`` the profile, ``"through"`` the wall,
     ``"around"``) multiplied by ``factor``."""
@@ -111,13 +101,6 @@ def refined_level(mesh, factor: int = 2, directions: Sequence[str] = ("along",))
         raise InputError(f"refinement directions {list(directions)}: choose from {sorted(DIRECTIONS)}")
     changes = {f: int(factor) * getattr(lvl, f) for d in directions for f in DIRECTIONS[d]}
     return replace(lvl, **changes)
-
-
-def describe_level(mesh) -> str:
-    lvl = mesh_level(mesh)
-    name = f"'{mesh}' " if isinstance(mesh, str) else ""
-    return (f"{name}({lvl.n_per_conv} per convolution × {lvl.n_thick} through the wall × {lvl.n_theta} around, "
-            f"{lvl.n_collar} per collar)")
 
 
 def richardson(values: Sequence, *, ratio: float = 2.0, rate: Optional[float] = None) -> dict:

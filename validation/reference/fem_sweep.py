@@ -46,6 +46,7 @@ def fem_fingerprint() -> str:
 
 
 __all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "run_modes", "fem_model", "solve_task", "plan_chains",
+           "mesh_level", "describe_level",
            "axisymmetric",
            "locked_compliance", "modes_chain", "classify_fem_modes"]
 
@@ -449,14 +450,27 @@ def run_cases(spec: FemSpec, cases: Sequence[LoadCase], *, compliance=False, wor
     return records
 
 
+def mesh_level(mesh):
+    """A mesh level name or :class:`fem_reference.MeshLevel` → the MeshLevel."""
+    from fem_reference.mesh import MESH_LEVELS, MeshLevel
+    if isinstance(mesh, MeshLevel):
+        return mesh
+    if isinstance(mesh, str) and mesh in MESH_LEVELS:
+        return MESH_LEVELS[mesh]
+    raise InputError(f"unknown mesh level {mesh!r}; choose from {sorted(MESH_LEVELS)} or give a MeshLevel")
+
+
+def describe_level(mesh) -> str:
+    """A mesh level in words: "'coarse' (4 per convolution × 2 through the wall × 12 around, 1 per collar)"."""
+    lvl = mesh_level(mesh)
+    name = f"'{mesh}' " if isinstance(mesh, str) else ""
+    return (f"{name}({lvl.n_per_conv} per convolution × {lvl.n_thick} through the wall × {lvl.n_theta} around, "
+            f"{lvl.n_collar} per collar)")
+
+
 def _meshes_text(specs: Sequence[FemSpec]) -> str:
-    from fem_reference.mesh import MESH_LEVELS
-    names = []
-    for sp in specs:
-        m = sp.mesh
-        name = next((k for k, v in MESH_LEVELS.items() if v == m), None) if not isinstance(m, str) else m
-        names.append(name or (f"{m.n_per_conv} per convolution × {m.n_thick} through the wall × {m.n_theta} around"
-                              if hasattr(m, "n_thick") else str(m)))
+    """The meshes of ``specs`` for a progress line: a level's name, or its element counts (:func:`describe_level`)."""
+    names = [sp.mesh if isinstance(sp.mesh, str) else describe_level(sp.mesh) for sp in specs]
     return f"{names[0]} mesh" if len(names) == 1 else f"meshes {' | '.join(names)}"
 
 
