@@ -602,6 +602,8 @@ class BellowsModel:
         """Equilibrium under the fixed loads ``lc`` from ``st``: Newton on the reduced system (in the symmetric
         subspace ``sym`` where it applies; bordered by the active locked tendons' length constraints), with the
         backtracking line search of :meth:`_line_search` and the early cut-back tests of :func:`_check_progress`.
+        The tangent is assembled only where a Newton step is taken (the line search's trial states and the new
+        loads' start state need residuals only: two tangent assemblies fewer per load step).
         Returns ``(state, evaluation, residual norms [N], iterations)``; raises StepFailed."""
         locked = ~np.isnan(lc.locked_lengths)
         history: list[float] = []
@@ -610,15 +612,13 @@ class BellowsModel:
         # prescribed tensions
         st.T[~locked] = lc.tensions[~locked]
         st.T[locked & st.slack] = 0.0
-        ev = self.evaluate(st, lc, tangent=True, stats=stats)
-        if lc_prev is not None:
+        ev = self.evaluate(st, lc, tangent=lc_prev is None, stats=stats)
+        if lc_prev is not None and ev["r"] is not None:
             # Euler predictor: the first matrix is the tangent of the converged start state under its
             # own loads (prestress and load stiffness consistent), not under the new loads.  From an
             # unstressed state with a pressure increment, the latter contains the follower-load
             # stiffness without the matching wall prestress and can be near-singular (measured).
-            ev_prev = self.evaluate(st, lc_prev, tangent=True, stats=stats)
-            if ev_prev.get("K") is not None:
-                ev["K"] = ev_prev["K"]
+            ev["K"] = self.evaluate(st, lc_prev, tangent=True, stats=stats).get("K")
         for it in range(max_iter + 1):
             r = ev["r"]
             active = locked & ~st.slack
@@ -637,6 +637,8 @@ class BellowsModel:
             if it == max_iter:
                 break
             _check_progress(history, it)
+            if ev.get("K") is None:          # the line search evaluates residuals only: the tangent now
+                ev = self.evaluate(st, lc, tangent=True, stats=stats)
             t0 = time.perf_counter()
             stats.n_factorizations += 1
             if sym is not None and sym.applies(r, tol):  # the step in the invariant subspace (fem_reference.symmetry)
@@ -656,18 +658,17 @@ class BellowsModel:
                      stats: NewtonStats, bound: float):
         """``(state, evaluation)`` after the Newton step ``α (dq, dT)`` with the largest ``α ∈ {1, ½, …, 2⁻¹¹}``
         that keeps every element uninverted and the residual norm at most ``bound`` [N]; ``(None, None)`` if none
-        does.  ``dT`` (n_active,) [N] are the increments of the active locked tendons' multipliers."""
+        does.  ``dT`` (n_active,) [N] are the increments of the active locked tendons'
+        multipliers.  The evaluation has no tangent (the converged state of a load step needs none)."""
         alpha = 1.0
-        for ls in range(12):
+        for _ls in range(12):
             trial = self._apply(st, dq, alpha)
             if active.any():
                 trial.T[active] = st.T[active] + alpha * dT
-            # the full step is accepted almost always: assemble its tangent right away
-            ev_t = self.evaluate(trial, lc, tangent=(ls == 0), stats=stats)
+            ev_t = self.evaluate(trial, lc, tangent=False, stats=stats)
             ok = ev_t["jmin"] > 0 and bool(np.all(np.isfinite(ev_t["r"])))
             if ok and np.linalg.norm(ev_t["r"]) <= bound:
-                ev = ev_t if ev_t.get("K") is not None else self.evaluate(trial, lc, tangent=True, stats=stats)
-                return trial, ev
+                return trial, ev_t
             alpha *= 0.5
         return None, None
 

@@ -181,3 +181,32 @@ def test_step_control_does_not_change_the_answer(model, monkeypatch):
     assert np.abs(fast.state.U - tight.state.U).max() < 1e-8 * L
     # the loose steps do less work: fewer Newton iterations for the same path
     assert fast.stats.n_iterations < tight.stats.n_iterations
+
+
+def test_tangent_assembled_only_for_newton_steps(model, loaded, monkeypatch):
+    """Every tangent assembly of a solve serves a factorisation: the line search's trial states and a load step's
+    start under its new loads need residuals only (each tangent costs about as much as a factorisation), and the
+    answer is the same as with tangents everywhere (same iterates: the residuals are unchanged)."""
+    from fem_reference.model import BellowsModel as BM
+    calls = {True: 0, False: 0}
+    plain = BM.evaluate
+
+    def counting(self, st, lc, tangent=True, stats=None):
+        calls[bool(tangent)] += 1
+        return plain(self, st, lc, tangent=tangent, stats=stats)
+
+    monkeypatch.setattr(BM, "evaluate", counting)
+    res = model.solve(tensions=(2.0, 0.5, 0.0), pressure=30e3, tip_force=(0.0, 0.1, 0.0), n_steps=3,
+                      check_stability=False)
+    assert len(res.stats.steps) >= 3
+    assert calls[True] == res.stats.n_factorizations, calls
+    assert calls[False] >= res.stats.n_iterations
+
+    def always_tangent(self, st, lc, tangent=True, stats=None):
+        return plain(self, st, lc, tangent=True, stats=stats)
+
+    monkeypatch.setattr(BM, "evaluate", always_tangent)
+    ref = model.solve(tensions=(2.0, 0.5, 0.0), pressure=30e3, tip_force=(0.0, 0.1, 0.0), n_steps=3,
+                      check_stability=False)
+    assert ref.stats.n_factorizations == res.stats.n_factorizations
+    assert np.abs(ref.state.U - res.state.U).max() <= 1e-12 * model.geometry.length

@@ -101,7 +101,7 @@ skfem = pytest.importorskip("skfem")
 
 def test_fem_locked_compliance_of_each_sign_matches_a_locked_solve():
     from fem_reference import BellowsModel, MeshLevel, presets as fem_presets
-    from validation.reference.fem_sweep import locked_compliance
+    from validation.reference.fem_sweep import locked_compliance, tip_compliances
     model = BellowsModel(fem_presets.paper_bellows(), fem_presets.paper_material(), MeshLevel(2, 1, 12, 1))
     res = model.solve(tensions=(1.0, 0.0, 0.0), pressure=20e3)
     both = locked_compliance(model, res, (U, -U))
@@ -116,6 +116,12 @@ def test_fem_locked_compliance_of_each_sign_matches_a_locked_solve():
         assert np.linalg.norm(fd - C @ d) < 2e-3 * np.linalg.norm(C @ d)
         assert sorted(i for i in range(3) if loaded.tensions[i] > 1e-9) == sorted(active)
     assert sorted(both[0][1]) != sorted(both[1][1])
+    # the sweep takes the tension-held compliance from the same factorisation: BellowsModel.tip_compliance's
+    C_tension, shared = tip_compliances(model, res, (U, -U))
+    np.testing.assert_allclose(C_tension, model.tip_compliance(res, mode="tension"), rtol=1e-10, atol=0)
+    for (C, active), (C1, active1) in zip(shared, both):
+        np.testing.assert_allclose(C, C1, rtol=1e-12)
+        assert active == active1
 
 
 def test_the_report_shows_each_sign_with_the_tendons_it_makes_taut():

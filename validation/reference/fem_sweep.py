@@ -46,7 +46,7 @@ def fem_fingerprint() -> str:
 
 
 __all__ = ["FemRecord", "FemSpec", "run_cases", "run_rod", "run_modes", "fem_model", "solve_task", "plan_chains",
-           "mesh_level", "describe_level",
+           "tip_compliances", "mesh_level", "describe_level",
            "axisymmetric",
            "locked_compliance", "modes_chain", "classify_fem_modes"]
 
@@ -221,11 +221,10 @@ def solve_chain(task: dict) -> list:
                         iterations=res.iterations, state=snapshot(res))
         if start is not None:   # how the solve went, for people: the equilibrium is the same either way
             rec.extra["started_from_other_mesh"] = started
-        if want_c:
-            rec.compliance_tension = model.tip_compliance(res, mode="tension")
+        if want_c:       # both compliances from one factorisation of the tangent
             u = np.asarray(task.get("locked_direction", (0.0, 0.0, -1.0)), float)
             slack = bool(np.any(res.state.T <= 1e-12))      # then the taut set depends on the load's sign
-            both = locked_compliance(model, res, (u, -u) if slack else (u,))
+            rec.compliance_tension, both = tip_compliances(model, res, (u, -u) if slack else (u,))
             rec.compliance_locked, rec.extra["locked_active"] = both[0]
             if slack:
                 rec.extra["compliance_locked_opposite"], rec.extra["locked_active_opposite"] = both[1]
@@ -313,6 +312,13 @@ def locked_compliance(model, res, direction):
     and its tension increment is ≥ 0.  ``direction`` may also be a tuple of directions (one factorisation):
     then a list of (compliance, taut) pairs, one per direction — with a slack tendon the locked response is
     piecewise linear, and ±u can make different tendons taut."""
+    return tip_compliances(model, res, direction)[1]
+
+
+def tip_compliances(model, res, direction) -> tuple:
+    """``(C_tension, locked)`` from one assembly and factorisation of the tangent at ``res``: the tip compliance
+    with the tensions held, ``J_p K⁻¹ J_pᵀ`` (3, 3) [m/N] (:meth:`fem_reference.BellowsModel.tip_compliance`,
+    ``mode="tension"``), and what :func:`locked_compliance` returns for ``direction``."""
     from fem_reference.solver import factorize
     st = res.state
     ev = model.evaluate(st, res.loadcase, tangent=True)
@@ -323,8 +329,8 @@ def locked_compliance(model, res, direction):
     Z_all = fac.solve(g_all)                          # K⁻¹ g
     taut = {i for i in range(g_all.shape[1]) if st.T[i] > 1e-12}
     if isinstance(direction, tuple) and len(direction) and np.ndim(direction[0]) == 1:
-        return [_locked_along(Jp, Y, g_all, Z_all, taut, d) for d in direction]
-    return _locked_along(Jp, Y, g_all, Z_all, taut, direction)
+        return Jp @ Y, [_locked_along(Jp, Y, g_all, Z_all, taut, d) for d in direction]
+    return Jp @ Y, _locked_along(Jp, Y, g_all, Z_all, taut, direction)
 
 
 def _locked_along(Jp, Y, g_all, Z_all, taut: set, direction) -> tuple[np.ndarray, list]:
