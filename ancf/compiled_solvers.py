@@ -13,6 +13,9 @@ What is the same as the Python solvers (and tested against them, ``tests/test_co
   at round-off-level energy changes when the gradient norm decreases; converged when ‖∇Π‖₂ < tol.
 * :func:`ik_newton` is the Newton phase of :func:`ancf.solvers.solve_root` on the IK system
   R(z, T) = [Q(z, T); p_end(z) − p_d] with the weighted norm ‖W R‖₂ and 12 halvings.
+  :func:`ik_newton_reuse` is the same loop given the evaluation at the start (Q, ∂R/∂x, Π, lengths — they do
+  not depend on the target): a caller that starts again where a previous solve started or ended, at the same
+  pressure and tip force, skips that assembly (the same numbers, to the bit).
 
 What is not here: the LM phase of ``solve_root`` and the FK's load stepping.  A loop that needs them returns a
 status other than ``CONVERGED``; the caller then runs the Python solver (:class:`ancf.Model` does), so every
@@ -267,25 +270,49 @@ def ik_newton(x0, nz, pd, w, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co
 
     Returns (status, x, iterations, history (k,) of ‖W R‖₂, J at x, K block positive definite, Π [J] and
     tendon lengths (m,) [m] at x)."""
+    m = x0.size - nz
+    out = ik_newton_reuse(x0, nz, pd, w, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, h, F, tol,
+                          max_iter, np.zeros(nz), np.zeros((nz + 3, nz + m)), 0.0, np.zeros(m), False)
+    return out[0], out[1], out[2], out[3], out[4], out[5], out[6], out[7]
+
+
+@njit(cache=True, nogil=True)
+def ik_newton_reuse(x0, nz, pd, w, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, h, F, tol, max_iter,
+                    Q0, J0, En0, lc0, have0):
+    """:func:`ik_newton`, given (when ``have0``) the evaluation at x0 of an earlier call with the same x0,
+    pressure and tip force: Q0 (nz,) = R[:nz], J0 (nz + 3, nz + m), Π0 [J], lengths lc0 (m,) [m].
+
+    Returns ik_newton's eight results, then (Q (nz,) = R[:nz] at the returned x, and the evaluation at x0:
+    Q0, J0, Π0, lc0, usable)."""
     x = x0.copy()
     hist = np.empty(max_iter + 1)
-    R, J, ok, En, lc = _ik_eval(x, nz, pd, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, h, F)
+    if have0:
+        R = np.empty(nz + 3)
+        R[:nz] = Q0
+        R[nz:] = tip_position(to_full(x[:nz], q_fix, P, use_P), h) - pd
+        J, En, lc = J0.copy(), En0, lc0.copy()
+        ok = _all_finite(R)
+    else:
+        R, J, ok, En, lc = _ik_eval(x, nz, pd, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co, so, h, F)
+    first = (R[:nz].copy(), J.copy(), En, lc.copy(), ok)
     if not ok:
         hist[0] = np.inf
-        return BAD_START, x, 0, hist[:1], J, False, En, lc
+        return (BAD_START, x, 0, hist[:1], J, False, En, lc, R[:nz].copy(), first[0], first[1], first[2], first[3],
+                first[4])
     r = _norm(w * R)
     hist[0] = r
     nh = 1
     for it in range(max_iter):
         if r < tol:
             return (CONVERGED, x, it, hist[:nh], J, is_positive_definite(np.ascontiguousarray(J[:nz, :nz])), En,
-                    lc)
+                    lc, R[:nz].copy(), first[0], first[1], first[2], first[3], first[4])
         Jw = np.empty_like(J)
         for i in range(J.shape[0]):
             Jw[i] = w[i] * J[i]
         good, dx = _lu_solve(Jw, -(w * R))
         if not good:
-            return NEEDS_LM, x, nh - 1, hist[:nh], J, False, En, lc
+            return (NEEDS_LM, x, nh - 1, hist[:nh], J, False, En, lc, R[:nz].copy(), first[0], first[1], first[2],
+                    first[3], first[4])
         alpha = 1.0
         step_ok = False
         for _ in range(12):
@@ -297,9 +324,11 @@ def ik_newton(x0, nz, pd, w, q_fix, P, use_P, n, N, wq, ea, ei, pa, mg, E, d, co
                 break
             alpha *= 0.5
         if not step_ok:
-            return NEEDS_LM, x, nh - 1, hist[:nh], J, False, En, lc
+            return (NEEDS_LM, x, nh - 1, hist[:nh], J, False, En, lc, R[:nz].copy(), first[0], first[1], first[2],
+                    first[3], first[4])
         x = x + alpha * dx
         R, J, r, En, lc = Rn, Jn, rn, Et, lt
         hist[nh] = r
         nh += 1
-    return NOT_CONVERGED, x, nh - 1, hist[:nh], J, False, En, lc
+    return (NOT_CONVERGED, x, nh - 1, hist[:nh], J, False, En, lc, R[:nz].copy(), first[0], first[1], first[2],
+            first[3], first[4])

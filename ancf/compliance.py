@@ -92,6 +92,9 @@ def _parts(model: Model, eq: Equilibrium):
     if np.shape(eq.q) != (model.ndof,):
         raise InputError(f"the equilibrium has {np.size(eq.q)} coordinates but the model has {model.ndof}: it "
                          "comes from a model with another element count")
+    if "_friction_tangent" in eq.__dict__:    # a state of Model.fk_history: its tensions differ per segment
+        raise InputError("this equilibrium carries tendon friction (Model.fk_history): its compliance is "
+                         "ancf.friction.compliance(model, state); the frictionless forms do not apply to it")
     cached = model._tangent_parts(eq)          # the solver's own, when it ended at this very state
     if cached is not None:
         return cached

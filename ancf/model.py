@@ -213,6 +213,8 @@ class Model:
                             + np.finfo(float).eps * np.sqrt(self.ndof)
                             * (abs(float(p.stiffness.EA(1.0))) * inv_h + abs(float(p.stiffness.EI(1.0))) * inv_h ** 3))
         self._droop: dict[float, Equilibrium] = {}
+        # the IK's evaluations where its latest solves started and ended: (z, T), p, F → (Q, ∂R/∂x, Π, lengths)
+        self._ik_evaluations: dict = {}
         # series compliance of each tendon path 1/k_s [m/N] (0: inextensible)
         self._cs = 0.0 if p.tendon_stiffness is None else 1.0 / p.tendon_stiffness
         self._lam_range = p.stiffness.valid_stretch_range
@@ -731,6 +733,26 @@ class Model:
         ev = self._values(q, T, pr, F, info)
         return self._result(q, T, pr, F, info, ev, "fk", H=info.matrix, check_stability=check_stability)
 
+    def fk_history(self, tensions, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), state=None, *,
+                   tol: Optional[float] = None, max_iter: int = 60, check_limits: bool = True,
+                   check_stability: bool = True):
+        """FK with tendon friction (``params.tendon_friction`` μ; docs/friction.md): the next equilibrium of the
+        friction history from ``state`` (a previous result; None: the unloaded actuator) at the motor tensions
+        ``tensions`` (m,) [N], ``pressure`` [Pa], ``tip_force`` (3,) [N] → :class:`ancf.friction.FrictionState`
+        (``.equilibrium``, ``.segment_tensions`` (m, n) [N], ``.sliding``).  μ = 0: :meth:`fk` itself (warm-started
+        from ``state``).  :meth:`fk` ignores friction: its state is one the guides can hold (every guide stuck)."""
+        from .friction import fk_history
+        return fk_history(self, tensions, pressure, tip_force, state, tol=tol, max_iter=max_iter,
+                          check_limits=check_limits, check_stability=check_stability)
+
+    def tension_cycle(self, peak_tensions, pressure: float = 0.0, tip_force=(0.0, 0.0, 0.0), steps: int = 10, *,
+                      check_limits: bool = True):
+        """Quasi-static cycle of the motor tensions 0 → ``peak_tensions`` (m,) [N] → 0 in ``steps`` steps per branch
+        with tendon friction → :class:`ancf.friction.TensionCycle` (both branches, the frictionless curve, the
+        loop area [N m] and the dissipated energy [J]; :func:`ancf.friction.tension_cycle`)."""
+        from .friction import tension_cycle
+        return tension_cycle(self, peak_tensions, pressure, tip_force, steps, check_limits=check_limits)
+
     def _tangent_key(self, eq: Equilibrium) -> tuple:
         return (id(self), eq.q.tobytes(), eq.tensions.tobytes(), float(eq.pressure), eq.tip_force.tobytes())
 
@@ -955,15 +977,18 @@ class Model:
             z, T, info = sol
             if np.all(T >= p.tension_min - 1e-9) and np.all(T <= p.tension_max + 1e-9):
                 Tc = np.clip(T, p.tension_min, p.tension_max)
-                if not np.array_equal(Tc, T):
-                    info.values = None                      # clipped by round-off: lengths assembled again
+                clipped = not np.array_equal(Tc, T)
+                if clipped and info.values is not None:
+                    # clipped by round-off: Π is linear in T (Σ T_i l_i) and the lengths do not depend on T
+                    energy, lengths = info.values
+                    info.values = (float(energy + (Tc - T) @ lengths), lengths)
                 T = Tc
                 q = self._to_full(z)
                 ev = self._values(q, T, pr, F, info)
                 nz = self.nz
                 eq = self._result(q, T, pr, F, info, ev, "ik", H=info.matrix[:nz, :nz],
                                   check_stability=check_stability)
-                if info.values is not None:    # the compiled loop's last Jacobian is the tangent at eq
+                if info.values is not None and not clipped:    # the compiled loop's last Jacobian: the tangent at eq
                     J = info.matrix
                     self._keep_tangent_parts(eq, (J[:nz, :nz], J[nz:, :nz], J[:nz, nz:].T))
                 return eq
@@ -992,16 +1017,38 @@ class Model:
         tol_w = min(tol, self._kscale * tol_position)
         x0 = np.concatenate([z0, T0])
         ea, ei = self._coeffs(float(pr))
-        # the Newton phase of solve_root, compiled; a solve that needs its LM phase runs solve_root itself
-        status, x, it, hist, J, pd, energy, lengths = _cs.ik_newton(
+        # the Newton phase of solve_root, compiled; a solve that needs its LM phase runs solve_root itself.  A start
+        # where the last solve started or ended (same pressure and tip force) reuses its evaluation there
+        Fc = self.total_tip_load(F)
+        key0 = (x0.tobytes(), float(pr), Fc.tobytes())
+        kept = self._ik_evaluations.get(key0)
+        reuse = kept if kept is not None else (np.zeros(nz), np.zeros((nz + 3, nz + m)), 0.0, np.zeros(m))
+        # (the flag is not named pd: ``fun`` above reads the target pd when the Python solver runs)
+        (status, x, it, hist, J, posdef, energy, lengths, Q_end, *first) = _cs.ik_newton_reuse(
             x0, nz, np.ascontiguousarray(pd, dtype=float), w, self._q_fix, self._P_c, self._P is not None, self.n,
             self._N, self._wq, ea, ei, float(pr) * self._vc, self._mg, self._E, self._d, self._co,
-            self._so, self.params.tool_offset, self.total_tip_load(F), float(tol_w), int(max_iter))
+            self._so, self.params.tool_offset, Fc, float(tol_w), int(max_iter), *reuse, kept is not None)
+        kept_all = self._ik_evaluations
+        kept_all.pop(key0, None)
+        if first[4]:
+            kept_all[key0] = tuple(first[:4])
+        if status == _cs.CONVERGED:
+            # copies: J and the lengths also go out with the result, whose user may change them
+            kept_all[(x.tobytes(), float(pr), Fc.tobytes())] = (Q_end, J.copy(), float(energy), lengths.copy())
+        keys = list(kept_all)                                            # a snapshot, oldest first
+        for old in keys[:max(0, len(keys) - self.IK_KEPT_EVALUATIONS)]:
+            kept_all.pop(old, None)
         if status == _cs.CONVERGED:
             history = hist.tolist()
-            return x[:nz], x[nz:], SolveInfo(int(it), history[-1], history, J, bool(pd), (float(energy), lengths))
+            return x[:nz], x[nz:], SolveInfo(int(it), history[-1], history, J, bool(posdef),
+                                             (float(energy), lengths))
         x, info = solve_root(fun, x0, tol=tol_w, max_iter=max_iter, name="ik", weights=w)
         return x[:nz], x[nz:], info
+
+    #: The IK keeps its evaluations (Q, ∂R/∂x, Π, lengths) where its latest solves started and ended, this many
+    #: (the oldest dropped first): a solve that starts at one of them (same pressure and tip force: a control
+    #: loop warm-starting from its last state or from a stored one) reuses it, to the bit (``_ik_newton``).
+    IK_KEPT_EVALUATIONS = 8
 
     #: Solve the bounded IK (nearest reachable tip) by the compiled projected Gauss–Newton
     #: (:mod:`ancf.compiled_bounded`) before falling back to ``scipy.optimize.least_squares``; False: scipy only

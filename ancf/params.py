@@ -64,6 +64,7 @@ TOP_FIELDS = {
     "free_base_stretch": None, "pressure_area_slope": "dimensionless",
     "tendon_stiffness": "stiffness", "shear_compliance_coeffs": "compliance_polynomial",
     "rayleigh_alpha": "rate", "rayleigh_beta": "time", "axial_damping": "force_time",
+    "tendon_friction": "dimensionless",
 }
 STIFFNESS_FIELDS = {"law": None, "a": "force", "b": "force", "D_a": "length", "EA": "force",
                     "EI": "bending_stiffness", "EA_coeffs": "force", "EI_coeffs": "bending_stiffness",
@@ -107,6 +108,8 @@ N_ELEMENTS_MIN, N_ELEMENTS_MAX = 1, 200
 QUADRATURE_MIN, QUADRATURE_MAX = 4, 20
 #: tendons an actuator may have
 TENDONS_MIN, TENDONS_MAX = 3, 16
+#: the largest tendon friction coefficient μ an actuator may state (``tendon_friction``)
+TENDON_FRICTION_MAX = 1.0
 #: the smallest angle between two tendons' directions about the axis [rad] (1°): closer, they are one tendon
 TENDON_SEPARATION_MIN = math.pi / 180
 #: the fields whose value is a list, with its allowed lengths (checked before anything is converted)
@@ -321,6 +324,9 @@ class ActuatorParams(BaseModel):
     shear_compliance : tuple       coefficients (s₀, s₁, s₂, …) [m/N] of the series rotation-free tip
                                    compliance s(p) = Σ s_j p̂^j, p̂ = p/100 kPa (:mod:`ancf.shear`); () : none.
                                    s(p) ≥ 0 over [pressure_min, pressure_max] is checked
+    tendon_friction : float        Coulomb friction coefficient μ [-] of the tendons at their routing guides
+                                   (0 … 1; 0: frictionless, every result as without it); used by
+                                   ``Model.fk_history`` / ``Model.tension_cycle`` (:mod:`ancf.friction`)
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=False)
@@ -350,6 +356,7 @@ class ActuatorParams(BaseModel):
     rayleigh_beta: float = 0.0
     axial_damping: float = 0.0
     shear_compliance: tuple[float, ...] = ()
+    tendon_friction: float = 0.0
 
     @field_validator("shear_compliance", mode="before")
     @classmethod
@@ -366,6 +373,14 @@ class ActuatorParams(BaseModel):
                                  "(SI units in the Python API: 4 mm/N = 0.004)")
         return out
 
+    @field_validator("tendon_friction")
+    @classmethod
+    def _mu(cls, v):
+        if not (math.isfinite(v) and 0.0 <= v <= TENDON_FRICTION_MAX):
+            raise ValueError(f"tendon_friction μ = {v!r} must be within 0 … {TENDON_FRICTION_MAX:g} (a Coulomb "
+                             "coefficient; tendons on guides: ~0.05 … 0.3)")
+        return v
+
     @field_validator("tendon_stiffness")
     @classmethod
     def _ks(cls, v):
@@ -378,7 +393,7 @@ class ActuatorParams(BaseModel):
 
     @field_validator("length", "D_eff", "pressure_area_slope", "line_mass", "tip_mass", "tool_offset",
                      "tension_min", "tension_max", "pressure_min", "pressure_max", "rayleigh_alpha",
-                     "rayleigh_beta", "axial_damping", mode="before")
+                     "rayleigh_beta", "axial_damping", "tendon_friction", mode="before")
     @classmethod
     def _real(cls, v, info):
         return _real_number(v, info.field_name)
@@ -667,6 +682,7 @@ class ActuatorParams(BaseModel):
             *([f"axial_damping_N_s = {self.axial_damping!r}"] if self.axial_damping else []),
             *([f"shear_compliance_coeffs_m_per_N_per_100kPa = {list(self.shear_compliance)}"]
               if self.shear_compliance else []),
+            *([f"tendon_friction = {self.tendon_friction!r}"] if self.tendon_friction else []),
             "", "[stiffness]",
             f'law = "{self.stiffness.kind}"']
         s = self.stiffness

@@ -7,6 +7,13 @@ tip load (constant EA, EI, no gravity, no tendon tension).  Both are timed in th
 so machine noise affects them alike; medians and their ratio are printed.  "Cold" means a solve from the
 straight reference with no initial guess; "warm" restarts from a neighbouring solution.
 
+"IK warm, slack tendon" is the IK a control loop runs on a state with one slack tendon (T = (2, 0.5, 0) N at
+30 kPa): targets a few µm apart on that tendon's slack manifold (the tips at T = (2 + δ₁, 0.5 + δ₂, 0) N,
+δ ~ 0.2 mN), each solve warm-started from the state the previous one returned (q0, tensions0), as LACC's step
+does; its ratio to the peer's static solve is printed beside the others.  The IK keeps its evaluations where
+its latest solves started and ended (``Model.IK_KEPT_EVALUATIONS``): the warm rows, whose solves start where an
+earlier one started or ended, reuse them; the cold row's start is cleared before each of its solves.
+
 Reference point: the paper's MATLAB IK takes 2.95 s at n = 6.
 """
 
@@ -34,6 +41,16 @@ def timed(fn, *a, **k):
     return out, time.perf_counter() - t
 
 
+def slack_case(model: Model, count: int = 20):
+    """(the state with tendon 3 slack: T = (2, 0.5, 0) N at 30 kPa; ``count`` IK targets a few µm from its tip on
+    the slack manifold: the tips at T = (2 + δ₁, 0.5 + δ₂, 0) N, δ ~ N(0, 0.2 mN))."""
+    state = model.fk((2.0, 0.5, 0.0), 30e3)
+    rng = np.random.default_rng(1)
+    deltas = rng.normal(size=(count, 2)) * 2e-4
+    targets = [model.fk((2.0 + a, 0.5 + b, 0.0), 30e3, q0=state.q).tip for a, b in deltas]
+    return state, targets
+
+
 def main(repeats: int = 200) -> dict:
     try:
         import peer_exudyn
@@ -49,7 +66,8 @@ def main(repeats: int = 200) -> dict:
         cantilever.fk((0, 0, 0), 0.0, F_TIP)            # compile / load kernels
         ref = paper.fk((2.0, 0.5, 1.0), 30e3, (0, 0, -0.2))   # interior tensions: targets nearby stay feasible
         target = ref.tip
-        t = {k: [] for k in ("fk_cold", "fk_warm", "ik_cold", "ik_warm", "fk_paper_cold", "peer_solve",
+        prev, slack_targets = slack_case(paper)
+        t = {k: [] for k in ("fk_cold", "fk_warm", "ik_cold", "ik_warm", "ik_slack", "fk_paper_cold", "peer_solve",
                              "peer_total")}
         rng = np.random.default_rng(0)
         for _ in range(repeats):
@@ -59,11 +77,15 @@ def main(repeats: int = 200) -> dict:
             t["fk_warm"].append(s)
             _, s = timed(paper.fk, (2.0, 0.5, 1.0), 30e3, (0, 0, -0.2))
             t["fk_paper_cold"].append(s)
+            paper._ik_evaluations.clear()           # cold: nothing kept from an earlier solve
             _, s = timed(paper.ik, target, 30e3, (0, 0, -0.2), q0=paper.q_ref)
             t["ik_cold"].append(s)
             dp = rng.normal(size=3) * 2e-5      # late LACC corrections are this small
             _, s = timed(paper.ik, target + dp, 30e3, (0, 0, -0.2), q0=ref.q, tensions0=ref.tensions)
             t["ik_warm"].append(s)
+            prev, s = timed(paper.ik, slack_targets[len(t["ik_slack"]) % len(slack_targets)], 30e3, q0=prev.q,
+                            tensions0=prev.tensions)
+            t["ik_slack"].append(s)
             if have_peer:
                 r = peer_exudyn.solve_cantilever(n, L, EA, EI, F_TIP)
                 t["peer_solve"].append(r["solve_s"])
@@ -76,11 +98,14 @@ def main(repeats: int = 200) -> dict:
         print(f"  ours  FK cold, paper preset, T+p+F      {med['fk_paper_cold']:8.3f}")
         print(f"  ours  IK cold (from straight), paper    {med['ik_cold']:8.3f}")
         print(f"  ours  IK warm, paper                    {med['ik_warm']:8.3f}")
+        print(f"  ours  IK warm, slack tendon, paper      {med['ik_slack']:8.3f}")
         if have_peer:
             print(f"  peer  Exudyn SolveStatic only           {med['peer_solve']:8.3f}")
             print(f"  peer  Exudyn build + solve              {med['peer_total']:8.3f}")
             print(f"  ratio ours FK cold / peer solve         {med['fk_cold'] / med['peer_solve']:8.2f}")
             print(f"  ratio ours IK cold / peer solve         {med['ik_cold'] / med['peer_solve']:8.2f}")
+            print(f"  ratio ours IK warm / peer solve         {med['ik_warm'] / med['peer_solve']:8.2f}")
+            print(f"  ratio ours IK slack / peer solve        {med['ik_slack'] / med['peer_solve']:8.2f}")
         else:
             print("  (peer not installed: pip install -e .[bench])")
         print(f"  paper's MATLAB IK at n = 6: 2950 ms -> ours warm IK is {2950 / med['ik_warm']:.0f}x faster")
@@ -119,11 +144,36 @@ def verification_cost(repeats: int = 200) -> dict:
     return out
 
 
+def friction_cost(repeats: int = 50) -> dict:
+    """What tendon friction costs per FK (docs/friction.md): a warm frictionless FK (``Model.fk``) beside one step
+    of the friction history (``Model.fk_history``, μ = 0.3, from the previous step's state), the same small
+    tension increment at n = 6, interleaved; medians [ms]."""
+    free = Model(presets.paper())
+    fric = Model(presets.paper().replace(tendon_friction=0.3))
+    ref = free.fk((2.0, 0.5, 0.0), 30e3)
+    prev = fric.fk_history((2.0, 0.5, 0.0), 30e3)
+    fric.fk_history((2.05, 0.5, 0.0), 30e3, state=prev)                 # compile / load kernels
+    t = {"FK warm, frictionless": [], "FK history step, mu = 0.3": []}
+    for _ in range(repeats):
+        t["FK warm, frictionless"].append(timed(free.fk, (2.05, 0.5, 0.0), 30e3, q0=ref.q)[1])
+        t["FK history step, mu = 0.3"].append(timed(fric.fk_history, (2.05, 0.5, 0.0), 30e3, state=prev)[1])
+    med = {k: statistics.median(v) * 1e3 for k, v in t.items()}
+    print(f"\nwhat friction costs per FK (median of {repeats}, milliseconds, n = 6)")
+    for k, v in med.items():
+        print(f"  {k:28s} {v:9.3f}")
+    print(f"  ratio {med['FK history step, mu = 0.3'] / med['FK warm, frictionless']:.1f}x")
+    return med
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=200)
     ap.add_argument("--verification-only", action="store_true", help="only the verification cost table")
+    ap.add_argument("--friction-only", action="store_true", help="only the friction cost table")
     args = ap.parse_args()
+    if args.friction_only:
+        friction_cost(args.repeats)
+        sys.exit(0)
     if not args.verification_only:
         main(args.repeats)
     verification_cost(args.repeats)

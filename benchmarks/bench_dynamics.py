@@ -14,9 +14,12 @@ Run:  python benchmarks/bench_dynamics.py [--repeats 5]
    (T₁ 0 → 2 N at 30 kPa, 5 % damping — the step excites every mode, and the first steps are subdivided):
    wall time and the real-time factor (simulated / wall time).  The target is ≥ 20×.
 3. **The step response at dt = 1 ms** (a 1 kHz loop's step): real-time factor (> 1: the dynamic plant keeps
-   up).
+   up; the target is ≥ 20×) and the time per step, beside the same run on the Python path (the compiled rows
+   of ``ancf.dynamics.compiled_step`` switched off, ``transient.COMPILED_ROWS = False``), interleaved.
 
-The machines are shared: read ratios of interleaved runs, not absolute times.
+All three runs use the compiled rows (constant loads).  Per-step times are wall time / steps, everything included
+(setup, the energy check, the output rows).  The machines are shared: read ratios of interleaved runs, not
+absolute times.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 
 from ancf import Model, StiffnessLaw, presets
+from ancf.dynamics import transient
 from ancf.params import Tendon
 
 L, EA, EI, MP = 0.16, 1000.0, 0.005, 0.3
@@ -59,7 +63,8 @@ def main(repeats: int = 5) -> dict:
     m = cable_model()
     ours_cable(m, 0.01, 1e-3)                                   # compile / load kernels
     print("1. swinging cable, n = 6, 0.5 s (medians of %d)" % repeats)
-    print(f"   {'dt [ms]':>8} {'ours [s]':>10} {'Exudyn [s]':>11} {'ratio':>7} {'max |Δtip| [mm]':>16}")
+    print(f"   {'dt [ms]':>8} {'ours [s]':>10} {'Exudyn [s]':>11} {'ours [µs/step]':>15} {'Exudyn [µs/step]':>17} "
+          f"{'ratio':>7} {'max |Δtip| [mm]':>16}")
     for dt in (0.5e-3, 2e-3):
         ts, tp = [], []
         for _ in range(repeats):
@@ -74,7 +79,9 @@ def main(repeats: int = 5) -> dict:
             s_peer = statistics.median(tp)
             k = min(len(sim.tip), len(r["tip"]))
             diff = float(np.abs(sim.tip[:k] - r["tip"][:k]).max()) * 1e3
-            print(f"   {dt * 1e3:8.2f} {s_ours:10.3f} {s_peer:11.3f} {s_ours / s_peer:7.2f} {diff:16.3f}")
+            steps = round(0.5 / dt)
+            print(f"   {dt * 1e3:8.2f} {s_ours:10.3f} {s_peer:11.3f} {s_ours / steps * 1e6:15.1f} "
+                  f"{s_peer / steps * 1e6:17.1f} {s_ours / s_peer:7.2f} {diff:16.3f}")
             out[f"cable_{dt}"] = {"ours_s": s_ours, "exudyn_s": s_peer, "ratio": s_ours / s_peer, "max_diff_mm": diff}
         else:
             print(f"   {dt * 1e3:8.2f} {s_ours:10.3f} {'(no exudyn)':>11}")
@@ -87,18 +94,26 @@ def main(repeats: int = 5) -> dict:
     h1 = math.sqrt(0.12) / (2 * math.pi * f1)
     lifted = pm.fk((2.0, 0.0, 0.0), 30e3, (0.0, 0.0, 0.3), q0=eq.q)
     print(f"2./3. 'paper', 2 s at 30 kPa (first bending mode {f1:.3f} Hz)")
-    print(f"   {'dt [ms]':>8} {'wall [s]':>9} {'× real time':>12} {'Newton its/step':>16}")
+    print(f"   {'dt [ms]':>8} {'wall [s]':>9} {'× real time':>12} {'µs/step':>9} {'Newton its/step':>16}")
     runs = (("free vibration, 1 % of f1", h1, lifted.q, 0.0), ("step response, 1 % of f1", h1, start.q, 0.05),
             ("step response, 1 kHz loop", 1e-3, start.q, 0.05))
     for name, dt, q0, zeta in runs:
-        ws, its = [], []
+        paths = (True, False) if dt == 1e-3 else (True,)
+        ws, its = {k: [] for k in paths}, []
         for _ in range(repeats):
-            sim = pm.simulate(2.0, dt, q0=q0, tensions=(2, 0, 0), pressure=30e3, damping=zeta)
-            ws.append(sim.wall_time)
-            its.append(float(sim.newton_iterations[1:].mean()))
-        w = statistics.median(ws)
-        print(f"   {dt * 1e3:8.2f} {w:9.3f} {2.0 / w:12.1f} {statistics.median(its):16.2f}   ({name})")
-        out[name] = {"dt_s": dt, "wall_s": w, "real_time_factor": 2.0 / w}
+            for compiled in paths:                # interleaved: the compiled rows and the Python path
+                transient.COMPILED_ROWS = compiled
+                sim = pm.simulate(2.0, dt, q0=q0, tensions=(2, 0, 0), pressure=30e3, damping=zeta)
+                ws[compiled].append(sim.wall_time)
+                its.append(float(sim.newton_iterations[1:].mean()))
+        transient.COMPILED_ROWS = True
+        steps = len(sim.t) - 1
+        for compiled in paths:
+            w = statistics.median(ws[compiled])
+            label = name if compiled else name + ", Python path"
+            print(f"   {dt * 1e3:8.2f} {w:9.3f} {2.0 / w:12.1f} {w / steps * 1e6:9.1f} {statistics.median(its):16.2f}"
+                  f"   ({label})")
+            out[label] = {"dt_s": dt, "wall_s": w, "real_time_factor": 2.0 / w, "us_per_step": w / steps * 1e6}
     return out
 
 

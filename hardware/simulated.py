@@ -31,6 +31,14 @@ its own model:
   actuator sees is l_a = l_m + (T_a + s f_c) / k_s, where T_a is the tension at the actuator and s = +1
   after the motor last pulled (shortened) that tendon, −1 after it released it — a hysteresis of width
   2 f_c / k_s.  Solved by fixed-point iteration on l_a (the actuator is far softer than k_s).
+* the plant actuator's own ``tendon_friction`` μ (``params.tendon_friction``, static plant only) — the
+  capstan law at the routing guides (docs/friction.md): each new state is the locked equilibrium with
+  friction (:func:`ancf.friction.fk_locked_history`) solved from the plant's previous
+  :class:`~ancf.friction.FrictionState`, so the plant has the tendons' stick/slip hysteresis; the series
+  stiffness and the constant loss above act as before (the fixed point on l_a, each iterate solved from the
+  same previous state).  The history advances with the plant's present: a state at an earlier time (tracker
+  latency) is solved from the present state without becoming the history.  The force sensors read the motor
+  side; :meth:`SimulatedRig.pull_through` measures the anchor side of a pull-through test.
 
 Faults are injected with :meth:`SimulatedRig.inject` (``"tracking_lost"``, ``"invalid_pose"``,
 ``"tracker_stale"``, ``"sensor_timeout"``, ``"drive_fault"``, ``"pressure_overshoot"``), each from a
@@ -146,6 +154,8 @@ class _Plant:
         self.hist: list = []                 # (t, lengths, dir) whenever the motors moved
         self.cache: dict = {}
         self.last_eq: Optional[Equilibrium] = None
+        self.fstate = None                   # the friction history's present FrictionState (μ > 0) and its key
+        self.fkey: Optional[tuple] = None
         self.solves = 0
         self.faults: dict = {}
         self.load_fn: Callable = lambda t: np.zeros(3)
@@ -154,6 +164,10 @@ class _Plant:
                 raise InputError(f"PlantOptions.{nm} is a motor property of the dynamic plant: it needs dynamics=True")
         self.rate = options.length_rate       # motor speed [m/s] (a dynamic plant never moves them at once)
         self.dyn = None
+        self.mu = float(model.params.tendon_friction)
+        if options.dynamics and self.mu > 0:
+            raise InputError("the dynamic plant (dynamics=True) has no tendon friction law: the plant actuator's "
+                             f"tendon_friction must be 0, got {self.mu:g}")
         if options.dynamics:
             from .sim_dynamics import DynamicActuator
             self.dyn = DynamicActuator(model, options.tendon_stiffness, options.damping, options.pressure_tau,
@@ -241,6 +255,44 @@ class _Plant:
             raise InputError(f"load profile returned {F} at t = {t}")
         return F
 
+    def _solve_friction(self, l_act, F):
+        """The locked state with tendon friction at motor-side lengths l_act (m,) [m] from the present state
+        (the first: from the slack actuator at this pressure and load)."""
+        from ancf.friction import fk_locked_history
+        m = self.model
+        prev = self.fstate or m.fk_history(np.zeros(m.m), self.pressure, F)
+        try:
+            return fk_locked_history(m, prev, l_act, self.pressure, F)
+        except ConvergenceError as exc:
+            raise ConvergenceError(f"simulated rig: locked FK with tendon friction failed at lengths "
+                                   f"{', '.join(f'{x * 1e3:.3f}' for x in l_act)} mm, tip load "
+                                   f"({', '.join(f'{x:.4g}' for x in F)}) N: {exc}", solver=exc.solver,
+                                   iterations=exc.iterations, residual_norm=exc.residual_norm,
+                                   tolerance=exc.tolerance, history=exc.history) from exc
+        finally:
+            self.solves += 1
+
+    def _static_friction(self, lengths, dirs, F, now: bool) -> Equilibrium:
+        """The plant's state with tendon friction (module docstring): the series-stiffness fixed point, each
+        iterate solved from the present FrictionState; ``now``: the result becomes the present."""
+        key = (lengths.tobytes(), dirs.tobytes(), F.tobytes(), self.pressure)
+        if key == self.fkey:
+            return self.fstate.equilibrium
+        o = self.options
+        la = lengths.copy()
+        for _ in range(30 if math.isfinite(o.tendon_stiffness) else 1):
+            st = self._solve_friction(la, F)
+            if math.isinf(o.tendon_stiffness):
+                break
+            T = st.equilibrium.tensions
+            la_new = lengths + (T + dirs * o.tendon_friction * (T > 0)) / o.tendon_stiffness
+            if np.max(np.abs(la_new - la)) < 1e-10:
+                break
+            la = la_new
+        if now:
+            self.fstate, self.fkey = st, key
+        return st.equilibrium
+
     def _solve(self, l_act, F) -> Equilibrium:
         prev = self.last_eq
         try:
@@ -287,8 +339,11 @@ class _Plant:
 
     def _static(self, t: Optional[float] = None) -> Equilibrium:
         """True locked equilibrium at time t (default now; earlier times use the motor history)."""
+        now = t is None or t >= self.time
         lengths, dirs, t = self._history_at(t)
         F = self.load(t)
+        if self.mu > 0:
+            return self._static_friction(lengths, dirs, F, now)
         key = (lengths.tobytes(), dirs.tobytes(), F.tobytes(), self.pressure)
         if key in self.cache:
             return self.cache[key]
@@ -575,6 +630,23 @@ class SimulatedRig(Rig):
     def true_tip(self) -> np.ndarray:
         """Noise-free tip position now [m]."""
         return self.equilibrium().tip.copy()
+
+    def pull_through(self, tendon: int, motor_tensions) -> tuple[np.ndarray, np.ndarray]:
+        """A pull-through test on the simulated rig (docs/friction.md): the actuator clamped in its present
+        shape, tendon ``tendon`` (0-based) pulled through and released by its motor in tension control through
+        ``motor_tensions`` (k,) [N] from slack.  Returns (motor-side tensions (k,) [N] — the commanded ones —,
+        anchor-side tensions (k,) [N] — the plant's last tendon segment under the capstan law of its
+        ``tendon_friction``, read by a load cell at the anchor with the force sensors' noise).  Static plant only."""
+        from ancf.friction import pull_through
+        if self._plant.dyn is not None:
+            raise InputError("pull_through clamps the actuator in a static state: not on a dynamic plant")
+        eq = self.equilibrium()
+        Tm = check_finite("motor_tensions", motor_tensions, None).ravel()
+        anchor, _codes = pull_through(self.model, eq.q, tendon, Tm)
+        s = self.options.force_noise_std
+        if s > 0:
+            anchor = anchor + self.rng.normal(0.0, s, anchor.size)
+        return Tm.copy(), anchor
 
     def move_time(self) -> float:
         """Seconds until the motors reach the commanded lengths."""

@@ -26,6 +26,13 @@ the motion, after every output row) and the run repeated in halved substeps (:fu
 stay at dt), or refused with a ConvergenceError naming a step that would do.  Ctrl-C sets a flag read between
 steps (:mod:`.interrupt`), never an exception inside a compiled kernel: the rows done are returned.
 
+Speed: the output rows of a run whose loads are constant (tensions or tendon lengths, pressure command — with or
+without the supply's ``pressure_tau`` —, tip force) and whose stiffness law does not depend on pressure are made
+in chunks by compiled kernels (:mod:`.compiled_step`: the step, its Newton iterations and the rows' energies; the
+same numbers as the Python path to round-off), Python touched between chunks (Ctrl-C, progress, the energy check,
+events) and for a row whose step fails there (a halving, an error); runs with time-varying signals take the
+Python path (:class:`_Stepper`, :class:`_Recorder`).
+
 Energy bookkeeping (all [J]): kinetic K = ½ q̇ᵀ M q̇; potential Π(q; loads(t)) (elastic + gravity + the load
 potentials Σ T_i l_i − p V − F·p_end + the length springs); the work of the time-varying loads
 W = ∫ ∂Π/∂t dt; the dissipated energy D = ∫ q̇ᵀ(C_R q̇ + Q_d) dt.  ``energy`` = K + Π − W obeys
@@ -290,8 +297,10 @@ class _Loads:
             raise InputError(f"lengths at t = {t:.6g} s must be > 0 m, got {l0}")
 
     def check_grid(self, times: np.ndarray) -> None:
-        """Fail fast: every signal on the output grid before integrating."""
-        for t in times:
+        """Fail fast: every signal on the output grid before integrating (at t = 0 only when every signal is
+        constant: the same values at every time)."""
+        sigs = (self.pc_sig, self.F_sig, self.l0_sig if self.length_mode else self.T_sig)
+        for t in (times[:1] if all(s.constant for s in sigs) else times):
             self.check(t, T=self.tensions(t), pr=float(self.pc_sig(t)), l0=self.lengths(t))
             self.F_sig(t)
 
@@ -748,42 +757,154 @@ class _EnergyWatch:
         self.k_max = rec.kinetic[0]
         self.w_max = 0.0
 
-    def check(self, i: int) -> Optional[dict]:
-        """None when row i passes, else {t [s], created [J], budget [J]}."""
-        r = self.rec
-        self.k_max = max(self.k_max, r.kinetic[i])
-        self.w_max = max(self.w_max, abs(r.work[i]))
-        created = r.kinetic[i] + r.potential[i] - r.work[i] + r.dissipated[i] - self.start
-        budget = self.k_max + max(r.dissipated[i] - created, 0.0) + self.w_max
-        if created > self.rtol * budget + self.atol:
-            return {"row": i, "created": float(created), "budget": float(budget)}
+    def check_rows(self, i: int, j: int) -> Optional[dict]:
+        """The check of rows i … j − 1 at once (the running maxima as arrays): the first failure {row, created
+        [J], budget [J]}, or None when all pass."""
+        r, sl = self.rec, slice(i, j)
+        k_max = np.maximum.accumulate(np.concatenate(([self.k_max], r.kinetic[sl])))[1:]
+        w_max = np.maximum.accumulate(np.concatenate(([self.w_max], np.abs(r.work[sl]))))[1:]
+        created = r.kinetic[sl] + r.potential[sl] - r.work[sl] + r.dissipated[sl] - self.start
+        budget = k_max + np.maximum(r.dissipated[sl] - created, 0.0) + w_max
+        bad = np.flatnonzero(created > self.rtol * budget + self.atol)
+        if len(bad):
+            b = int(bad[0])
+            return {"row": i + b, "created": float(created[b]), "budget": float(budget[b])}
+        self.k_max, self.w_max = float(k_max[-1]), float(w_max[-1])
         return None
 
 
 def _integrate(plant: _Plant, loads: _Loads, stepper: _Stepper, rec: _Recorder, state: StepState,
                times: np.ndarray, p_init: float, progress, stop) -> tuple[int, Optional[dict]]:
-    """The time loop: row 0 at t = 0, then one row per output time.  Returns (the number of rows done — all of
-    them, or those before a Ctrl-C: ``stop.requested`` read between steps, or a KeyboardInterrupt from
+    """The time loop: row 0 at t = 0, then one row per output time — in chunks of compiled rows
+    (:class:`_FastRows`, when the run can take them and no halving is in progress), else row by row in Python
+    (:meth:`_Stepper.advance`, :meth:`_Recorder.record`).  The energy check, the tendon events and the progress
+    report follow each row in order, whichever path made it (the energy check of a chunk at once:
+    :meth:`_EnergyWatch.check_rows`).  Returns (the number of rows done — all of them,
+    or those before a Ctrl-C: ``stop.requested`` read between chunks, or a KeyboardInterrupt from
     ``progress`` —, None or the energy check's failure {row, created [J], budget [J]} that ended the loop)."""
     rec.record(0, state, 0.0, p_init, loads.F_sig(0.0), loads.lengths(0.0))
     watch = _EnergyWatch(rec, plant.model)
-    t_prev, pr_prev, done = 0.0, p_init, 1
+    fast = _FastRows(plant, loads, stepper, rec, times) if _FastRows.eligible(plant, loads) else None
+    t_prev, pr_prev, done, i = 0.0, p_init, 1, 1
     try:
-        for i in range(1, len(times)):
+        while i < len(times):
             if stop.requested:
                 break
-            t_target = times[i]
-            state, pr_prev, n_it, mids = stepper.advance(plant, state, t_prev, pr_prev, t_target, rec.point)
-            T_prev = rec.prev["T"]
-            rec.record(i, state, t_target, pr_prev, loads.F_sig(t_target), loads.lengths(t_target), n_it, mids)
-            bad = watch.check(i)
+            j = i
+            if fast is not None and stepper.level == 0:
+                j, state, pr_prev = fast.run(i, state, t_prev, pr_prev)
+            if j == i:                        # the Python path: no compiled rows, or this row's step failed there
+                if fast is not None and fast.owns_prev:
+                    rec.prev = rec.point(state, t_prev, pr_prev, loads.F_sig(t_prev), loads.lengths(t_prev))
+                    fast.owns_prev = False
+                state, pr_prev, n_it, mids = stepper.advance(plant, state, t_prev, pr_prev, times[i], rec.point)
+                rec.record(i, state, times[i], pr_prev, loads.F_sig(times[i]), loads.lengths(times[i]), n_it, mids)
+                j = i + 1
+            bad = watch.check_rows(i, j)
+            end = j if bad is None else bad["row"]
+            if loads.length_mode or progress is not None:
+                for k in range(i, end):
+                    stepper.events.extend(rec.tendon_events(rec.T[k - 1], rec.T[k], times[k]))
+                    if progress is not None:
+                        progress(times[k], times[-1])
+                    done = k + 1              # a row whose progress report was interrupted is not kept
+            done = end
             if bad is not None:
-                return i + 1, bad
-            stepper.events.extend(rec.tendon_events(T_prev, rec.prev["T"], t_target))
-            t_prev = t_target
-            if progress is not None:
-                progress(t_target, times[-1])
-            done = i + 1                      # a row whose progress report was interrupted is not kept
+                return end + 1, bad
+            t_prev, i = times[j - 1], j
     except KeyboardInterrupt:
         pass
     return done, None
+
+
+# ------------------------------------------------------------------------------------------------ compiled rows
+#: compiled output rows (:mod:`.compiled_step`) for the runs that can take them (:meth:`_FastRows.eligible`)
+COMPILED_ROWS = True
+#: wall time [s] of one chunk of compiled rows: Ctrl-C and the progress report are read between chunks
+CHUNK_SECONDS = 0.05
+
+
+def _band(model, plant: _Plant, loads: _Loads) -> int:
+    """The diagonals on each side of the iteration matrix M + γ' C_t + β' K_t outside which it is zero, or −1
+    (solve it as a dense matrix): the elements couple coordinates at most 11 apart (12 with the base stretch),
+    the tool point's blocks sit in the last node's, the mass and Rayleigh matrices are measured; taut length
+    springs k ∇l ∇lᵀ fill the whole matrix."""
+    if loads.length_mode:
+        return -1
+    band = 12 if model._P is not None else 11
+    for A in (plant.Mz_const, plant.Ct_const):
+        i, j = np.nonzero(A)
+        band = max(band, int(np.abs(i - j).max()) if len(i) else 0)
+    return band if 3 * band < model.nz else -1
+
+
+class _FastRows:
+    """Chunks of output rows made by :func:`.compiled_step.run_rows` — the same step, Newton iterations and
+    recorder quantities as the Python path, to round-off.  Taken by runs whose signals are constant (tensions
+    or lengths, pressure command, tip force; the pressure supply with ``pressure_tau`` included) and whose
+    stiffness law does not depend on pressure; a row whose step fails there (a halving, an error) and the
+    rows until the halving is undone run in Python.  ``owns_prev``: the last row was made here (the
+    recorder's ``prev`` point is stale)."""
+
+    @staticmethod
+    def eligible(plant: _Plant, loads: _Loads) -> bool:
+        sig = loads.l0_sig if loads.length_mode else loads.T_sig
+        return (COMPILED_ROWS and sig.constant and loads.pc_sig.constant and loads.F_sig.constant
+                and not plant.model.params.stiffness.pressure_dependent)
+
+    def __init__(self, plant: _Plant, loads: _Loads, stepper: _Stepper, rec: _Recorder, times: np.ndarray):
+        from . import compiled_step as cs
+        self.cs, self.rec, self.times, self.stepper = cs, rec, np.ascontiguousarray(times, dtype=float), stepper
+        model, p = plant.model, plant.model.params
+        self.nz, self.owns_prev, self.per_row = model.nz, False, None
+        F = loads.F_sig(0.0)
+        self.arr = tuple(np.ascontiguousarray(a, dtype=float) for a in (
+            model._q_fix, model._P_c, model._N, model._wq, model._ea, model._ei, model._vc, model._mg * 1.0,
+            model._E, model._d, model._co, model._so, plant.M0, plant.Mz_const, plant.Ct_const,
+            loads.tensions(0.0) if not loads.length_mode else np.zeros(model.m),
+            loads.lengths(0.0) if loads.length_mode else np.ones(model.m),
+            model.total_tip_load(F), model.total_tip_load((0.0, 0.0, 0.0)), F))
+        c = stepper.coeff
+        par = np.zeros(cs.N_PAR)
+        for k, v in ((cs.P_N, model.n), (cs.P_USEP, model._P is not None), (cs.P_HTOOL, p.tool_offset),
+                     (cs.P_CAX, plant.c_ax), (cs.P_HASCR, plant.C_R is not None), (cs.P_MTIP, p.tip_mass),
+                     (cs.P_TIPMOVES, plant.tip_moves_mass), (cs.P_FSCALE, plant.force_scale),
+                     (cs.P_LMODE, loads.length_mode), (cs.P_KPEN, loads.k_pen), (cs.P_FHOLD, loads.F_hold),
+                     (cs.P_SHOLD, loads.s_hold), (cs.P_TAU, loads.tau or 0.0), (cs.P_PC, float(loads.pc_sig(0.0))),
+                     (cs.P_CHECKP, loads.check_limits), (cs.P_PMIN, p.pressure_min), (cs.P_PMAX, p.pressure_max),
+                     (cs.P_RHO, c.rho_inf), (cs.P_AM, c.alpha_m), (cs.P_AF, c.alpha_f), (cs.P_GAMMA, c.gamma),
+                     (cs.P_BETA, c.beta), (cs.P_H, stepper.h), (cs.P_HSUB, stepper.h / 2 ** stepper.base),
+                     (cs.P_MAXIT, stepper.max_iter), (cs.P_VARYING, loads.varying),
+                     (cs.P_BAND, _band(model, plant, loads))):
+            par[k] = float(v)
+        self.par = par
+        self.prev = np.zeros(cs.N_PREV + model.m)
+        cs.check_inputs(self.arr, par, np.zeros((5, self.nz)), self.prev, self.nz, model.m)
+
+    def _prev_from(self, row: dict) -> None:
+        """The kernel's ``prev`` from the recorder's point dict (:meth:`_Recorder.point`)."""
+        E0, lq, V, pe = row["pt"][:4]
+        self.prev[:self.cs.N_PREV] = (E0, V, *pe, row["pw"], row["pr"], row["t"])
+        self.prev[self.cs.N_PREV:] = lq
+
+    def run(self, i: int, st: StepState, t_prev: float, pr_prev: float) -> tuple[int, StepState, float]:
+        """Rows i, i + 1, … in one kernel call of about :data:`CHUNK_SECONDS`: (the first row not done, the state
+        and pressure [Pa] of the last row done)."""
+        if not self.owns_prev:
+            self._prev_from(self.rec.prev)
+        n_rows = 8 if self.per_row is None else max(1, int(CHUNK_SECONDS / max(self.per_row, 1e-9)))
+        stop = min(len(self.times), i + n_rows)
+        has_prev = st.prev_acc is not None
+        state = np.ascontiguousarray([st.z, st.v, st.acc, st.a, st.prev_acc if has_prev else np.zeros(self.nz)],
+                                     dtype=float)
+        sc = np.array([1.0 if has_prev else 0.0, t_prev, pr_prev])
+        r = self.rec
+        w0 = _time.perf_counter()
+        _, j = self.cs.run_rows(i, stop, self.times, state, sc, self.prev, self.arr, self.par, r.q, r.v, r.tip, r.T,
+                                r.p, r.kinetic, r.potential, r.work, r.dissipated, r.iterations)
+        if j > i:
+            self.per_row = (_time.perf_counter() - w0) / (j - i)
+            self.owns_prev = True
+            st = StepState(state[0].copy(), state[1].copy(), state[2].copy(), state[3].copy(),
+                           state[4].copy() if sc[0] > 0 else None)
+        return j, st, float(sc[2]) if j > i else pr_prev

@@ -12,6 +12,7 @@ module             job
 ``cap_compliance`` the locked compliance from the cap compliance; the shear term
 ``calibrate``      an FEM design fitted to target rod values
 ``damping``        damping (and a mass check) from a free decay of the tip
+``friction``       the tendons' friction μ from a pull-through test or a tension cycle's tip data
 ================== ===============================================================================
 
 Imports :mod:`validation.infra` and :mod:`validation.reference` only (inside :mod:`validation`).

@@ -21,6 +21,9 @@ Set-up shared by the studies (flagged choices — the paper does not give them):
   ``PlantOptions.mismatched``; ``bellows paper table1 --mismatch``).  :func:`plant_summary` states which, in
   each result's ``settings``.  The paper's numbers are measurements on its physical rig.
 * VF-CC with χ = 10 N/m per axis (proportional law, :mod:`controller.vfcc`).
+* Tendon friction (:func:`table1_friction`, ``table1(friction=…)``, ``bellows paper table1 --plant-friction``):
+  Table I once per plant coefficient μ, the controllers' model frictionless, and optionally the friction-aware
+  LACC (:mod:`controller.friction_aware`) whose model has the plant's μ (docs/friction.md).
 * LACC as Algorithm 1 with the exact locked compliance (the product's default) and, beside it, with the
   paper's IK-derived compliance (eq. 15/16): with the exact one Table I comes out ≈ 1e-5 mm instead of
   0.2–0.44 mm on the perfect plant, and 0.1–0.4 mm on the mismatched one with 0.05 mm tracker noise.
@@ -226,13 +229,16 @@ def table1(*, iterations: int = 5, seed: int = 0, pressure: float = PRESSURE,
            configurations: Optional[dict] = None, mass_range=(0.02, 0.06), lateral_std: float = 0.03,
            compliance: str = "exact", compare: Optional[str] = "ik", chi: float = 10.0,
            vfcc_law: str = "proportional", plant_options: Optional[PlantOptions] = None, params=None,
-           out: PathLike = None) -> dict:
+           friction: Optional[Sequence[float]] = None, friction_aware: bool = False, out: PathLike = None) -> dict:
     """Table I: tip error after ``iterations`` corrections for VF-CC and LACC under a hidden stochastic load.
 
     configurations : None (the stated tip directions, tensions derived from ``params``), ``{name:
         elevation_deg}`` or ``{name: (T1, T2, T3) [N]}``
     compliance : LACC's compliance ("exact", the default; "ik" = the paper's eq. 15/16; "paper" = eq. 13);
         compare : a second LACC compliance run beside it (None: none)
+    friction : plant friction coefficients μ (e.g. ``(0, 0.1, 0.3)``): run :func:`table1_friction` instead — the
+        table once per μ on a plant with tendon friction, the controllers' model frictionless (``compare`` unused);
+        friction_aware : there, also the friction-aware LACC (:mod:`controller.friction_aware`); None: as before
 
     Returns ``{configuration: {...}}`` with, each, ``vfcc_error`` / ``lacc_error`` [m] after the last
     iteration, ``reduction`` (fraction, 1 − LACC/VF-CC), ``vfcc_history`` / ``lacc_history`` [m] (index 0 =
@@ -241,6 +247,12 @@ def table1(*, iterations: int = 5, seed: int = 0, pressure: float = PRESSURE,
     display and the paper's numbers; plus ``"table"`` (str) and ``"settings"``.  All controllers make all
     ``iterations`` corrections (tolerance 0), as in the paper's "after five iterations".
     """
+    if friction is not None or friction_aware:     # plant μ values: the friction study
+        mus = (0.0, 0.1, 0.3) if friction is None else friction
+        return table1_friction(friction=mus, friction_aware=friction_aware,
+                               iterations=iterations, seed=seed, pressure=pressure, configurations=configurations,
+                               mass_range=mass_range, lateral_std=lateral_std, compliance=compliance, chi=chi,
+                               vfcc_law=vfcc_law, plant_options=plant_options, params=params, out=out)
     params = params or presets.paper()
     model = Model(params)
     truth = Model(plant_options.params) if plant_options is not None and plant_options.params is not None else model
@@ -315,6 +327,155 @@ def table1(*, iterations: int = 5, seed: int = 0, pressure: float = PRESSURE,
         _finish_axes(fig, axs, "tip error [mm]")
     _write(out, "table1", res, fig)
     return res
+
+
+# ============================================================================== Table I with tendon friction
+#: the tip error the friction study counts iterations to [m] (0.1 mm)
+FRICTION_REACH = 1e-4
+
+
+def _friction_values(friction) -> list:
+    """The plant friction coefficients μ of the friction study: a non-empty sequence of numbers in 0 … 1."""
+    from ancf.errors import InputError
+    from ancf.params import TENDON_FRICTION_MAX
+    try:
+        mus = [float(x) for x in friction]
+    except (TypeError, ValueError):
+        raise InputError(f"friction must be a sequence of coefficients μ, got {friction!r}") from None
+    if not mus or not all(0.0 <= x <= TENDON_FRICTION_MAX for x in mus):
+        raise InputError(f"friction needs at least one μ, each in 0 … {TENDON_FRICTION_MAX:g}, got {friction!r}")
+    return mus
+
+
+def _friction_plant(params, plant_options: Optional[PlantOptions], mu: float) -> PlantOptions:
+    """``plant_options`` (default: the perfect plant) with the plant actuator's ``tendon_friction`` set to μ."""
+    import dataclasses
+    base = plant_options or PlantOptions()
+    return dataclasses.replace(base, params=(base.params or params).replace(tendon_friction=mu))
+
+
+def _at(history: list, k: int) -> float:
+    """The error after ``k`` corrections (the last one when the run stopped earlier)."""
+    return float(history[min(k, len(history) - 1)])
+
+
+def _reach_text(its, history) -> str:
+    """The iterations to 0.1 mm, or "> k (the error after the last [mm])"."""
+    return str(its) if its is not None else f"> {len(history) - 1} ({1e3 * history[-1]:.3f})"
+
+
+def _friction_entry(core: dict, name: str, iterations: int) -> dict:
+    """One configuration of the friction study from a Table I run of ``reach_iterations`` corrections: the errors
+    after ``iterations`` (the run's prefix: a deterministic plant and controllers), LACC's reach."""
+    c = core[name]
+    lh = [float(x) for x in c["lacc_history"]]
+    reach = next((k for k, e in enumerate(lh) if e < FRICTION_REACH), None)
+    return {"vfcc_error": _at(c["vfcc_history"], iterations), "lacc_error": _at(lh, iterations),
+            "vfcc_history": c["vfcc_history"][:iterations + 1], "lacc_history": lh,
+            "lacc_iterations_to_0.1mm": reach, "lacc_error_last": lh[-1], "load": c["load"],
+            "load_mass_g": c["load_mass_g"], "target": c["target"], "failures": c["failures"],
+            "vfcc_mm": 1e3 * _at(c["vfcc_history"], iterations), "lacc_mm": 1e3 * _at(lh, iterations)}
+
+
+def _aware_run(plant_params, pressure, entry: dict, iterations: int, plant_options: PlantOptions) -> dict:
+    """The friction-aware LACC (its model: the plant's actuator, μ included) on the configuration's plant."""
+    from controller.friction_aware import FrictionAwareLACC
+    truth = Model(plant_params)
+    ctrl = FrictionAwareLACC(truth, pressure, tolerance=0.0)
+    r = run_iterations(ctrl, SimulatedPlant(truth, pressure, load=entry["load"], options=plant_options),
+                       entry["target"], iterations=iterations, stop_at_tolerance=False, on_error="stop")
+    return {"aware_error": r.final_error, "aware_mm": 1e3 * r.final_error, "aware_history": r.errors,
+            "aware_iterations_to_0.1mm": r.iterations_to(FRICTION_REACH),
+            "aware_compute_s_median": statistics.median(r.compute_times) if r.compute_times else None,
+            **({"failures_aware": r.failure} if r.failure else {})}
+
+
+def table1_friction(*, friction: Sequence[float] = (0.0, 0.1, 0.3), friction_aware: bool = False,
+                    iterations: int = 5, reach_iterations: int = 20, seed: int = 0, pressure: float = PRESSURE,
+                    configurations: Optional[dict] = None, mass_range=(0.02, 0.06), lateral_std: float = 0.03,
+                    compliance: str = "exact", chi: float = 10.0, vfcc_law: str = "proportional",
+                    plant_options: Optional[PlantOptions] = None, params=None, out: PathLike = None) -> dict:
+    """Table I on a plant with tendon friction (docs/friction.md, "Controller on a plant with friction").
+
+    For each plant coefficient μ in ``friction`` the plant actuator's ``tendon_friction`` is μ (the capstan
+    law with its stick/slip history, :mod:`hardware.simulated`), the controllers' model frictionless; the
+    loads are the seeded draws of :func:`table1` (the same for every μ: the IK that vets them ignores friction).
+    VF-CC and LACC(``compliance``) make ``reach_iterations`` corrections; the table gives the errors after
+    ``iterations`` (the runs' prefix — μ = 0 is :func:`table1`'s numbers) and how far LACC gets: the iterations
+    to 0.1 mm, or the error after the last.  With ``friction_aware`` each μ > 0 also runs
+    :class:`controller.friction_aware.FrictionAwareLACC` whose model is the plant's actuator (μ included) for
+    ``iterations`` corrections.
+
+    Returns ``{"friction": {f"{μ:g}": {configuration: {vfcc_error, lacc_error [m] after ``iterations``,
+    vfcc_history, lacc_history [m], "lacc_iterations_to_0.1mm" (None: not within ``reach_iterations``),
+    lacc_error_last [m], load [N], target [m], aware_error / aware_history / "aware_iterations_to_0.1mm",
+    mm copies}}}, "table": str, "settings": {...}}``."""
+    from ancf.errors import InputError
+    mus = _friction_values(friction)
+    if isinstance(reach_iterations, bool) or not isinstance(reach_iterations, (int, np.integer)) \
+            or not iterations <= reach_iterations <= 200:
+        raise InputError(f"reach_iterations must be an integer in [iterations = {iterations}, 200], "
+                         f"got {reach_iterations!r}")
+    params = params or presets.paper()
+    res: dict = {"friction": {}}
+    rows = []
+    for mu in mus:
+        opts = _friction_plant(params, plant_options, mu)
+        core = table1(iterations=reach_iterations, seed=seed, pressure=pressure, configurations=configurations,
+                      mass_range=mass_range, lateral_std=lateral_std, compliance=compliance, compare=None, chi=chi,
+                      vfcc_law=vfcc_law, plant_options=opts, params=params)
+        block = {}
+        for name in (k for k in core if k not in ("table", "settings")):
+            e = block[name] = _friction_entry(core, name, iterations)
+            if friction_aware and mu > 0:
+                e.update(_aware_run(opts.params, pressure, e, iterations, opts))
+            rows.append(_friction_row(mu, name, e, friction_aware))
+        res["friction"][f"{mu:g}"] = block
+    header = ["plant μ", "config", "load g", "VF-CC mm", f"LACC({compliance}) mm", "LACC iters to 0.1 mm (mm)"]
+    if friction_aware:
+        header += ["friction-aware LACC mm", "iters to 0.1 mm"]
+    res["table"] = (_fmt_table(header, rows) + f"\nerrors after {iterations} corrections; LACC runs up to "
+                    f"{reach_iterations}; controllers' model frictionless"
+                    + (", the friction-aware LACC's the plant's actuator" if friction_aware else ""))
+    res["settings"] = {"friction": mus, "friction_aware": friction_aware, "iterations": iterations,
+                       "reach_iterations": reach_iterations, "seed": seed, "pressure_Pa": pressure,
+                       "compliance": compliance, "actuator": params.name,
+                       "plant": plant_summary(params, plant_options)["text"]}
+    fig = _friction_figure(res, friction_aware) if out is not None else None
+    _write(out, "table1", res, fig)
+    return res
+
+
+def _friction_row(mu: float, name: str, e: dict, aware: bool) -> list:
+    """One row of the friction study's table."""
+    row = [f"{mu:g}", name, f"{e['load_mass_g']:.1f}", f"{e['vfcc_mm']:.3f}", f"{e['lacc_mm']:.4f}",
+           _reach_text(e["lacc_iterations_to_0.1mm"], e["lacc_history"])]
+    if aware:
+        if "aware_history" in e:
+            row += [f"{e['aware_mm']:.4f}", _reach_text(e["aware_iterations_to_0.1mm"], e["aware_history"])]
+        else:
+            row += ["–", "–"]
+    return row
+
+
+def _friction_figure(res: dict, aware: bool):
+    """LACC's error history per configuration, one line per plant μ (the friction-aware LACC dashed)."""
+    plt = _pyplot()
+    blocks = res["friction"]
+    names = list(next(iter(blocks.values())))
+    fig, axs = plt.subplots(1, len(names), figsize=(4.2 * len(names), 3.6), sharey=True)
+    for ax, name in zip(np.atleast_1d(axs), names):
+        for i, (mu, block) in enumerate(blocks.items()):
+            h = np.maximum(np.array(block[name]["lacc_history"]) * 1e3, 1e-7)
+            ax.semilogy(np.arange(h.size), h, "o-", color=f"C{i}", ms=3, label=f"LACC, plant μ = {mu}")
+            if aware and "aware_history" in block[name]:
+                h = np.maximum(np.array(block[name]["aware_history"]) * 1e3, 1e-7)
+                ax.semilogy(np.arange(h.size), h, "s--", color=f"C{i}", ms=3, label=f"friction-aware, μ = {mu}")
+        ax.axhline(0.1, color="k", lw=0.8, ls="--")
+        ax.set_title(name)
+        ax.set_xlabel("iteration")
+    _finish_axes(fig, axs, "tip error [mm]")
+    return fig
 
 
 # ============================================================================== ablation

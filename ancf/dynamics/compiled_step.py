@@ -1,0 +1,485 @@
+r"""Compiled (numba) output rows of a transient run: the generalized-α step, its Newton iterations with the
+exact iteration matrix, and the recorder's per-row quantities, without leaving compiled code between rows.
+
+Why: at n = 6 one assembly costs ≈ 0.03 ms, while the Python around it (the plant's closures, the reductions
+to free coordinates, the recorder's energy parts, the signals and their checks) cost ≈ 10× that per step; a
+1 kHz control loop driving the dynamic plant needs a step well under 1 ms.
+
+What is the same as the Python path (:mod:`.transient`, :mod:`.integrator`; tested against it to round-off,
+``tests/test_dynamics_compiled.py``): the residual r = M z̈ + g(z, ż) with the tendons by tension or by length
+(one-sided springs capped at the holding force, the tangent k ∇l ∇lᵀ of the taut ones), the pressure (held,
+or the first-order supply's trapezoidal rule), the tip force, the Rayleigh matrix, the Kelvin–Voigt axial
+damping, the tool-point inertia; the predictor (z̈_n or −ρ∞ z̈_n), Newton with the convergence tests and the
+backtracking of :func:`.integrator.alpha_step`; the substeps h / 2^base of a refined run and their energy
+bookkeeping (work of the loads, dissipation: trapezoidal sums); each row's state, tool point, tensions,
+pressure, kinetic and potential energy and Newton iterations.
+
+What is not here — the kernel stops *before* the row instead and returns its index (:data:`FALLBACK`), and the
+caller runs that row in Python, which halves the step, records the event or raises the typed error exactly as
+before: a step whose Newton iteration fails for any reason (domain, singular matrix, no convergence, not
+finite), and a supply pressure outside the actuator's limits.  Signals that vary in time and pressure-dependent
+stiffness laws never reach the kernel (:meth:`ancf.dynamics.transient._FastRows.eligible` says which runs take it).
+
+Inputs come from :mod:`.transient`, which checks their shapes and dtypes (:func:`check_inputs`) before the
+first call.  Layout of the scalar vector ``par`` (float64): the ``P_*`` indices below.  The array tuple
+``arr``: (q_fix (ndof,), P (ndof, nz) or (1, 1), N (nq, 3, 4), wq (nq,), ea, ei, vc (polynomial
+coefficients), mg (3,), E (3, 3), d, co, so (m,), M0 (ndof, ndof), Mz_const (nz, nz), C_R (nz, nz) (zeros
+without Rayleigh damping), T (m,) [N] prescribed tensions, l0 (m,) [m] prescribed lengths, F_tot (3,) [N] tip
+force plus tip weight, F_w (3,) [N] tip weight, F (3,) [N] tip force).  The previous row's point ``prev``:
+(E0 [J], V [m³], p_end (3,) [m], dissipated power [W], pressure [Pa], t [s], tendon lengths (m,) [m]).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ..assembly import assemble
+from ..compiled_solvers import reduce_mat, reduce_rows, reduce_vec, tip_jacobian, tip_position, to_full
+
+#: kernel results: every row asked for done, or stopped before ``row`` (the caller runs it in Python)
+DONE, FALLBACK = 0, 1
+
+#: indices into ``par``
+(P_N, P_USEP, P_HTOOL, P_CAX, P_HASCR, P_MTIP, P_TIPMOVES, P_FSCALE, P_LMODE, P_KPEN, P_FHOLD, P_SHOLD, P_TAU,
+ P_PC, P_CHECKP, P_PMIN, P_PMAX, P_RHO, P_AM, P_AF, P_GAMMA, P_BETA, P_H, P_HSUB, P_MAXIT, P_VARYING,
+ P_BAND) = range(27)
+N_PAR = 27
+#: length of ``prev`` before the tendon lengths
+N_PREV = 8
+#: Newton tolerances of a step (as :meth:`ancf.dynamics.transient._Stepper.advance` passes them)
+RTOL, ATOL, VTOL = 1e-14, 0.0, 1e-7
+
+
+def check_inputs(arr: tuple, par: np.ndarray, state: np.ndarray, prev: np.ndarray, nz: int, m: int) -> None:
+    """TypeError / ValueError for an input the kernels cannot take (the boundary check before any call):
+    float64 C-contiguous arrays of the shapes the module docstring lists."""
+    ndof = arr[0].shape[0]
+    shapes = [(ndof,), None, None, None, None, None, None, (3,), (3, 3), (m,), (m,), (m,), (ndof, ndof),
+              (nz, nz), (nz, nz), (m,), (m,), (3,), (3,), (3,)]
+    if len(arr) != len(shapes):
+        raise ValueError(f"compiled_step: {len(arr)} arrays, expected {len(shapes)}")
+    for k, (a, s) in enumerate(zip(arr, shapes)):
+        if not (isinstance(a, np.ndarray) and a.dtype == np.float64 and a.flags.c_contiguous):
+            raise TypeError(f"compiled_step: array {k} must be float64 and C-contiguous")
+        if s is not None and a.shape != s:
+            raise ValueError(f"compiled_step: array {k} has shape {a.shape}, expected {s}")
+    for name, a, s in (("par", par, (N_PAR,)), ("state", state, (5, nz)), ("prev", prev, (N_PREV + m,))):
+        if not (a.dtype == np.float64 and a.flags.c_contiguous and a.shape == s):
+            raise ValueError(f"compiled_step: {name} must be float64 C-contiguous of shape {s}, got {a.shape}")
+    if not np.all(np.isfinite(par)[[i for i in range(N_PAR) if i not in (P_FHOLD, P_SHOLD)]]):
+        raise ValueError("compiled_step: par must be finite (the holding force may be inf)")
+
+
+@njit(cache=True, nogil=True)
+def axial_damping_c(q, v, n, N, wq, c_a, tangents):
+    """:func:`ancf.dynamics.damping.axial_damping` in compiled form: (Q_d (ndof,), ∂Q_d/∂q, ∂Q_d/∂q̇ (ndof,
+    ndof); the matrices zero unless ``tangents``)."""
+    ndof = q.size
+    Q = np.zeros(ndof)
+    Dq = np.zeros((ndof, ndof))
+    Dv = np.zeros((ndof, ndof))
+    rx = np.empty(3)
+    vx = np.empty(3)
+    for e in range(n):
+        o = 6 * e
+        for k in range(wq.size):
+            for c in range(3):
+                rx[c] = 0.0
+                vx[c] = 0.0
+                for j in range(4):
+                    rx[c] += N[k, 1, j] * q[o + 3 * j + c]
+                    vx[c] += N[k, 1, j] * v[o + 3 * j + c]
+            w = c_a * wq[k]
+            ed = rx[0] * vx[0] + rx[1] * vx[1] + rx[2] * vx[2]
+            for j in range(4):
+                for c in range(3):
+                    Q[o + 3 * j + c] += w * ed * N[k, 1, j] * rx[c]
+            if tangents:
+                for j in range(4):
+                    for l in range(4):
+                        ss = w * N[k, 1, j] * N[k, 1, l]
+                        for c in range(3):
+                            Dq[o + 3 * j + c, o + 3 * l + c] += ss * ed
+                            for dd in range(3):
+                                Dv[o + 3 * j + c, o + 3 * l + dd] += ss * rx[c] * rx[dd]
+                                Dq[o + 3 * j + c, o + 3 * l + dd] += ss * rx[c] * vx[dd]
+    return Q, Dq, Dv
+
+
+@njit(cache=True, nogil=True)
+def _tip_force(s, vs, xr, xs, h, m, t, A, out):
+    """:func:`ancf.dynamics.mass._tip_force_c` (m J_pᵀ p̈ on the tip node, complex arithmetic for the complex
+    step) without temporary arrays: t, A (3,) complex work arrays."""
+    s2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2]
+    sn = np.sqrt(s2)
+    for c in range(3):
+        t[c] = s[c] / sn
+    tx = t[0] * xs[0] + t[1] * xs[1] + t[2] * xs[2]
+    tu = t[0] * vs[0] + t[1] * vs[1] + t[2] * vs[2]
+    uu = vs[0] * vs[0] + vs[1] * vs[1] + vs[2] * vs[2]
+    for c in range(3):
+        A[c] = xr[c] + h * ((xs[c] - t[c] * tx) / sn - (2 * tu * (vs[c] - t[c] * tu) + t[c] * (uu - tu * tu)) / s2)
+    tA = t[0] * A[0] + t[1] * A[1] + t[2] * A[2]
+    for c in range(3):
+        out[c] = m * A[c]
+        out[3 + c] = m * h * (A[c] - t[c] * tA) / sn
+
+
+@njit(cache=True, nogil=True)
+def tool_point_inertia_c(s, vs, xr, xs, h, m):
+    """:func:`ancf.dynamics.mass.tool_point_inertia` (the same complex steps) with its work arrays allocated
+    once: (f (6,) [N], ∂f/∂s (6, 3), ∂f/∂v_s (6, 3), the mass block (6, 6))."""
+    eps = 1e-30
+    f = np.empty(6, np.complex128)
+    t = np.empty(3, np.complex128)
+    A = np.empty(3, np.complex128)
+    sc = s.astype(np.complex128)
+    vc = vs.astype(np.complex128)
+    xrc = xr.astype(np.complex128)
+    xsc = xs.astype(np.complex128)
+    _tip_force(sc, vc, xrc, xsc, h, m, t, A, f)
+    out = f.real.copy()
+    Ds = np.empty((6, 3))
+    Dv = np.empty((6, 3))
+    for j in range(3):
+        sc[j] += 1j * eps
+        _tip_force(sc, vc, xrc, xsc, h, m, t, A, f)
+        sc[j] = s[j]
+        for i in range(6):
+            Ds[i, j] = f[i].imag / eps
+        vc[j] += 1j * eps
+        _tip_force(sc, vc, xrc, xsc, h, m, t, A, f)
+        vc[j] = vs[j]
+        for i in range(6):
+            Dv[i, j] = f[i].imag / eps
+    sn = np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
+    J = np.zeros((3, 6))
+    for c in range(3):
+        J[c, c] = 1.0
+        for d in range(3):
+            J[c, 3 + d] = h * ((1.0 if c == d else 0.0) - s[c] * s[d] / (sn * sn)) / sn
+    return out, Ds, Dv, m * (J.T @ J)
+
+
+@njit(cache=True, nogil=True)
+def _values(q, arr, par):
+    """(E0 [J] the energy without tendon and pressure loads, tendon lengths (m,) [m]) at q."""
+    N, wq, ea, ei, vc, mg, E, d, co, so = arr[2:12]
+    En, _, _, lc, _, _, _ = assemble(q, int(par[P_N]), N, wq, ea, ei, 0.0 * vc, mg, E, d, co, so,
+                                     np.zeros(d.size), par[P_HTOOL], arr[18], False, 1)
+    return En, lc
+
+
+@njit(cache=True, nogil=True)
+def _springs(lq, l0, par):
+    """Tensions (m,) [N] of tendons held by length: k max(0, l − l0) capped at the holding force."""
+    T = np.empty(lq.size)
+    for i in range(lq.size):
+        T[i] = min(par[P_KPEN] * max(lq[i] - l0[i], 0.0), par[P_FHOLD])
+    return T
+
+
+@njit(cache=True, nogil=True)
+def _system(z1, v1, x, pr1, arr, par):
+    """The integrator's system (:meth:`ancf.dynamics.transient._Plant.system`): (admissible, r (nz,) [N], M,
+    K_t, C_t (nz, nz), force scale [N], Π [J] the potential under the step's loads, ∂Π/∂z (nz,))."""
+    q_fix, P, N, wq, ea, ei, vc, mg, E, d, co, so = arr[:12]
+    Mz_c, C_R, T_fix, l0, F_tot = arr[13], arr[14], arr[15], arr[16], arr[17]
+    use_P, n = par[P_USEP] > 0, int(par[P_N])
+    lmode = par[P_LMODE] > 0
+    q = to_full(z1, q_fix, P, use_P)
+    T1 = T_fix
+    if lmode:
+        T1 = _springs(_values(q, arr, par)[1], l0, par)
+    En, Q, K, _, Jl, _, _ = assemble(q, n, N, wq, ea, ei, pr1 * vc, mg, E, d, co, so, T1, par[P_HTOOL], F_tot,
+                                     True, 2 if lmode else 0)
+    nz = z1.size
+    if not np.isfinite(En):
+        return False, np.zeros(nz), Mz_c, Mz_c, Mz_c, 0.0, En, np.zeros(nz)
+    Qr = reduce_vec(Q, P, use_P)
+    r = Mz_c @ x + Qr
+    Kt = reduce_mat(K, P, use_P)
+    Mz = Mz_c
+    Ct = C_R
+    if par[P_HASCR] > 0:
+        r += C_R @ v1
+    if par[P_CAX] > 0:
+        vq = to_full(v1, np.zeros(q.size), P, use_P)
+        Qd, Dq, Dv = axial_damping_c(q, vq, n, N, wq, par[P_CAX], True)
+        r += reduce_vec(Qd, P, use_P)
+        Kt = Kt + reduce_mat(Dq, P, use_P)
+        Ct = Ct + reduce_mat(Dv, P, use_P)
+    if par[P_TIPMOVES] > 0:
+        fi, Ds, Dvs, B = tool_point_inertia_c(q[-3:].copy(), v1[-3:].copy(), x[-6:-3].copy(), x[-3:].copy(),
+                                            par[P_HTOOL], par[P_MTIP])
+        r[-6:] += fi
+        Mz = Mz_c.copy()
+        Mz[-6:, -6:] += B
+        Kt[-6:, -3:] += Ds
+        Ct = Ct.copy()
+        Ct[-6:, -3:] += Dvs
+    if lmode:
+        JA = reduce_rows(Jl, P, use_P)
+        for i in range(T1.size):
+            if T1[i] > 0 and T1[i] < par[P_FHOLD]:
+                g = JA[i]
+                Kt = Kt + par[P_KPEN] * np.outer(g, g)
+    return True, r, Mz, Kt, Ct, par[P_FSCALE] + np.linalg.norm(Mz @ x), En, Qr
+
+
+@njit(cache=True, nogil=True)
+def _solve(J, r):
+    """(ok, J⁻¹ r): LU with partial pivoting (LAPACK, as np.linalg.solve); not ok for a singular J."""
+    try:
+        return True, np.linalg.solve(J, r)
+    except Exception:  # noqa: BLE001 — numba raises LinAlgError for an exactly singular pivot
+        return False, r
+
+
+@njit(cache=True, nogil=True)
+def band_solve(A, b, kl, ku):
+    """(ok, A⁻¹ b) for A (n, n) with at most kl sub- and ku super-diagonals: Gaussian elimination with partial
+    pivoting inside the band (row exchanges widen the upper band to kl + ku); not ok for an exactly zero pivot
+    (where LAPACK's gesv, i.e. np.linalg.solve, raises)."""
+    n = A.shape[0]
+    M = A.copy()
+    x = b.copy()
+    for k in range(n):
+        last = min(n - 1, k + kl)
+        cend = min(n - 1, k + kl + ku)
+        p = k
+        for i in range(k + 1, last + 1):
+            if abs(M[i, k]) > abs(M[p, k]):
+                p = i
+        if M[p, k] == 0.0:
+            return False, x
+        if p != k:
+            for j in range(k, cend + 1):
+                M[k, j], M[p, j] = M[p, j], M[k, j]
+            x[k], x[p] = x[p], x[k]
+        for i in range(k + 1, last + 1):
+            f = M[i, k] / M[k, k]
+            if f != 0.0:
+                for j in range(k + 1, cend + 1):
+                    M[i, j] -= f * M[k, j]
+                x[i] -= f * x[k]
+    for i in range(n - 1, -1, -1):
+        t = x[i]
+        for j in range(i + 1, min(n, i + kl + ku + 1)):
+            t -= M[i, j] * x[j]
+        x[i] = t / M[i, i]
+    return True, x
+
+
+@njit(cache=True, nogil=True)
+def _evaluate(x, k, a_const, z_pred, v_pred, h, pr1, arr, par):
+    a1 = k * x + a_const
+    z1 = z_pred + h * h * par[P_BETA] * a1
+    v1 = v_pred + h * par[P_GAMMA] * a1
+    ok, r, M, Kt, Ct, scale, En, Qr = _system(z1, v1, x, pr1, arr, par)
+    return ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr
+
+
+@njit(cache=True, nogil=True)
+def alpha_step_c(z, v, acc, a, prev_acc, has_prev, h, pr1, arr, par):
+    """:func:`ancf.dynamics.integrator.alpha_step` (rtol, atol, vtol = RTOL, ATOL, VTOL): (ok, z, v, z̈, a,
+    Newton iterations, Π [J] at the new z); not ok where the Python step raises StepFailed.  Π is the potential
+    under the step's loads (:func:`_system`), at the last evaluated state plus ∂Π/∂z · Δz when the last update
+    moved z by Δz without a new evaluation (|Δz| ≤ h·VTOL: the neglected ½ Δzᵀ K Δz is far below round-off of
+    Π); the linear system is solved in the band of ``par[P_BAND]`` diagonals when that is ≥ 0."""
+    rho, am, af, gam, beta = par[P_RHO], par[P_AM], par[P_AF], par[P_GAMMA], par[P_BETA]
+    k = (1.0 - af) / (1.0 - am)
+    bp, gp = h * h * beta * k, h * gam * k
+    x = acc.copy()
+    if has_prev and np.linalg.norm(acc + rho * prev_acc) < np.linalg.norm(acc - prev_acc):
+        x = -rho * acc
+    a_const = (af * acc - am * a) / (1.0 - am)
+    z_pred = z + h * v + h * h * (0.5 - beta) * a
+    v_pred = v + h * (1.0 - gam) * a
+    ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = _evaluate(x, k, a_const, z_pred, v_pred, h, pr1, arr, par)
+    if not ok:
+        x = ((z - z_pred) / (h * h * beta) - a_const) / k
+        ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = _evaluate(x, k, a_const, z_pred, v_pred, h, pr1, arr, par)
+        if not ok:
+            return False, z, v, acc, a, 0, 0.0
+    band = int(par[P_BAND])
+    for it in range(1, int(par[P_MAXIT]) + 1):
+        rn = np.linalg.norm(r)
+        if not np.isfinite(rn):
+            return False, z, v, acc, a, it, 0.0
+        if rn <= ATOL + RTOL * scale:
+            return True, z1, v1, x, a1, it, En
+        J = np.empty_like(M)
+        for i in range(M.shape[0]):
+            for j in range(M.shape[1]):
+                J[i, j] = (M[i, j] + gp * Ct[i, j]) + bp * Kt[i, j]
+        if band >= 0:
+            solved, dx = band_solve(J, r, band, band)
+        else:
+            solved, dx = _solve(J, r)
+        if not solved:
+            return False, z, v, acc, a, it, 0.0
+        if gp * np.abs(dx).max() <= VTOL:
+            x = x - dx
+            a1 = k * x + a_const
+            zn = z_pred + h * h * beta * a1
+            return True, zn, v_pred + h * gam * a1, x, a1, it, En + Qr @ (zn - z1)
+        lam = 1.0
+        moved = False
+        for _ in range(10):
+            ok, a1n, z1n, v1n, rn_, Mn, Ktn, Ctn, scn, Enn, Qrn = _evaluate(x - lam * dx, k, a_const, z_pred,
+                                                                            v_pred, h, pr1, arr, par)
+            if ok:
+                x = x - lam * dx
+                a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = a1n, z1n, v1n, rn_, Mn, Ktn, Ctn, scn, Enn, Qrn
+                moved = True
+                break
+            lam *= 0.5
+        if not moved:
+            return False, z, v, acc, a, it, 0.0
+    return False, z, v, acc, a, int(par[P_MAXIT]), 0.0
+
+
+@njit(cache=True, nogil=True)
+def potential_known(par):
+    """True when a row's potential is the step's own Π (:func:`alpha_step_c`): tensions prescribed and no load
+    varying (then Π = E0 + T·l − p V − F·p_end under the row's loads, and no work of the loads is summed)."""
+    return par[P_LMODE] == 0 and par[P_VARYING] == 0
+
+
+@njit(cache=True, nogil=True)
+def _point(z, v, pr, t, arr, par, out):
+    """The row quantities of the state (z, v) at t [s] under pressure pr [Pa] (the recorder's point): writes
+    (E0, V, p_end, power, pr, t, lengths) to ``out`` (``prev`` layout); returns (q, vq, T).  When
+    :func:`potential_known` only p_end, the power and t are needed: E0, V and the lengths are left at 0."""
+    q_fix, P, N, wq = arr[0], arr[1], arr[2], arr[3]
+    vc, C_R = arr[6], arr[14]
+    use_P, n = par[P_USEP] > 0, int(par[P_N])
+    q = to_full(z, q_fix, P, use_P)
+    vq = to_full(v, np.zeros(q.size), P, use_P)
+    known = potential_known(par)
+    if known:
+        E0, lq = 0.0, np.zeros(arr[15].size)
+    else:
+        E0, lq = _values(q, arr, par)
+    T = _springs(lq, arr[16], par) if par[P_LMODE] > 0 else arr[15].copy()
+    V = 0.0
+    for e in range(n if not known else 0):
+        o = 6 * e
+        for kq in range(wq.size):
+            s0 = s1 = s2 = 0.0
+            for j in range(4):
+                s0 += N[kq, 1, j] * q[o + 3 * j]
+                s1 += N[kq, 1, j] * q[o + 3 * j + 1]
+                s2 += N[kq, 1, j] * q[o + 3 * j + 2]
+            lam = np.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+            acc = 0.0
+            for c in range(vc.size):
+                acc += vc[c] * lam ** (c + 1)
+            V += wq[kq] * acc
+    pw = 0.0
+    if par[P_HASCR] > 0:
+        pw += (v @ C_R) @ v
+    if par[P_CAX] > 0:
+        pw += vq @ axial_damping_c(q, vq, n, N, wq, par[P_CAX], False)[0]
+    pe = tip_position(q, par[P_HTOOL])
+    out[0], out[1], out[2:5], out[5], out[6], out[7] = E0, V, pe, pw, pr, t
+    out[N_PREV:] = lq
+    return q, vq, T
+
+
+@njit(cache=True, nogil=True)
+def potential(pt, T, pr, arr, par):
+    """Π [J] of the point ``pt`` (``prev`` layout) under tensions T [N] (or the run's lengths) and pressure pr
+    [Pa] (:meth:`ancf.dynamics.transient._EnergyParts.potential`)."""
+    F = arr[19]
+    Pi = pt[0] - pr * pt[1] - (F[0] * pt[2] + F[1] * pt[3] + F[2] * pt[4])
+    lq = pt[N_PREV:]
+    if par[P_LMODE] > 0:
+        l0 = arr[16]
+        s = 0.0
+        for i in range(lq.size):
+            st = max(lq[i] - l0[i], 0.0)
+            sc = min(st, par[P_SHOLD])
+            s += 0.5 * par[P_KPEN] * sc ** 2
+            if np.isfinite(par[P_FHOLD]):
+                s += par[P_FHOLD] * (st - sc)
+        Pi += s
+    else:
+        Pi += T @ lq
+    return Pi
+
+
+@njit(cache=True, nogil=True)
+def _increment(pa, pb, T, arr, par):
+    """(work [J] of the time-varying loads, dissipation [J]) from point pa to point pb (trapezoids)."""
+    dW = 0.0
+    if par[P_VARYING] > 0:
+        dW = 0.5 * ((potential(pa, T, pb[6], arr, par) - potential(pa, T, pa[6], arr, par))
+                    + (potential(pb, T, pb[6], arr, par) - potential(pb, T, pa[6], arr, par)))
+    return dW, 0.5 * (pb[5] + pa[5]) * (pb[7] - pa[7])
+
+
+@njit(cache=True, nogil=True)
+def _pressure_at(t1, t0, p0, par):
+    """The pressure [Pa] at t1: held, or the supply's trapezoidal rule from p0 at t0."""
+    if not par[P_TAU] > 0:
+        return par[P_PC]
+    c = (t1 - t0) / (2 * par[P_TAU])
+    return (p0 * (1 - c) + c * (par[P_PC] + par[P_PC])) / (1 + c)
+
+
+@njit(cache=True, nogil=True)
+def run_rows(i0, i1, times, state, sc, prev, arr, par, o_q, o_v, o_tip, o_T, o_p, o_kin, o_pot, o_work, o_diss,
+             o_it):
+    """Rows i0 … i1 − 1 of a run from the state (z, ż, z̈, a, previous z̈) = ``state`` (5, nz) at
+    (has previous z̈, t [s], pressure [Pa]) = ``sc``, the last row's point ``prev``; writes the rows into the
+    output arrays (the recorder's) and updates state, sc and prev in place.  Returns (DONE, i1) or
+    (FALLBACK, i): row i not done, the state at row i − 1 (module docstring)."""
+    h, hsub = par[P_H], par[P_HSUB]
+    M0 = arr[12]
+    pb = np.empty(prev.size)
+    for i in range(i0, i1):
+        z, v, acc, a, pacc = state[0].copy(), state[1].copy(), state[2].copy(), state[3].copy(), state[4].copy()
+        has_prev, tt, pr_s = sc[0] > 0, sc[1], sc[2]
+        t_target = times[i]
+        pa = prev.copy()
+        dW = dD = Pi = 0.0
+        n_it = 0
+        while t_target - tt > 1e-12 * h:
+            hh = min(hsub, t_target - tt)
+            if t_target - tt - hh < 1e-9 * hh:
+                hh = t_target - tt
+            t1 = t_target if hh == t_target - tt else tt + hh
+            pr1 = _pressure_at(t1, tt, pr_s, par)
+            if par[P_CHECKP] > 0 and not (par[P_PMIN] - 1e-9 <= pr1 <= par[P_PMAX] + 1e-9):
+                return FALLBACK, i
+            ok, z1, v1, acc1, a1, k, Pi = alpha_step_c(z, v, acc, a, pacc, has_prev, hh, pr1, arr, par)
+            if not ok:
+                return FALLBACK, i
+            n_it += k
+            pacc, z, v, acc, a, has_prev = acc, z1, v1, acc1, a1, True
+            tt, pr_s = t1, pr1
+            if t1 != t_target:
+                q, vq, T = _point(z, v, pr1, t1, arr, par, pb)
+                w, dd = _increment(pa, pb, T, arr, par)
+                dW, dD = dW + w, dD + dd
+                pa[:] = pb
+        q, vq, T = _point(z, v, pr_s, t_target, arr, par, pb)
+        w, dd = _increment(pa, pb, T, arr, par)
+        dW, dD = dW + w, dD + dd
+        o_q[i], o_v[i], o_tip[i], o_T[i], o_p[i] = q, vq, pb[2:5], T, pr_s
+        Mf = M0
+        if par[P_MTIP] > 0:
+            Jp = tip_jacobian(q, par[P_HTOOL])
+            Mf = M0 + par[P_MTIP] * Jp.T @ Jp
+        o_kin[i] = 0.5 * ((vq @ Mf) @ vq)
+        o_pot[i] = Pi if potential_known(par) else potential(pb, T, pr_s, arr, par)
+        o_it[i] = n_it
+        o_work[i] = o_work[i - 1] + dW
+        o_diss[i] = o_diss[i - 1] + dD
+        prev[:] = pb
+        state[0], state[1], state[2], state[3], state[4] = z, v, acc, a, pacc
+        sc[0], sc[1], sc[2] = 1.0 if has_prev else 0.0, tt, pr_s
+    return DONE, i1
