@@ -17,15 +17,21 @@ Run:  python benchmarks/bench_dynamics.py [--repeats 5]
    up; the target is ≥ 20×) and the time per step, beside the same run on the Python path (the compiled rows
    of ``ancf.dynamics.compiled_step`` switched off, ``transient.COMPILED_ROWS = False``), interleaved.
 
-All three runs use the compiled rows (constant loads).  Per-step times are wall time / steps, everything included
-(setup, the energy check, the output rows).  The machines are shared: read ratios of interleaved runs, not
-absolute times.
+4. **The dynamic simulated rig** (``SimulatedRig(..., dynamics=True)``, `paper`, ζ = 0.05, a 0.3 N load step and
+   small motor moves): wall time per 1 ms rig period — one short run of ``Model.simulate`` with the motor
+   lengths and the load as functions of time — with the compiled rows and on the Python path, interleaved.
+
+Runs 1–3 have constant loads; run 4's are time-varying (sampled on the step grid for the compiled rows).
+Per-step times are wall time / steps, everything included (setup, the energy check, the output rows).  The
+last line sets the `paper` 1 kHz real-time factor beside the cable's ratio to Exudyn, with the load average.
+The machines are shared: read ratios of interleaved runs, not absolute times.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import pathlib
 import statistics
 import sys
@@ -114,7 +120,38 @@ def main(repeats: int = 5) -> dict:
             print(f"   {dt * 1e3:8.2f} {w:9.3f} {2.0 / w:12.1f} {w / steps * 1e6:9.1f} {statistics.median(its):16.2f}"
                   f"   ({label})")
             out[label] = {"dt_s": dt, "wall_s": w, "real_time_factor": 2.0 / w, "us_per_step": w / steps * 1e6}
+    out["rig_period_ms"] = rig_periods(pm)
+    rtf = out["step response, 1 kHz loop"]["real_time_factor"]
+    ratio = out.get("cable_0.0005", {}).get("ratio")
+    print(f"summary: cable / Exudyn {'n/a' if ratio is None else f'{ratio:.2f}×'} time (dt = 0.5 ms); 'paper' at "
+          f"1 kHz {rtf:.1f}× real time (target ≥ 20×); load average {os.getloadavg()[0]:.1f}")
     return out
+
+
+def rig_periods(pm: Model, periods: int = 200) -> dict:
+    """Wall time [ms] per 1 ms period of the dynamic simulated rig, compiled rows and Python path interleaved
+    period by period on two identical rigs (medians)."""
+    from hardware import PlantOptions, SimulatedRig
+
+    ref = pm.fk((2.0, 1.0, 0.5), 30e3)
+    def load(t):
+        return np.array([0.0, 0.0, -0.3 if t >= 0.02 else 0.0])
+    rigs = {k: SimulatedRig(pm, 30e3, load=load, dynamics=True, options=PlantOptions(damping=0.05))
+            for k in (True, False)}
+    walls = {k: [] for k in rigs}
+    for k in range(periods):
+        for compiled, rig in rigs.items():
+            if k % 50 == 0:
+                rig.command(ref.tendon_lengths * (1 - 1e-4 * (k // 50)))
+            transient.COMPILED_ROWS = compiled
+            t0 = time.perf_counter()
+            rig.advance(1e-3)
+            walls[compiled].append(time.perf_counter() - t0)
+    transient.COMPILED_ROWS = True
+    res = {("compiled" if k else "python"): statistics.median(v[10:]) * 1e3 for k, v in walls.items()}
+    print(f"4. dynamic simulated rig, 'paper': wall time per 1 ms period {res['compiled']:.2f} ms (compiled rows), "
+          f"{res['python']:.2f} ms (Python path) — medians of {periods - 10}")
+    return res
 
 
 if __name__ == "__main__":

@@ -148,10 +148,77 @@ def test_the_supply_overshooting_the_limits_raises_as_before(paper, monkeypatch)
     assert msgs[0] == msgs[1] and "t = 0.01 s" in msgs[1]
 
 
-def test_varying_signals_take_the_python_path(paper, kernel_rows):
+def test_a_tension_ramp_and_a_sine_take_the_compiled_rows(paper, monkeypatch, kernel_rows):
+    """Tensions as functions of time (a ramp on tendon 1, a sine on tendon 2) with a time-varying tip force: the
+    signals sampled on the step grid give the Python path's run (work of the loads included)."""
     eq = paper.fk((2.0, 0.0, 0.0), P30)
-    sim = paper.simulate(0.02, 1e-3, q0=eq.q, tensions=lambda t: (2.0 + t, 0.0, 0.0), pressure=P30, damping=0.05)
-    assert len(sim.t) == 21 and kernel_rows["rows"] == 0
+    T = lambda t: (2.0 + 10.0 * min(t, 0.05), 0.5 + 0.5 * np.sin(2 * np.pi * 20.0 * t), 0.0)
+    F = lambda t: (0.0, 0.0, -0.2 * min(t / 0.04, 1.0))
+    ref, fast = both_paths(monkeypatch, paper, 0.08, 1e-3, q0=eq.q, tensions=T, pressure=P30, tip_force=F,
+                           damping=0.05)
+    assert_same_run(ref, fast)
+    assert abs(fast.work[-1]) > 1e-4 and fast.tensions[-1, 0] == pytest.approx(2.5)
+    assert kernel_rows["rows"] == len(fast.t) - 1
+
+
+def test_a_tension_table_in_a_refined_run(paper, monkeypatch, kernel_rows):
+    """A table signal (interpolated) sampled at the substeps of a run the energy check refines (substeps h/2^k
+    inside each row: the load table holds every substep end)."""
+    start = paper.fk((0.0, 0.0, 0.0), P30)
+    table = ([0.0, 0.05, 0.1], [[2.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 1.0, 0.0]])
+    ref, fast = both_paths(monkeypatch, paper, 0.1, 2e-2, q0=start.q, tensions=table, pressure=P30, damping=0.0)
+    assert_same_run(ref, fast)
+    assert "refined" in {e["kind"] for e in fast.events} and kernel_rows["rows"] > 0
+
+
+def test_motor_lengths_as_the_dynamic_rig_drives_them(springy, monkeypatch, kernel_rows):
+    """Motor lengths moving linearly between records (as hardware.sim_dynamics passes them), a tip load
+    function, the pressure supply, a holding force: the same run on both paths."""
+    eq = springy.fk((2.0, 1.0, 1.0), P30)
+    l0 = springy.rest_lengths(eq)
+    lengths = lambda t: l0 + np.array([-4e-3, 1e-3, 2e-3]) * min(t / 0.03, 1.0)
+    ref, fast = both_paths(monkeypatch, springy, 0.06, 1e-3, q0=eq.q, lengths=lengths, pressure=40e3,
+                           pressure_tau=0.01, pressure0=P30, tip_force=lambda t: (0.0, 0.0, -0.3 * (t > 0.02)),
+                           damping={"alpha": 5.0}, holding_force=6.0, rho_inf=0.6)
+    assert_same_run(ref, fast)
+    assert kernel_rows["rows"] == len(fast.t) - 1 and fast.pressure[-1] > 38e3
+
+
+def test_a_pressure_ramp_with_a_pressure_dependent_law(monkeypatch, kernel_rows):
+    """EA, EI scaled by f(p) while the pressure command ramps through the supply (τ): the law's factors on the
+    load table, the potential's p-dependent parts in the rows (work of the loads)."""
+    law = presets.paper().stiffness.with_pressure(EA=(0.3,), EI=(0.9,))
+    m = Model(presets.paper().replace(stiffness=law))
+    eq = m.fk((2.0, 0.0, 0.0), 0.0)
+    ref, fast = both_paths(monkeypatch, m, 0.08, 1e-3, q0=eq.q, tensions=(2.0, 0.0, 0.0),
+                           pressure=lambda t: 60e3 * min(t / 0.04, 1.0), pressure_tau=0.01, pressure0=0.0,
+                           damping={"alpha": 20.0})
+    assert_same_run(ref, fast)
+    assert abs(fast.work[-1]) > 1e-4 and kernel_rows["rows"] == len(fast.t) - 1
+    held = both_paths(monkeypatch, m, 0.03, 1e-3, q0=eq.q, tensions=(2.0, 0.0, 0.0), pressure=50e3,
+                      damping={"alpha": 20.0})
+    assert_same_run(*held)
+
+
+def test_a_signal_failing_between_output_rows_raises_as_before(paper, monkeypatch):
+    """Signals that are bad only between two output rows (0.04 s < t < 0.06 s at dt = 20 ms: the grid's check
+    up front passes) in a run the energy check refines (substeps between the rows): a negative tension, a NaN, a
+    pressure over the actuator's limit — the same typed error naming the same time (a substep's) on both paths."""
+    start = paper.fk((0.0, 0.0, 0.0), P30)
+    bad = lambda t: 0.041 < t < 0.059
+    cases = ({"tensions": lambda t: (-1.0 if bad(t) else 2.0, 0.0, 0.0), "pressure": P30},
+             {"tensions": lambda t: (np.nan if bad(t) else 2.0, 0.0, 0.0), "pressure": P30},
+             {"tensions": (2, 0, 0), "pressure": lambda t: 1e6 if bad(t) else P30})
+    for kw in cases:
+        msgs = []
+        for flag in (False, True):
+            monkeypatch.setattr(tr, "COMPILED_ROWS", flag)
+            with pytest.raises(BellowsError) as exc, warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                paper.simulate(0.1, 2e-2, q0=start.q, damping=0.0, **kw)
+            msgs.append((type(exc.value), str(exc.value)))
+        assert msgs[0] == msgs[1]
+        assert 0.04 < float(msgs[1][1].split("t = ")[1].split(" s")[0]) < 0.06        # a substep off the grid
 
 
 def test_progress_is_reported_for_every_row_in_order(paper):

@@ -14,19 +14,28 @@ backtracking of :func:`.integrator.alpha_step`; the substeps h / 2^base of a ref
 bookkeeping (work of the loads, dissipation: trapezoidal sums); each row's state, tool point, tensions,
 pressure, kinetic and potential energy and Newton iterations.
 
+Loads: the caller samples every signal in Python on the substep grid the kernel will walk (the *load table*,
+one row per substep end, row 0 the chunk's start: time, pressure — the signal's, or the supply's trapezoidal rule
+—, tensions or motor lengths, tip force, and the pressure factors (f_A, f_I) of a pressure-dependent stiffness
+law, EA(λ, p) = EA(λ) f_A(p)), with the same calls and arithmetic as the Python path, so time-varying signals
+(ramps, sines, tables, a rig's motor lengths) and pressure-dependent laws give the same numbers; a substep whose
+time is not the table's (a halved step) is never taken here.
+
 What is not here — the kernel stops *before* the row instead and returns its index (:data:`FALLBACK`), and the
 caller runs that row in Python, which halves the step, records the event or raises the typed error exactly as
 before: a step whose Newton iteration fails for any reason (domain, singular matrix, no convergence, not
-finite), and a supply pressure outside the actuator's limits.  Signals that vary in time and pressure-dependent
-stiffness laws never reach the kernel (:meth:`ancf.dynamics.transient._FastRows.eligible` says which runs take it).
+finite), and a load-table row the caller marked bad (a load outside the actuator's limits, a signal that raised).
 
 Inputs come from :mod:`.transient`, which checks their shapes and dtypes (:func:`check_inputs`) before the
 first call.  Layout of the scalar vector ``par`` (float64): the ``P_*`` indices below.  The array tuple
 ``arr``: (q_fix (ndof,), P (ndof, nz) or (1, 1), N (nq, 3, 4), wq (nq,), ea, ei, vc (polynomial
 coefficients), mg (3,), E (3, 3), d, co, so (m,), M0 (ndof, ndof), Mz_const (nz, nz), C_R (nz, nz) (zeros
 without Rayleigh damping), T (m,) [N] prescribed tensions, l0 (m,) [m] prescribed lengths, F_tot (3,) [N] tip
-force plus tip weight, F_w (3,) [N] tip weight, F (3,) [N] tip force).  The previous row's point ``prev``:
-(E0 [J], V [m³], p_end (3,) [m], dissipated power [W], pressure [Pa], t [s], tendon lengths (m,) [m]).
+force plus tip weight, F_w (3,) [N] tip weight, F (3,) [N] tip force — the loads at t = 0; the steps read
+theirs from the load table).  The previous row's point ``prev``: (E0 [J], V [m³], p_end (3,) [m], dissipated
+power [W], pressure [Pa], t [s], U_A, U_B [J] the axial and bending energies of a pressure-dependent law at p = 0
+(else 0), tendon lengths (m,) [m]).  The load table ``tab`` (k, L_VAR + 2m): the ``L_*`` columns below, then the
+tensions (m,) [N] and the motor lengths (m,) [m].
 """
 
 from __future__ import annotations
@@ -40,13 +49,17 @@ from ..compiled_solvers import reduce_mat, reduce_rows, reduce_vec, tip_jacobian
 #: kernel results: every row asked for done, or stopped before ``row`` (the caller runs it in Python)
 DONE, FALLBACK = 0, 1
 
-#: indices into ``par``
+#: indices into ``par`` (P_TAU, P_PC, P_CHECKP, P_PMIN, P_PMAX describe the run's pressure; the kernels read the
+#: pressures of the load table, which the caller makes with them)
 (P_N, P_USEP, P_HTOOL, P_CAX, P_HASCR, P_MTIP, P_TIPMOVES, P_FSCALE, P_LMODE, P_KPEN, P_FHOLD, P_SHOLD, P_TAU,
  P_PC, P_CHECKP, P_PMIN, P_PMAX, P_RHO, P_AM, P_AF, P_GAMMA, P_BETA, P_H, P_HSUB, P_MAXIT, P_VARYING,
- P_BAND) = range(27)
-N_PAR = 27
+ P_BAND, P_PDEP) = range(28)
+N_PAR = 28
 #: length of ``prev`` before the tendon lengths
-N_PREV = 8
+N_PREV = 10
+#: columns of the load table: time [s], pressure [Pa], usable (1) or not (0), pressure factors f_A, f_I,
+#: tip force (3,) [N], tip force plus tip weight (3,) [N]; then tensions (m,) and motor lengths (m,)
+L_T, L_PR, L_OK, L_FA, L_FI, L_F, L_FTOT, L_VAR = 0, 1, 2, 3, 4, 5, 8, 11
 #: Newton tolerances of a step (as :meth:`ancf.dynamics.transient._Stepper.advance` passes them)
 RTOL, ATOL, VTOL = 1e-14, 0.0, 1e-7
 
@@ -181,11 +194,16 @@ def _springs(lq, l0, par):
 
 
 @njit(cache=True, nogil=True)
-def _system(z1, v1, x, pr1, arr, par):
-    """The integrator's system (:meth:`ancf.dynamics.transient._Plant.system`): (admissible, r (nz,) [N], M,
-    K_t, C_t (nz, nz), force scale [N], Π [J] the potential under the step's loads, ∂Π/∂z (nz,))."""
+def _system(z1, v1, x, L, arr, par):
+    """The integrator's system (:meth:`ancf.dynamics.transient._Plant.system`) under the loads of the load-table
+    row L: (admissible, r (nz,) [N], M, K_t, C_t (nz, nz), force scale [N], Π [J] the potential under the step's
+    loads, ∂Π/∂z (nz,))."""
     q_fix, P, N, wq, ea, ei, vc, mg, E, d, co, so = arr[:12]
-    Mz_c, C_R, T_fix, l0, F_tot = arr[13], arr[14], arr[15], arr[16], arr[17]
+    Mz_c, C_R = arr[13], arr[14]
+    m = d.size
+    pr1, T_fix, l0, F_tot = L[L_PR], _tensions(L, m), _lengths(L, m), L[L_FTOT:L_FTOT + 3].copy()
+    if par[P_PDEP] > 0:
+        ea, ei = ea * L[L_FA], ei * L[L_FI]
     use_P, n = par[P_USEP] > 0, int(par[P_N])
     lmode = par[P_LMODE] > 0
     q = to_full(z1, q_fix, P, use_P)
@@ -273,18 +291,18 @@ def band_solve(A, b, kl, ku):
 
 
 @njit(cache=True, nogil=True)
-def _evaluate(x, k, a_const, z_pred, v_pred, h, pr1, arr, par):
+def _evaluate(x, k, a_const, z_pred, v_pred, h, L, arr, par):
     a1 = k * x + a_const
     z1 = z_pred + h * h * par[P_BETA] * a1
     v1 = v_pred + h * par[P_GAMMA] * a1
-    ok, r, M, Kt, Ct, scale, En, Qr = _system(z1, v1, x, pr1, arr, par)
+    ok, r, M, Kt, Ct, scale, En, Qr = _system(z1, v1, x, L, arr, par)
     return ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr
 
 
 @njit(cache=True, nogil=True)
-def alpha_step_c(z, v, acc, a, prev_acc, has_prev, h, pr1, arr, par):
+def alpha_step_c(z, v, acc, a, prev_acc, has_prev, h, L, arr, par):
     """:func:`ancf.dynamics.integrator.alpha_step` (rtol, atol, vtol = RTOL, ATOL, VTOL): (ok, z, v, z̈, a,
-    Newton iterations, Π [J] at the new z); not ok where the Python step raises StepFailed.  Π is the potential
+    Newton iterations, Π [J] at the new z) under the loads of the load-table row L; not ok where the Python step raises StepFailed.  Π is the potential
     under the step's loads (:func:`_system`), at the last evaluated state plus ∂Π/∂z · Δz when the last update
     moved z by Δz without a new evaluation (|Δz| ≤ h·VTOL: the neglected ½ Δzᵀ K Δz is far below round-off of
     Π); the linear system is solved in the band of ``par[P_BAND]`` diagonals when that is ≥ 0."""
@@ -297,10 +315,10 @@ def alpha_step_c(z, v, acc, a, prev_acc, has_prev, h, pr1, arr, par):
     a_const = (af * acc - am * a) / (1.0 - am)
     z_pred = z + h * v + h * h * (0.5 - beta) * a
     v_pred = v + h * (1.0 - gam) * a
-    ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = _evaluate(x, k, a_const, z_pred, v_pred, h, pr1, arr, par)
+    ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = _evaluate(x, k, a_const, z_pred, v_pred, h, L, arr, par)
     if not ok:
         x = ((z - z_pred) / (h * h * beta) - a_const) / k
-        ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = _evaluate(x, k, a_const, z_pred, v_pred, h, pr1, arr, par)
+        ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = _evaluate(x, k, a_const, z_pred, v_pred, h, L, arr, par)
         if not ok:
             return False, z, v, acc, a, 0, 0.0
     band = int(par[P_BAND])
@@ -329,7 +347,7 @@ def alpha_step_c(z, v, acc, a, prev_acc, has_prev, h, pr1, arr, par):
         moved = False
         for _ in range(10):
             ok, a1n, z1n, v1n, rn_, Mn, Ktn, Ctn, scn, Enn, Qrn = _evaluate(x - lam * dx, k, a_const, z_pred,
-                                                                            v_pred, h, pr1, arr, par)
+                                                                            v_pred, h, L, arr, par)
             if ok:
                 x = x - lam * dx
                 a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = a1n, z1n, v1n, rn_, Mn, Ktn, Ctn, scn, Enn, Qrn
@@ -349,23 +367,34 @@ def potential_known(par):
 
 
 @njit(cache=True, nogil=True)
-def _point(z, v, pr, t, arr, par, out):
-    """The row quantities of the state (z, v) at t [s] under pressure pr [Pa] (the recorder's point): writes
-    (E0, V, p_end, power, pr, t, lengths) to ``out`` (``prev`` layout); returns (q, vq, T).  When
-    :func:`potential_known` only p_end, the power and t are needed: E0, V and the lengths are left at 0."""
-    q_fix, P, N, wq = arr[0], arr[1], arr[2], arr[3]
-    vc, C_R = arr[6], arr[14]
-    use_P, n = par[P_USEP] > 0, int(par[P_N])
-    q = to_full(z, q_fix, P, use_P)
-    vq = to_full(v, np.zeros(q.size), P, use_P)
-    known = potential_known(par)
-    if known:
-        E0, lq = 0.0, np.zeros(arr[15].size)
-    else:
-        E0, lq = _values(q, arr, par)
-    T = _springs(lq, arr[16], par) if par[P_LMODE] > 0 else arr[15].copy()
+def _tensions(L, m):
+    """The prescribed tensions (m,) [N] of the load-table row L."""
+    return L[L_VAR:L_VAR + m].copy()
+
+
+@njit(cache=True, nogil=True)
+def _lengths(L, m):
+    """The motor lengths (m,) [m] of the load-table row L."""
+    return L[L_VAR + m:L_VAR + 2 * m].copy()
+
+
+@njit(cache=True, nogil=True)
+def _law_energies(q, arr, par):
+    """(U_A, U_B) [J]: the axial and the bending energy of the law at p = 0 (a pressure-dependent law's parts,
+    :meth:`ancf.dynamics.transient._EnergyParts.parts`)."""
+    N, wq, ea, ei, E, d, co, so = arr[2], arr[3], arr[4], arr[5], arr[8], arr[9], arr[10], arr[11]
+    z1, z3, zm, n = np.zeros(1), np.zeros(3), np.zeros(d.size), int(par[P_N])
+    UA = assemble(q, n, N, wq, ea, z1, z1, z3, E, d, co, so, zm, 0.0, z3, False, 0)[0]
+    UB = assemble(q, n, N, wq, z1, ei, z1, z3, E, d, co, so, zm, 0.0, z3, False, 0)[0]
+    return UA, UB
+
+
+@njit(cache=True, nogil=True)
+def _volume(q, arr, par):
+    """The chamber volume V = ∫ Σ_c vc_c λ^(c+1) dx [m³] (per unit pressure: −∂Π/∂p)."""
+    N, wq, vc = arr[2], arr[3], arr[6]
     V = 0.0
-    for e in range(n if not known else 0):
+    for e in range(int(par[P_N])):
         o = 6 * e
         for kq in range(wq.size):
             s0 = s1 = s2 = 0.0
@@ -378,73 +407,92 @@ def _point(z, v, pr, t, arr, par, out):
             for c in range(vc.size):
                 acc += vc[c] * lam ** (c + 1)
             V += wq[kq] * acc
+    return V
+
+
+@njit(cache=True, nogil=True)
+def _point(z, v, L, arr, par, out):
+    """The row quantities of the state (z, v) under the loads of the load-table row L (time, pressure, motor
+    lengths; the recorder's point): writes (E0, V, p_end, power, pr, t, U_A, U_B, lengths) to ``out`` (``prev``
+    layout); returns (q, vq, T).  When :func:`potential_known` only p_end, the power and t are needed: E0, V,
+    U_A, U_B and the lengths are left at 0."""
+    q_fix, P, N, wq, C_R = arr[0], arr[1], arr[2], arr[3], arr[14]
+    use_P, n, m = par[P_USEP] > 0, int(par[P_N]), arr[9].size
+    q = to_full(z, q_fix, P, use_P)
+    vq = to_full(v, np.zeros(q.size), P, use_P)
+    known = potential_known(par)
+    E0, V, UA, UB, lq = 0.0, 0.0, 0.0, 0.0, np.zeros(m)
+    if not known:
+        E0, lq = _values(q, arr, par)
+        V = _volume(q, arr, par)
+        if par[P_PDEP] > 0:
+            UA, UB = _law_energies(q, arr, par)
+    T = _springs(lq, _lengths(L, m), par) if par[P_LMODE] > 0 else _tensions(L, m)
     pw = 0.0
     if par[P_HASCR] > 0:
         pw += (v @ C_R) @ v
     if par[P_CAX] > 0:
         pw += vq @ axial_damping_c(q, vq, n, N, wq, par[P_CAX], False)[0]
     pe = tip_position(q, par[P_HTOOL])
-    out[0], out[1], out[2:5], out[5], out[6], out[7] = E0, V, pe, pw, pr, t
+    out[0], out[1], out[2:5], out[5], out[6], out[7], out[8], out[9] = E0, V, pe, pw, L[L_PR], L[L_T], UA, UB
     out[N_PREV:] = lq
     return q, vq, T
 
 
 @njit(cache=True, nogil=True)
-def potential(pt, T, pr, arr, par):
-    """Π [J] of the point ``pt`` (``prev`` layout) under tensions T [N] (or the run's lengths) and pressure pr
-    [Pa] (:meth:`ancf.dynamics.transient._EnergyParts.potential`)."""
-    F = arr[19]
+def potential(pt, L, arr, par):
+    """Π [J] of the point ``pt`` (``prev`` layout) under the loads of the load-table row L: tensions [N] (or
+    motor lengths [m]), pressure [Pa] and its law factors, tip force [N]
+    (:meth:`ancf.dynamics.transient._EnergyParts.potential`)."""
+    pr, F = L[L_PR], L[L_F:L_F + 3]
     Pi = pt[0] - pr * pt[1] - (F[0] * pt[2] + F[1] * pt[3] + F[2] * pt[4])
+    if par[P_PDEP] > 0:
+        Pi += (L[L_FA] - 1.0) * pt[8] + (L[L_FI] - 1.0) * pt[9]
     lq = pt[N_PREV:]
+    m = lq.size
     if par[P_LMODE] > 0:
-        l0 = arr[16]
         s = 0.0
-        for i in range(lq.size):
-            st = max(lq[i] - l0[i], 0.0)
+        for i in range(m):
+            st = max(lq[i] - L[L_VAR + m + i], 0.0)
             sc = min(st, par[P_SHOLD])
             s += 0.5 * par[P_KPEN] * sc ** 2
             if np.isfinite(par[P_FHOLD]):
                 s += par[P_FHOLD] * (st - sc)
         Pi += s
     else:
-        Pi += T @ lq
+        Pi += _tensions(L, m) @ lq
     return Pi
 
 
 @njit(cache=True, nogil=True)
-def _increment(pa, pb, T, arr, par):
-    """(work [J] of the time-varying loads, dissipation [J]) from point pa to point pb (trapezoids)."""
+def _increment(pa, pb, La, Lb, arr, par):
+    """(work [J] of the time-varying loads, dissipation [J]) from point pa under the loads La to point pb under
+    Lb (trapezoids)."""
     dW = 0.0
     if par[P_VARYING] > 0:
-        dW = 0.5 * ((potential(pa, T, pb[6], arr, par) - potential(pa, T, pa[6], arr, par))
-                    + (potential(pb, T, pb[6], arr, par) - potential(pb, T, pa[6], arr, par)))
+        dW = 0.5 * ((potential(pa, Lb, arr, par) - potential(pa, La, arr, par))
+                    + (potential(pb, Lb, arr, par) - potential(pb, La, arr, par)))
     return dW, 0.5 * (pb[5] + pa[5]) * (pb[7] - pa[7])
 
 
 @njit(cache=True, nogil=True)
-def _pressure_at(t1, t0, p0, par):
-    """The pressure [Pa] at t1: held, or the supply's trapezoidal rule from p0 at t0."""
-    if not par[P_TAU] > 0:
-        return par[P_PC]
-    c = (t1 - t0) / (2 * par[P_TAU])
-    return (p0 * (1 - c) + c * (par[P_PC] + par[P_PC])) / (1 + c)
-
-
-@njit(cache=True, nogil=True)
-def run_rows(i0, i1, times, state, sc, prev, arr, par, o_q, o_v, o_tip, o_T, o_p, o_kin, o_pot, o_work, o_diss,
-             o_it):
+def run_rows(i0, i1, times, state, sc, prev, arr, par, tab, o_q, o_v, o_tip, o_T, o_p, o_kin, o_pot, o_work,
+             o_diss, o_it):
     """Rows i0 … i1 − 1 of a run from the state (z, ż, z̈, a, previous z̈) = ``state`` (5, nz) at
-    (has previous z̈, t [s], pressure [Pa]) = ``sc``, the last row's point ``prev``; writes the rows into the
-    output arrays (the recorder's) and updates state, sc and prev in place.  Returns (DONE, i1) or
-    (FALLBACK, i): row i not done, the state at row i − 1 (module docstring)."""
+    (has previous z̈, t [s], pressure [Pa]) = ``sc``, the last row's point ``prev``, the loads of every substep
+    end in ``tab`` (row 0: the start's); writes the rows into the output arrays (the recorder's) and updates
+    state, sc and prev in place.  Returns (DONE, i1) or (FALLBACK, i): row i not done, the state at row i − 1
+    (module docstring)."""
     h, hsub = par[P_H], par[P_HSUB]
     M0 = arr[12]
     pb = np.empty(prev.size)
+    ks = 0                                          # the load-table row of the current state
     for i in range(i0, i1):
         z, v, acc, a, pacc = state[0].copy(), state[1].copy(), state[2].copy(), state[3].copy(), state[4].copy()
-        has_prev, tt, pr_s = sc[0] > 0, sc[1], sc[2]
+        has_prev, tt = sc[0] > 0, sc[1]
         t_target = times[i]
         pa = prev.copy()
+        ka, k = ks, ks
         dW = dD = Pi = 0.0
         n_it = 0
         while t_target - tt > 1e-12 * h:
@@ -452,34 +500,36 @@ def run_rows(i0, i1, times, state, sc, prev, arr, par, o_q, o_v, o_tip, o_T, o_p
             if t_target - tt - hh < 1e-9 * hh:
                 hh = t_target - tt
             t1 = t_target if hh == t_target - tt else tt + hh
-            pr1 = _pressure_at(t1, tt, pr_s, par)
-            if par[P_CHECKP] > 0 and not (par[P_PMIN] - 1e-9 <= pr1 <= par[P_PMAX] + 1e-9):
+            k += 1
+            if k >= tab.shape[0] or tab[k, L_T] != t1 or tab[k, L_OK] == 0:
                 return FALLBACK, i
-            ok, z1, v1, acc1, a1, k, Pi = alpha_step_c(z, v, acc, a, pacc, has_prev, hh, pr1, arr, par)
+            ok, z1, v1, acc1, a1, n_k, Pi = alpha_step_c(z, v, acc, a, pacc, has_prev, hh, tab[k], arr, par)
             if not ok:
                 return FALLBACK, i
-            n_it += k
+            n_it += n_k
             pacc, z, v, acc, a, has_prev = acc, z1, v1, acc1, a1, True
-            tt, pr_s = t1, pr1
+            tt = t1
             if t1 != t_target:
-                q, vq, T = _point(z, v, pr1, t1, arr, par, pb)
-                w, dd = _increment(pa, pb, T, arr, par)
+                _point(z, v, tab[k], arr, par, pb)
+                w, dd = _increment(pa, pb, tab[ka], tab[k], arr, par)
                 dW, dD = dW + w, dD + dd
                 pa[:] = pb
-        q, vq, T = _point(z, v, pr_s, t_target, arr, par, pb)
-        w, dd = _increment(pa, pb, T, arr, par)
+                ka = k
+        q, vq, T = _point(z, v, tab[k], arr, par, pb)
+        w, dd = _increment(pa, pb, tab[ka], tab[k], arr, par)
         dW, dD = dW + w, dD + dd
-        o_q[i], o_v[i], o_tip[i], o_T[i], o_p[i] = q, vq, pb[2:5], T, pr_s
+        o_q[i], o_v[i], o_tip[i], o_T[i], o_p[i] = q, vq, pb[2:5], T, tab[k, L_PR]
         Mf = M0
         if par[P_MTIP] > 0:
             Jp = tip_jacobian(q, par[P_HTOOL])
             Mf = M0 + par[P_MTIP] * Jp.T @ Jp
         o_kin[i] = 0.5 * ((vq @ Mf) @ vq)
-        o_pot[i] = Pi if potential_known(par) else potential(pb, T, pr_s, arr, par)
+        o_pot[i] = Pi if potential_known(par) else potential(pb, tab[k], arr, par)
         o_it[i] = n_it
         o_work[i] = o_work[i - 1] + dW
         o_diss[i] = o_diss[i - 1] + dD
         prev[:] = pb
+        ks = k
         state[0], state[1], state[2], state[3], state[4] = z, v, acc, a, pacc
-        sc[0], sc[1], sc[2] = 1.0 if has_prev else 0.0, tt, pr_s
+        sc[0], sc[1], sc[2] = 1.0 if has_prev else 0.0, tt, tab[k, L_PR]
     return DONE, i1

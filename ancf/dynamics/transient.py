@@ -26,12 +26,12 @@ the motion, after every output row) and the run repeated in halved substeps (:fu
 stay at dt), or refused with a ConvergenceError naming a step that would do.  Ctrl-C sets a flag read between
 steps (:mod:`.interrupt`), never an exception inside a compiled kernel: the rows done are returned.
 
-Speed: the output rows of a run whose loads are constant (tensions or tendon lengths, pressure command — with or
-without the supply's ``pressure_tau`` —, tip force) and whose stiffness law does not depend on pressure are made
-in chunks by compiled kernels (:mod:`.compiled_step`: the step, its Newton iterations and the rows' energies; the
-same numbers as the Python path to round-off), Python touched between chunks (Ctrl-C, progress, the energy check,
-events) and for a row whose step fails there (a halving, an error); runs with time-varying signals take the
-Python path (:class:`_Stepper`, :class:`_Recorder`).
+Speed: the output rows of a run are made in chunks by compiled kernels (:mod:`.compiled_step`: the step, its
+Newton iterations and the rows' energies; the same numbers as the Python path to round-off), the load signals
+sampled here on the chunk's substep grid (:meth:`_FastRows._table`: constant or time-varying tensions, tendon
+lengths, pressure command — with or without the supply's ``pressure_tau`` —, tip force, and a pressure-dependent
+law's factors), Python touched between chunks (Ctrl-C, progress, the energy check, events) and for a row whose
+step fails there or whose loads fail their checks (a halving, an error: :class:`_Stepper`, :class:`_Recorder`).
 
 Energy bookkeeping (all [J]): kinetic K = ½ q̇ᵀ M q̇; potential Π(q; loads(t)) (elastic + gravity + the load
 potentials Σ T_i l_i − p V − F·p_end + the length springs); the work of the time-varying loads
@@ -507,11 +507,14 @@ def _make_plant(model, loads: _Loads, z: np.ndarray, p_init: float, damping) -> 
     plant = _Plant(model, loads, M0, Mz_const)
     q_start = model._to_full(z)
     T_start, _ = plant.tendons(q_start, 0.0, loads.lengths(0.0))
-    ev0 = model._evaluate(q_start, T_start, p_init, loads.F_sig(0.0), True, 1.0, True)
+    tangent = _damping_needs_tangent(p, damping)
+    ev0 = model._evaluate(q_start, T_start, p_init, loads.F_sig(0.0), tangent, 1.0, tangent)
     if not np.isfinite(ev0.energy):
         raise InputError(f"q0 is outside the model's domain: {model.inadmissibility(q_start)}")
-    K0 = plant.add_springs(model._reduce_mat(ev0.K), ev0.J_l, T_start)
-    K0 = 0.5 * (K0 + K0.T)
+    K0 = None
+    if tangent:
+        K0 = plant.add_springs(model._reduce_mat(ev0.K), ev0.J_l, T_start)
+        K0 = 0.5 * (K0 + K0.T)
     Mz0 = model._reduce_mat(plant.mass_full(q_start)[0])
     coeffs = resolve_damping(model, damping, K0, Mz0)
     alpha_d, beta_d = coeffs["alpha"], coeffs["beta"]
@@ -524,13 +527,24 @@ def _make_plant(model, loads: _Loads, z: np.ndarray, p_init: float, damping) -> 
             raise InputError("stiffness-proportional damping (beta) needs a stable start: the tangent at q0 "
                              f"has a negative eigenvalue ({lam:.3g}); start from an equilibrium or damp with "
                              "alpha / axial only")
-    plant.C_R = alpha_d * Mz0 + beta_d * K0 if (alpha_d or beta_d) else None
+    plant.C_R = (alpha_d * Mz0 + (beta_d * K0 if beta_d else 0.0)) if (alpha_d or beta_d) else None
     plant.Ct_const = np.zeros((model.nz, model.nz)) if plant.C_R is None else plant.C_R
     plant.c_ax = coeffs["axial"]
     # Newton tolerance [N]: 1e-7 of the force scale (EA(1)·1e-3 + the weight + |M z̈|); a residual r moves the
     # state by about β' J⁻¹ r — far below 1 nm at every step size
     plant.force_scale = abs(float(p.stiffness.EA(1.0))) * 1e-3 + abs(float(p.line_mass)) * 9.81 * p.length
     return plant, coeffs
+
+
+def _damping_needs_tangent(params, damping) -> bool:
+    """True when the run's damping needs the start tangent K0: a damping ratio (β = 2ζ/ω₁) or
+    stiffness-proportional damping β > 0 without its own matrix (a short run of a plant whose damping is mass- or
+    axial-proportional skips that assembly)."""
+    if damping is None:
+        return params.rayleigh_beta > 0
+    if isinstance(damping, dict):
+        return "stiffness" not in damping and bool(damping.get("beta", 0.0))
+    return True
 
 
 def _initial_acceleration(plant: _Plant, loads: _Loads, z: np.ndarray, vz: np.ndarray, p_init: float) -> StepState:
@@ -840,17 +854,15 @@ def _band(model, plant: _Plant, loads: _Loads) -> int:
 
 class _FastRows:
     """Chunks of output rows made by :func:`.compiled_step.run_rows` — the same step, Newton iterations and
-    recorder quantities as the Python path, to round-off.  Taken by runs whose signals are constant (tensions
-    or lengths, pressure command, tip force; the pressure supply with ``pressure_tau`` included) and whose
-    stiffness law does not depend on pressure; a row whose step fails there (a halving, an error) and the
-    rows until the halving is undone run in Python.  ``owns_prev``: the last row was made here (the
-    recorder's ``prev`` point is stale)."""
+    recorder quantities as the Python path, to round-off.  Every run takes them (constant or time-varying
+    signals, the pressure supply, pressure-dependent stiffness laws): the signals are sampled here on the
+    substep grid of the chunk (:meth:`_table`, the same calls as the Python path); a row whose step fails there
+    (a halving, an error), whose loads fail their checks and the rows until a halving is undone run in Python.
+    ``owns_prev``: the last row was made here (the recorder's ``prev`` point is stale)."""
 
     @staticmethod
     def eligible(plant: _Plant, loads: _Loads) -> bool:
-        sig = loads.l0_sig if loads.length_mode else loads.T_sig
-        return (COMPILED_ROWS and sig.constant and loads.pc_sig.constant and loads.F_sig.constant
-                and not plant.model.params.stiffness.pressure_dependent)
+        return COMPILED_ROWS
 
     def __init__(self, plant: _Plant, loads: _Loads, stepper: _Stepper, rec: _Recorder, times: np.ndarray):
         from . import compiled_step as cs
@@ -875,16 +887,18 @@ class _FastRows:
                      (cs.P_RHO, c.rho_inf), (cs.P_AM, c.alpha_m), (cs.P_AF, c.alpha_f), (cs.P_GAMMA, c.gamma),
                      (cs.P_BETA, c.beta), (cs.P_H, stepper.h), (cs.P_HSUB, stepper.h / 2 ** stepper.base),
                      (cs.P_MAXIT, stepper.max_iter), (cs.P_VARYING, loads.varying),
-                     (cs.P_BAND, _band(model, plant, loads))):
+                     (cs.P_BAND, _band(model, plant, loads)), (cs.P_PDEP, p.stiffness.pressure_dependent)):
             par[k] = float(v)
-        self.par = par
+        self.par, self.loads, self.law, self.m = par, loads, p.stiffness, model.m
+        self.F_w = model.total_tip_load((0.0, 0.0, 0.0))
+        self.const = _constant_loads(loads, model.m)
         self.prev = np.zeros(cs.N_PREV + model.m)
         cs.check_inputs(self.arr, par, np.zeros((5, self.nz)), self.prev, self.nz, model.m)
 
     def _prev_from(self, row: dict) -> None:
         """The kernel's ``prev`` from the recorder's point dict (:meth:`_Recorder.point`)."""
-        E0, lq, V, pe = row["pt"][:4]
-        self.prev[:self.cs.N_PREV] = (E0, V, *pe, row["pw"], row["pr"], row["t"])
+        E0, lq, V, pe, UA, UB = row["pt"]
+        self.prev[:self.cs.N_PREV] = (E0, V, *pe, row["pw"], row["pr"], row["t"], UA, UB)
         self.prev[self.cs.N_PREV:] = lq
 
     def run(self, i: int, st: StepState, t_prev: float, pr_prev: float) -> tuple[int, StepState, float]:
@@ -900,11 +914,102 @@ class _FastRows:
         sc = np.array([1.0 if has_prev else 0.0, t_prev, pr_prev])
         r = self.rec
         w0 = _time.perf_counter()
-        _, j = self.cs.run_rows(i, stop, self.times, state, sc, self.prev, self.arr, self.par, r.q, r.v, r.tip, r.T,
-                                r.p, r.kinetic, r.potential, r.work, r.dissipated, r.iterations)
+        tab = self._table(i, stop, t_prev, pr_prev)
+        _, j = self.cs.run_rows(i, stop, self.times, state, sc, self.prev, self.arr, self.par, tab, r.q, r.v, r.tip,
+                                r.T, r.p, r.kinetic, r.potential, r.work, r.dissipated, r.iterations)
         if j > i:
             self.per_row = (_time.perf_counter() - w0) / (j - i)
             self.owns_prev = True
             st = StepState(state[0].copy(), state[1].copy(), state[2].copy(), state[3].copy(),
                            state[4].copy() if sc[0] > 0 else None)
         return j, st, float(sc[2]) if j > i else pr_prev
+
+    def _table(self, i: int, stop: int, t_prev: float, pr_prev: float) -> np.ndarray:
+        """The load table of rows i … stop − 1 (:mod:`.compiled_step`, ``L_*`` columns): row 0 the loads at t_prev
+        [s] with pressure pr_prev [Pa], then one row per substep end, with the substep times, pressures (the
+        signal's or the supply's, :meth:`_Loads.pressure_at`) and signal values the Python path
+        (:meth:`_Stepper.advance`) computes.  A row whose loads fail :meth:`_Loads.check` or whose signal raised
+        is marked unusable (it and every later row: the Python path then raises as before)."""
+        cs, loads, stepper = self.cs, self.loads, self.stepper
+        ts, prs = _substep_grid(self.times, i, stop, t_prev, pr_prev, stepper.h, stepper.h / 2 ** stepper.base,
+                                loads)
+        tab = np.empty((len(ts), cs.L_VAR + 2 * self.m))
+        tab[:, cs.L_T], tab[:, cs.L_PR] = ts, prs
+        tab[:, cs.L_OK] = 1.0
+        tab[:, cs.L_VAR:] = self.const[0]
+        tab[:, cs.L_F:cs.L_F + 3] = self.const[1]
+        ok = len(ts)
+        if self.const[2] is not None:
+            ok = _sample_signals(tab, loads, self.m, self.const[2])
+        tab[:, cs.L_FTOT:cs.L_FTOT + 3] = tab[:, cs.L_F:cs.L_F + 3] + self.F_w
+        tab[:, cs.L_FA:cs.L_FI + 1] = 1.0
+        if self.law.pressure_dependent:
+            tab[:, cs.L_FA:cs.L_FI + 1] = [self.law.pressure_factors(p) for p in prs]
+        tab[ok:, cs.L_OK] = 0.0
+        tab[:, cs.L_OK] *= _loads_ok(loads, tab, self.m)
+        return tab
+
+
+def _constant_loads(loads: _Loads, m: int):
+    """(tensions and motor lengths (2m,), tip force (3,), the signals that vary or None): the load table's
+    constant columns (zeros for the tendon mode not in use)."""
+    T = np.zeros(m) if loads.length_mode else loads.T_sig(0.0)
+    l0 = loads.l0_sig(0.0) if loads.length_mode else np.zeros(m)
+    sig = loads.l0_sig if loads.length_mode else loads.T_sig
+    varying = tuple(name for name, s in (("tendons", sig), ("F", loads.F_sig)) if not s.constant)
+    return np.concatenate([T, l0]), loads.F_sig(0.0), varying or None
+
+
+def _substep_grid(times: np.ndarray, i: int, stop: int, t: float, pr: float, h: float, hsub: float, loads: _Loads):
+    """(substep end times (k,) [s], pressures (k,) [Pa]) of rows i … stop − 1 from t [s] at pressure pr [Pa], entry
+    0 the start: the times :meth:`_Stepper.advance` steps to at substeps hsub (no halving), the same arithmetic."""
+    ts, prs = [t], [pr]
+    p_held = float(loads.pc_sig(0.0)) if loads.tau is None and loads.pc_sig.constant else None
+    for k in range(i, stop):
+        t_target = float(times[k])
+        while t_target - t > 1e-12 * h:
+            hh = min(hsub, t_target - t)
+            if t_target - t - hh < 1e-9 * hh:
+                hh = t_target - t
+            t1 = t_target if hh == t_target - t else t + hh
+            pr = p_held if p_held is not None else loads.pressure_at(t1, t, pr)
+            t = t1
+            ts.append(t1)
+            prs.append(pr)
+    return np.array(ts), np.array(prs)
+
+
+def _sample_signals(tab: np.ndarray, loads: _Loads, m: int, varying: tuple) -> int:
+    """Fill the load table's time-varying columns (tendons, tip force) from their signals at its times; the
+    number of rows filled (a signal that raised stops it there: that row and the later ones stay unusable)."""
+    from . import compiled_step as cs
+    col = cs.L_VAR + (m if loads.length_mode else 0)
+    sig = loads.l0_sig if loads.length_mode else loads.T_sig
+    for k, t in enumerate(tab[:, cs.L_T]):
+        try:
+            if "tendons" in varying:
+                tab[k, col:col + m] = sig(t)
+            if "F" in varying:
+                tab[k, cs.L_F:cs.L_F + 3] = loads.F_sig(t)
+        except Exception:  # noqa: BLE001 — the Python path calls the signal again there and raises as before
+            return k
+    return len(tab)
+
+
+def _loads_ok(loads: _Loads, tab: np.ndarray, m: int) -> np.ndarray:
+    """(k,) 1.0 where the load-table row passes :meth:`_Loads.check` (tensions ≥ 0 and within tension_max,
+    pressure within the actuator's limits when checked, motor lengths > 0), else 0.0."""
+    from . import compiled_step as cs
+    p = loads.params
+    ok = np.ones(len(tab), dtype=bool)
+    if loads.length_mode:
+        ok &= np.all(tab[:, cs.L_VAR + m:] > 0, axis=1)
+    else:
+        T = tab[:, cs.L_VAR:cs.L_VAR + m]
+        ok &= ~np.any(T < -1e-12, axis=1)
+        if loads.check_limits:
+            ok &= ~np.any(T > p.tension_max + 1e-12, axis=1)
+    if loads.check_limits:
+        pr = tab[:, cs.L_PR]
+        ok &= (p.pressure_min - 1e-9 <= pr) & (pr <= p.pressure_max + 1e-9)
+    return ok.astype(float)
