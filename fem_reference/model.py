@@ -12,6 +12,8 @@ ramped linearly from its starting value (zero, or the loads of ``initial``) to i
 
 with ``s_g`` = 1 when gravity is on, and for a locked tendon the extra equation ``L_i(q) = L_{0,i}``
 with ``T_i`` unknown (``T_i ≥ 0``; a cable whose multiplier would become negative goes slack).
+With tendon friction (``solve(friction=μ)``) the tendon term is ``Σ_s T_is ∂ℓ_is/∂q`` over the segments
+between the guides, the tensions from the capstan law with history (:mod:`fem_reference.loads.tendon_friction`).
 The Newton matrix is the exact derivative of ``r_q`` (internal tangent, follower-pressure load
 stiffness, cap pressure follower term, tendon Hessians and every rigid-link geometric term), so
 Newton converges quadratically (tested).
@@ -55,6 +57,16 @@ from .loads.caps import (
 )
 from .loads.gravity import cap_weight
 from .loads.pressure import cap_pressure_force
+from .loads.tendon_friction import (
+    FemTensionCycle,
+    FrictionLaw,
+    FrictionProfile,
+    friction_block,
+    loop_area,
+    tension_profile,
+    weighted_gradient,
+    wrap_angles,
+)
 from .loads.tendons import (
     TendonPath,
     guide_hessian,
@@ -132,7 +144,8 @@ class LoadCase:
     """Loads of one equilibrium (SI).
 
     tensions : (m,) [N]; pressure [Pa]; tip_force (3,) [N]; gravity : 0..1 scale of the dead weight;
-    locked_lengths : (m,) [m] with NaN for tendons at prescribed tension.
+    locked_lengths : (m,) [m] with NaN for tendons at prescribed tension; friction : the tendons' capstan law
+    and history (:class:`~fem_reference.loads.tendon_friction.FrictionLaw`), None: frictionless.
     """
 
     tensions: np.ndarray
@@ -140,13 +153,14 @@ class LoadCase:
     tip_force: np.ndarray
     gravity: float
     locked_lengths: np.ndarray
+    friction: FrictionLaw | None = None
 
     def lerp(self, other: LoadCase, lam: float) -> LoadCase:
         a = lambda x, y: x + lam * (y - x)
         ll = np.where(np.isnan(other.locked_lengths), np.nan,
                       a(np.nan_to_num(self.locked_lengths, nan=0.0), other.locked_lengths))
         return LoadCase(a(self.tensions, other.tensions), a(self.pressure, other.pressure),
-                        a(self.tip_force, other.tip_force), a(self.gravity, other.gravity), ll)
+                        a(self.tip_force, other.tip_force), a(self.gravity, other.gravity), ll, other.friction)
 
 
 #: Newton iterations after which a load step whose residual is still above its starting value is cut back
@@ -425,9 +439,12 @@ class BellowsModel:
                                        for p, q in self._tendon_blocks(k)])
         return cache[k]
 
-    def _tendon_terms(self, st: State, k: int, want_hessian: bool):
+    def _tendon_terms(self, st: State, k: int, want_hessian: bool, weights: np.ndarray | None = None,
+                      jacobians: list | None = None):
         """Length ``L`` [m], gradient ``∂L/∂q`` (n_q,) and, if asked, the values of the Hessian ``∂²L/∂q²`` on
-        the dense blocks of :meth:`_tendon_keys` (same order), of tendon ``k``.
+        the dense blocks of :meth:`_tendon_keys` (same order), of tendon ``k``.  With segment ``weights`` (n,)
+        the gradient and Hessian are those of ``Σ_s w_s ℓ_s`` at constant weights (``L`` stays the length);
+        ``jacobians``, a list, receives the points' ``G_p``.
 
         With ``G_p = ∂x_p/∂q_{D_p}`` (3 × |D_p|) of each polyline point and the segment blocks ``H_s``
         (:func:`~fem_reference.loads.tendons.polyline_hessian_blocks`): the block of points (p, p) is
@@ -438,7 +455,7 @@ class BellowsModel:
         centre = self.X_c + st.uc
         pts = tp.points(x, centre, st.R)
         L = polyline_length(pts)
-        gL = polyline_gradient(pts)
+        gL = polyline_gradient(pts) if weights is None else weighted_gradient(pts, weights)
         D = self._tendon_dofs(k)
         Gs, extra = [], []
         for gi, (nodes, wc, a) in enumerate(zip(tp.guide_nodes, tp.guide_wc, tp.guide_a)):
@@ -450,9 +467,13 @@ class BellowsModel:
         g = np.zeros(self.n_dofs)
         for p, G in enumerate(Gs):
             g[D[p]] += G.T @ gL[p + 1]
+        if jacobians is not None:
+            jacobians.extend(Gs)
         if not want_hessian:
             return L, g, None
         Hb = polyline_hessian_blocks(pts)                                 # segment s joins points s, s + 1
+        if weights is not None:
+            Hb = Hb * np.asarray(weights, float)[:, None, None]
         n = len(Gs)
         vals = []
         for p in range(n):                                                # point p + 1 of the polyline
@@ -475,6 +496,142 @@ class BellowsModel:
         _, _, vals = self._tendon_terms(st, k, True)
         keys, n = self._tendon_keys(k), self.n_dofs
         return sp.csr_matrix((vals, (keys // n, keys % n)), shape=(n, n))
+
+    # ------------------------------------------------------------------ tendon friction
+    def _friction_keys(self, k: int) -> np.ndarray:
+        """Flat keys of the dense block over all DOFs of tendon ``k``'s points (row-major): the friction tangent
+        ``Σ_s ∂ℓ_s/∂q (∂T_s/∂q)ᵀ`` couples every guide with the guides before it."""
+        cache = self.__dict__.setdefault("_fkeys", {})
+        if k not in cache:
+            D = np.concatenate(self._tendon_dofs(k)).astype(np.int64)
+            cache[k] = (D[:, None] * self.n_dofs + D[None, :]).ravel()
+        return cache[k]
+
+    def _ensure_friction_pattern(self) -> None:
+        """Extend the model-wide sparsity pattern (:meth:`_canonical`) by the friction blocks of every tendon."""
+        keys = np.concatenate([self._friction_keys(k) for k in range(self.m)])
+        pat = getattr(self, "_pattern", None)
+        if pat is not None and pat[0] is not None:
+            pos = np.minimum(np.searchsorted(pat[2], keys), pat[2].size - 1)
+            if np.all(pat[2][pos] == keys):
+                return
+        n = self.n_dofs
+        self._canonical(sp.csr_matrix((np.zeros(keys.size), (keys // n, keys % n)), shape=(n, n)))
+
+    def _friction_positions(self, k: int) -> np.ndarray:
+        """Positions of :meth:`_friction_keys` in the data of the model-wide pattern."""
+        pat = self._pattern
+        cache = self.__dict__.setdefault("_fpos", {})
+        if cache.get(k, (None,))[0] is not pat:
+            cache[k] = (pat, np.searchsorted(pat[2], self._friction_keys(k)))
+        return cache[k][1]
+
+    def _friction_terms(self, st: State, k: int, fr: FrictionLaw, tangent: bool):
+        """Tendon ``k`` under the capstan law ``fr`` (:mod:`fem_reference.loads.tendon_friction`): its length
+        ``L`` [m], ``∂L/∂q`` (n_q,), the residual ``Σ_s T_s ∂ℓ_s/∂q`` (n_q,) [N] and, with ``tangent``, the values
+        of ``Σ_s T_s ∂²ℓ_s/∂q² + Σ_s ∂ℓ_s/∂q (∂T_s/∂q)ᵀ`` on :meth:`_friction_keys` (else None)."""
+        tp = self.tendons[k]
+        pts = tp.points(self.bmesh.X + st.U, self.X_c + st.uc, st.R)
+        alpha, dalpha = wrap_angles(pts, fr.e_in)
+        T, _, dT = tension_profile(st.T[k], fr.held[k], alpha, fr.mu, dalpha if tangent else None)
+        Gs: list = []
+        L, rk, Hw = self._tendon_terms(st, k, tangent, weights=T, jacobians=Gs)
+        D = self._tendon_dofs(k)
+        gL = polyline_gradient(pts)
+        g = np.zeros(self.n_dofs)
+        for p, G in enumerate(Gs):
+            g[D[p]] += G.T @ gL[p + 1]
+        if not tangent:
+            return L, g, rk, None
+        sizes = [d.size for d in D]
+        off = np.concatenate([[0], np.cumsum(sizes)])
+        M = np.zeros((off[-1], off[-1]))
+        pos = 0
+        for p, q in self._tendon_blocks(k):                     # Σ_s T_s ∂²ℓ_s/∂q², block by block
+            size = sizes[p] * sizes[q]
+            M[off[p]:off[p + 1], off[q]:off[q + 1]] += Hw[pos:pos + size].reshape(sizes[p], sizes[q])
+            pos += size
+        Gfull = np.zeros((3 * len(Gs), off[-1]))
+        for p, G in enumerate(Gs):
+            Gfull[3 * p:3 * p + 3, off[p]:off[p + 1]] = G
+        Kf = friction_block(pts, dT)[1:, :, 1:, :].reshape(3 * len(Gs), 3 * len(Gs))   # the exit is fixed
+        M += Gfull.T @ Kf @ Gfull
+        return L, g, rk, M.ravel()
+
+    def friction_profile(self, res: BellowsResult) -> FrictionProfile:
+        """Segment tensions, sliding codes and wrap angles of the equilibrium ``res``
+        (:class:`~fem_reference.loads.tendon_friction.FrictionProfile`; frictionless: every segment at its
+        tendon's tension, μ = 0) — the history of the next friction step (``solve(friction_state=…)``)."""
+        self._own(res)
+        st, fr = res.state, res.loadcase.friction
+        x = self.bmesh.X + st.U
+        Ts, codes, alphas = [], [], []
+        for k, tp in enumerate(self.tendons):
+            pts = tp.points(x, self.X_c + st.uc, st.R)
+            alpha = wrap_angles(pts, np.array([1.0, 0.0, 0.0]))[0]
+            if fr is None:
+                T, code = np.full(alpha.size, float(st.T[k])), np.zeros(alpha.size, np.int8)
+            else:
+                T, code, _ = tension_profile(st.T[k], fr.held[k], alpha, fr.mu)
+            Ts.append(T)
+            codes.append(code)
+            alphas.append(alpha)
+        return FrictionProfile(0.0 if fr is None else fr.mu, np.array(Ts), np.array(codes), np.array(alphas))
+
+    def _friction_law(self, friction, friction_state, target: LoadCase) -> FrictionLaw | None:
+        """The :class:`FrictionLaw` of a solve (None for μ = 0); InputError for μ outside [0, 1], a history of
+        another μ or model, or locked tendons with friction (not modelled)."""
+        mu = float(check_finite("friction (coefficient μ)", friction, ()))
+        if not 0.0 <= mu <= 1.0:
+            raise InputError(f"friction must be a coefficient μ in [0, 1], got {mu:g}")
+        if mu == 0.0:
+            if friction_state is not None:
+                raise InputError("friction_state needs friction > 0 (the frictionless solve has no history)")
+            return None
+        if np.any(~np.isnan(target.locked_lengths)):
+            raise InputError("locked tendons with friction are not modelled by the FEM; prescribe tensions")
+        n_seg = len(self.tendons[0].guide_nodes) + 1
+        if friction_state is None:
+            held = np.zeros((self.m, n_seg))
+        else:
+            prof = friction_state
+            if not isinstance(prof, FrictionProfile):
+                if getattr(prof, "model", None) is not self:
+                    raise InputError("friction_state must be a FrictionProfile or a result of this model, got "
+                                     f"{type(prof).__name__}")
+                prof = self.friction_profile(prof)
+            if prof.mu != mu or prof.segment_tensions.shape != (self.m, n_seg):
+                raise InputError(f"friction_state was solved with μ = {prof.mu:g} and segment tensions of shape "
+                                 f"{prof.segment_tensions.shape}; this solve has μ = {mu:g}, ({self.m}, {n_seg})")
+            held = np.array(prof.segment_tensions, float)
+        return FrictionLaw(mu, held, np.array([1.0, 0.0, 0.0]))
+
+    def tension_cycle(self, peak_tensions, pressure: float = 0.0, steps: int = 6, friction: float = 0.0,
+                      **solve_options) -> FemTensionCycle:
+        """A quasi-static cycle of the tendon tensions 0 → ``peak_tensions`` (m,) [N] → 0 in ``steps`` equal steps
+        per branch (2 … 1000) at ``pressure`` [Pa], each state the friction step (``friction`` μ) from the one
+        before; the start is the equilibrium under the pressure alone.  ``solve_options`` go to :meth:`solve`.
+        Returns :class:`~fem_reference.loads.tendon_friction.FemTensionCycle` (tips, results, profiles, loop
+        area as ``ancf``'s ``Model.tension_cycle``)."""
+        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 2 <= steps <= 1000:
+            raise InputError(f"steps must be an integer in [2, 1000], got {steps!r}")
+        Tp = check_finite("peak_tensions [N]", peak_tensions, (self.m,))
+        if not np.all(Tp >= 0) or not np.any(Tp > 0):
+            raise InputError(f"peak_tensions must be ≥ 0 N with at least one > 0, got {Tp.tolist()}")
+        s = int(steps)
+        scale = np.concatenate([np.linspace(0.0, 1.0, s + 1), np.linspace(1.0, 0.0, s + 1)[1:]])
+        res = self.solve(np.zeros(self.m), pressure, **solve_options)
+        results, profiles = [res], [self.friction_profile(res)]
+        for c in scale[1:]:
+            state = results[-1] if (friction > 0 and len(results) > 1) else None
+            res = self.solve(c * Tp, pressure, initial=res, friction=friction, friction_state=state,
+                             **solve_options)
+            results.append(res)
+            profiles.append(self.friction_profile(res))
+        tip = np.array([r.tip_position for r in results])
+        d = tip[s] - tip[0]
+        u = (tip - tip[0]) @ (d / np.linalg.norm(d) if np.linalg.norm(d) > 0 else d)
+        return FemTensionCycle(scale, tip, results, profiles, loop_area(scale * float(Tp.max()), u), Tp.copy())
 
     def tendon_lengths(self, st: State) -> np.ndarray:
         """Current cable path lengths [m], shape ``(m,)``."""
@@ -530,9 +687,19 @@ class BellowsModel:
         m = self.m
         Ls = np.zeros(m)
         g = np.zeros((self.n_dofs, m))
+        fr = lc.friction
         if tangent:
+            if fr is not None:
+                self._ensure_friction_pattern()
             Kq = self._canonical(Kq)
         for k in range(m):
+            if fr is not None and st.T[k] != 0.0:       # segment tensions of the capstan law
+                Ls[k], g[:, k], rk, Hk = self._friction_terms(st, k, fr, tangent)
+                r += rk
+                fext_q -= rk
+                if tangent:
+                    Kq.data[self._friction_positions(k)] += Hk
+                continue
             Lk, gk, Hk = self._tendon_terms(st, k, tangent and st.T[k] != 0.0)
             Ls[k], g[:, k] = Lk, gk
             if st.T[k] != 0.0:
@@ -645,8 +812,9 @@ class BellowsModel:
                 dq, dT = sym.newton_step(ev["K"], r, ev["g"], active, cres, self.linear_solver)
                 stats.n_symmetric_steps += 1
             else:  # a Newton step: see factorize
-                dq, dT = bordered_step(factorize(ev["K"], self.linear_solver, exact=False), r, ev["g"][:, active],
-                                       cres)
+                # friction makes K non-symmetric: the exact factorisation (LU), not the symmetric part alone
+                fac = factorize(ev["K"], self.linear_solver, exact=lc.friction is not None)
+                dq, dT = bordered_step(fac, r, ev["g"][:, active], cres)
             stats.t_linear += time.perf_counter() - t0
             step_norms.append(float(np.linalg.norm(dq)))
             st, ev = self._line_search(st, dq, dT, active, lc, stats, bound=growth * max(rn, tol))
@@ -704,7 +872,8 @@ class BellowsModel:
               max_iter: int = 25, max_cuts: int = 8, growth: float = 1e4,
               progress: Callable[[dict], None] | None = None, *, check_limits: bool = True,
               max_steps: int = 60, time_limit_s: float | None = None,
-              check_stability: bool = True, symmetry: bool = True) -> BellowsResult:
+              check_stability: bool = True, symmetry: bool = True, friction: float = 0.0,
+              friction_state: FrictionProfile | BellowsResult | None = None) -> BellowsResult:
         """Static equilibrium under the given loads (SI units).
 
         Parameters
@@ -747,6 +916,14 @@ class BellowsModel:
             mesh that leave its loads and start state invariant (:mod:`fem_reference.symmetry`; same discrete
             equilibrium, smaller factorisations; the order used is ``res.stats.symmetry_order``) — the
             default; ``False`` always solves the full system.
+        friction : float
+            Tendon friction coefficient μ ∈ [0, 1] of the capstan law at the guides
+            (:mod:`fem_reference.loads.tendon_friction`; 0: frictionless, the solve as without it).  With μ > 0
+            the Newton matrix is not symmetric (LU) and the symmetric subspace is not used.
+        friction_state : FrictionProfile or BellowsResult, optional
+            The history: the previous state's segment tensions (:meth:`friction_profile`, or a friction result of
+            this model, same μ); None: every segment slack.  The law is applied once with it (the load ramp is a
+            continuation path to this step's equilibrium).
 
         Returns
         -------
@@ -764,11 +941,14 @@ class BellowsModel:
                              ltol=ltol, time_limit_s=time_limit_s)
         symmetry = check_symmetry_flag(symmetry)
         target = self._loadcase(tensions, pressure, tip_force, gravity, locked_lengths)
+        target.friction = self._friction_law(friction, friction_state, target)
+        symmetry = symmetry and target.friction is None
         if check_limits:
             self.limits.check(target, self.tendon_lengths(self.zero_state()))
         t_start = time.perf_counter()
         stats = NewtonStats()
         st, start = self._start(initial, target)
+        start.friction = target.friction
         locked = ~np.isnan(target.locked_lengths)
         if n_steps is None:
             n_steps = self._initial_steps(start, target)

@@ -15,6 +15,8 @@ At tension ``T`` the cable's potential is ``T L`` (conservative): it adds ``T �
 ``T ∂²L/∂q²`` to the tangent (plus the rigid-link geometric term of the anchor force).  At locked length
 ``L₀`` the tension is a Lagrange multiplier of ``L(q) = L₀``.  A cable never pushes: ``T ≥ 0`` always
 (prescribed tensions are validated; a locked cable whose multiplier would turn negative goes slack).
+With friction at the guides each segment carries its own tension (the capstan law with stick/slip history of
+:mod:`fem_reference.loads.tendon_friction`).
 
 **Guide points (modelling choice, flagged).**  The tendon routing distance of the paper's actuator
 (27.5 mm) is larger than the bellows wall radius, so the guides are not wall nodes.  Each guide sits
