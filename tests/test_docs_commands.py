@@ -10,7 +10,8 @@ no traceback; where a document says what a command reports, ``SAYS`` checks its 
 
 What the test changes, and only this (docs/README.md says so too):
 
-* a command shown in several documents runs once;
+* a command shown in several documents runs once, and a command whose outputs a later command reads runs once
+  too (its own case's outputs are that command's inputs);
 * ``SHORTER``: long runs get a documented short option (fewer workspace samples, a duration for a run that
   otherwise holds until Ctrl-C, the simulated rig as fast as it computes);
 * ``FILES``: input files a document names but no command of it writes (a design file) are made from the
@@ -46,6 +47,7 @@ SHORTER = [
     (r"^(bellows control --rig sim)(?!.*--duration-s)(?!.*--max-iterations)", r"\1 --duration-s 6"),
     (r"^(bellows control --rig sim)(?!.*--fast)", r"\1 --fast"),
     (r"^(bellows paper dynamic)(?!.*--frequencies-hz)", r"\1 --frequencies-hz 2"),  # one load frequency
+    (r"^(bellows paper dynamic)(?!.*--cycles)", r"\1 --cycles 2"),              # the fewest cycles (one judged)
     # one model form instead of all nine (~30 s instead of 3–8 min on 2 cores; each form goes through the same
     # fit, and tests/test_identification/ fits several forms to measured states)
     (r"^(bellows identify --measurements\b(?!.*--forms).*)$", r"\1 --forms paper"),
@@ -206,6 +208,7 @@ def artifacts(tmp_path_factory):
             made[top] = d / top
         src = made[top] if top == name else made[top] / name.split("/", 1)[1]
         shutil.copy2(src, target) if src.is_file() else shutil.copytree(src, target)
+    provide.made = made          # also filled by test_doc_command_runs: a documented command runs only once
     return provide
 
 
@@ -230,6 +233,19 @@ def test_ci_runs_the_readme_commands():
     assert "\npip install -e .[test] && pytest\n" in ci
 
 
+def test_the_test_install_has_the_plugins_the_default_run_uses():
+    """pyproject's addopts run the suite on pytest-xdist (``-n``/``--dist``): the ``[test]`` extra installs it, so
+    that the README's ``pip install -e .[test] && pytest`` works in a clean environment."""
+    import tomllib
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    addopts = shlex.split(cfg["tool"]["pytest"]["ini_options"]["addopts"])
+    extra = {re.split(r"[<>=!~\[; ]", req, maxsplit=1)[0].lower()
+             for req in cfg["project"]["optional-dependencies"]["test"]}
+    if "-n" in addopts or any(a.startswith(("--dist", "--numprocesses")) for a in addopts):
+        assert "pytest-xdist" in extra, "addopts use pytest-xdist but the [test] extra does not install it"
+    assert "pytest" in extra
+
+
 @pytest.mark.parametrize("doc, index, cmd", CASES)
 def test_doc_command_runs(artifacts, tmp_path, doc, index, cmd):
     """Each command in a fresh folder holding only the inputs it names."""
@@ -245,6 +261,17 @@ def test_doc_command_runs(artifacts, tmp_path, doc, index, cmd):
     for pattern, words in SAYS:
         if re.search(pattern, cmd):
             assert all(w in res.stdout + res.stderr for w in words), f"{cmd}: the docs say it prints {words}"
+    keep_outputs(artifacts.made, cmd, cwd)
+
+
+def keep_outputs(made: dict, cmd: str, cwd: pathlib.Path) -> None:
+    """The files a documented command wrote in ``cwd`` serve later commands as their inputs (``made``), where it
+    is the command the docs make them with: it does not run a second time to make them."""
+    writers = producers()
+    for out in outputs_of(cmd):
+        top = out.rstrip("/")
+        if writers.get(top) == cmd and (cwd / top).exists():
+            made.setdefault(top, cwd / top)
 
 
 @pytest.mark.parametrize("cmd", sorted({c.values[2] for c in CASES if FEM_SWEEP.search(c.values[2])}))
@@ -269,3 +296,17 @@ def test_what_counts_as_a_fem_sweep():
     assert not needs_fem_sweep("bellows identify-damping decay/simulation.csv", writers)
     assert not needs_fem_sweep("bellows identify --measurements run.h5", writers)
     assert needs_fem_sweep("bellows identify --design paper", writers)
+
+
+def test_a_documented_commands_outputs_serve_the_later_commands(tmp_path):
+    """The file a documented command wrote in its own case is kept as the input of the later ones (it does not
+    run again to make it); a command that is not the one the docs make the file with leaves it alone."""
+    writer = producers()["run.h5"]
+    (tmp_path / "run.h5").write_bytes(b"")
+    made: dict = {}
+    keep_outputs(made, "bellows control --rig sim --target-mm 1,2,3 --log run.h5", tmp_path / "elsewhere")
+    assert made == {}
+    keep_outputs(made, writer, tmp_path / "missing")             # wrote nothing there: nothing kept
+    assert made == {}
+    keep_outputs(made, writer, tmp_path)
+    assert made == {"run.h5": tmp_path / "run.h5"}

@@ -127,21 +127,28 @@ def test_the_rig_loop_converges_on_the_dynamic_plant_only_with_shaped_moves(mode
     assert out["shaped"].status == "converged" and out["shaped"].iterations <= 3
 
 
-def test_control_command_dynamic_options(tmp_path):
+def test_control_command_dynamic_options(tmp_path, monkeypatch, capsys):
+    """The run as a subprocess (the console command); the refusals in-process through the same entry point
+    (``validation.commands.main.main``: the one-line error contract, exit status 2), without an interpreter each."""
     import subprocess
     import sys
 
-    def run(*args):
-        return subprocess.run([sys.executable, "-m", "validation.commands.main", "control", "--target-mm", "176,-12,3",
-                               "--pressure-kpa", "30", *args], cwd=tmp_path, capture_output=True, text=True,
-                              timeout=300)
-    ok = run("--rig", "sim", "--dynamics", "--fast", "--max-iterations", "5", "--shaping-damping-ratio", "0.05")
+    from validation.commands.main import main
+    argv = ["control", "--target-mm", "176,-12,3", "--pressure-kpa", "30", "--rig", "sim", "--fast",
+            "--max-iterations", "5"]
+    ok = subprocess.run([sys.executable, "-m", "validation.commands.main", *argv, "--dynamics",
+                         "--shaping-damping-ratio", "0.05"], cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                        check=False)
     assert ok.returncode == 0, ok.stderr
+    monkeypatch.chdir(tmp_path)
     for args, text in ((("--plant-damping-ratio", "0.1"), "needs --dynamics"),
                        (("--dynamics", "--mismatch"), "friction"),
                        (("--shaping-damping-ratio", "1.5"), "shaping-damping-ratio")):
-        r = run("--rig", "sim", "--fast", "--max-iterations", "5", *args)
-        assert r.returncode == 2 and r.stderr.count("error:") == 1 and text in r.stderr, r.stderr
+        capsys.readouterr()
+        with pytest.raises(SystemExit) as exit_:
+            main([*argv, *args])
+        err = capsys.readouterr().err
+        assert exit_.value.code == 2 and err.count("error:") == 1 and text in err, err
 
 
 def test_motors_lag_behind_their_position_loop(model, ref):

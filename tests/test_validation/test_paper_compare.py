@@ -97,7 +97,8 @@ def test_locked_drift_is_linear_in_a_small_payload():
     assert d1 / d2 == pytest.approx(2.0, rel=0.05)
 
 
-def test_convergence_and_loads_commands():
+def test_convergence_and_loads_commands(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)                     # the default --out (bellows_out/paper) in a folder of its own
     res = runner.invoke(app, ["convergence", "--n-values", "1,6", "--n-ref", "8", "--preset", "paper_unscaled",
                               "--json"])
     assert res.exit_code == 0, res.output
