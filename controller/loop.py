@@ -17,6 +17,7 @@ through all phases, so the reported maximum includes the error that builds up be
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Optional, Union
 
@@ -281,3 +282,50 @@ def run_timed(controller: Controller, plant: Plant, target, *, duration: float,
     n = len(ts)
     return TimedResult(controller.name, np.array(ts), np.array(loads).reshape(n, 3), np.array(errs).reshape(n, 3),
                        np.array(ests).reshape(n, 3), cycles, corrections, ctimes, idle)
+
+
+def run_periodic(controller: Controller, plant: Plant, target, *, duration: float, latency: float = 1e-3,
+                 sample_dt: float = 0.01, initial_load=(0.0, 0.0, 0.0)) -> TimedResult:
+    """Fixed-rate closed loop over ``duration`` [s]: every ``controller.period`` seconds the plant is
+    measured and the controller stepped; its command reaches the motors ``latency`` [s] later (commands in
+    flight queue up), and the motors move at their rate limit.  For controllers that run at the loop rate
+    (:class:`controller.DynamicLACC`); the true tip error is sampled every ``sample_dt`` [s]."""
+    pd = check_finite("target", target, (3,))
+    period = getattr(controller, "period", None)
+    if period is None:
+        raise InputError(f"run_periodic needs a controller with a loop period (DynamicLACC), got {controller.name}")
+    duration = number("duration", duration, strict=True)
+    latency = number("latency", latency)
+    sample_dt = number("sample_dt", sample_dt, strict=True)
+    plant.time = 0.0
+    plant.command(controller.start(pd, initial_load))
+    ts, loads, errs, ests, pending = [], [], [], [], []
+    next_sample, compute = 0.0, []
+    k = 0
+    while k * period < duration - 1e-12:
+        t_k = k * period
+        rep = controller.step(plant.measure())
+        compute.append(rep.compute_time)
+        pending.append((t_k + latency, rep.command))
+        t_end = (k + 1) * period
+        while True:                                   # advance to the next event: a sample, a command, the period
+            t_cmd = pending[0][0] if pending else math.inf
+            t_next = min(next_sample, t_cmd, t_end)
+            if t_next > plant.time:
+                plant.advance(t_next - plant.time)
+            if pending and pending[0][0] <= plant.time + 1e-12:
+                plant.command(pending.pop(0)[1])
+                continue
+            if next_sample <= plant.time + 1e-12:
+                ts.append(plant.time)
+                loads.append(plant.load())
+                errs.append(plant.true_tip() - pd)
+                ests.append(controller.estimate)
+                next_sample += sample_dt
+                continue
+            if plant.time >= t_end - 1e-12:
+                break
+        k += 1
+    n = len(ts)
+    return TimedResult(controller.name, np.array(ts), np.array(loads).reshape(n, 3), np.array(errs).reshape(n, 3),
+                       np.array(ests).reshape(n, 3), [], k, compute, 0)

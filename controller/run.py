@@ -470,7 +470,12 @@ class _Run:
             rig.command(last + a1 * (np.asarray(rep.command, float) - last), expected_tensions=expected)
             rig.advance(delay)
         rig.command(rep.command, expected_tensions=expected)
-        rig.advance(None)
+        period = getattr(self.ctrl, "period", None)
+        if period is not None:
+            # a controller stepped once per loop period (DynamicLACC): the next sample one period on
+            rig.advance(max(period - (rig.clock.now() - t_cmd), 0.0))
+        else:
+            rig.advance(None)
         if rig.clock.now() <= t_cmd:
             # nothing to move and no time passed (a simulated rig given the same command again, e.g. while
             # saturated): wait like a held target, or the loop would spin at one instant of rig time

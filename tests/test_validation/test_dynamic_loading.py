@@ -52,6 +52,26 @@ def test_bad_study_inputs():
         dynamic_loading(frequencies=(1.0,), cycles=1)
     with pytest.raises(InputError, match="cyclic_mass"):
         dynamic_loading(frequencies=(1.0,), cyclic_mass=-0.1)
+    # the dynamic LACC's options are refused before any run starts
+    for kw, what in ((dict(model_error=0.7), "model_error"), (dict(observer_bandwidth_hz=0.0), "bandwidth"),
+                     (dict(loop_latency=0.5), "latency")):
+        with pytest.raises(InputError, match=what):
+            dynamic_loading(frequencies=(1.0,), dynamic_lacc=True, **kw)
+
+
+@pytest.mark.slow
+def test_the_documented_controller_table_is_the_programs_output():
+    """docs/dynamics.md's controller table (LACC, ZV-shaped LACC and the dynamic LACC on the fast loop,
+    0.5 … 4 Hz, the plant as the model and mismatched) rerun: deterministic (fixed compute time, seeded tracker
+    noise), so the page's lines must come back as they are (~40 min on 2 cores)."""
+    import pathlib
+    from validation.paper.dynamic import CONTROLLER_TABLE_PLANTS, FAST_LOOP, controller_table
+    text = (pathlib.Path(__file__).parents[2] / "docs" / "dynamics.md").read_text()
+    runs = {label: dynamic_loading(frequencies=(0.5, 1.0, 2.0, 4.0), cycles=2, shaping=True, dynamic_lacc=True,
+                                   mismatch=mismatch, **FAST_LOOP)
+            for label, mismatch in CONTROLLER_TABLE_PLANTS}
+    for line in controller_table(runs):
+        assert line in text, line
 
 
 @pytest.mark.slow

@@ -33,7 +33,7 @@ from ancf.textfmt import one_of, vector
 from hardware.loads import PROFILES as LOAD_PROFILES
 
 #: ``--controller`` choices (the classes live in :mod:`controller`, imported when the command runs)
-CONTROLLERS = ("lacc", "vfcc")
+CONTROLLERS = ("lacc", "vfcc", "dynamic-lacc")
 #: what each LACC ``--compliance`` method is (keys: :data:`ancf.compliance.METHODS`)
 _COMPLIANCE_NOTES = {"exact": "default", "ik": "eq. 15/16", "paper": "eq. 13"}
 
@@ -90,7 +90,8 @@ def compile_loop_kernels(params=None, controller: str = "lacc", compliance: Opti
     lo, span = params.tension_min, params.tension_max - params.tension_min
     T = np.full(params.n_tendons, lo + 0.1 * span)
     T[0] = lo + 0.3 * span
-    ctrl = (LACC(model, p, compliance=compliance or "exact") if controller == "lacc" else VFCC(model, p))
+    # the dynamic LACC solves with the same kernels as LACC (IK, locked FK, compliance) plus the modes
+    ctrl = VFCC(model, p) if controller == "vfcc" else LACC(model, p, compliance=compliance or "exact")
     try:
         target = model.fk(T, p, load).tip
         run_on_rig(ctrl, SimulatedRig(params, load=load, seed=0, dynamics=dynamics), target,
@@ -309,7 +310,7 @@ def _check_ranges(a: SimpleNamespace) -> None:
         raise InputError(f"--compliance must be one of {', '.join(COMPLIANCE_METHODS)}, got {a.compliance!r}")
     if a.on_drive_fault not in ("ask", "stop"):
         raise InputError(f"--on-drive-fault must be 'ask' or 'stop', got {a.on_drive_fault!r}")
-    if a.controller == "vfcc" and a.compliance is not None:
+    if a.controller != "lacc" and a.compliance is not None:
         raise InputError("--compliance applies to LACC only; VF-CC has no compliance option")
     if a.duration_s is not None and not (math.isfinite(a.duration_s) and a.duration_s > 0):
         raise InputError(f"--duration-s must be a finite time > 0 s, got {a.duration_s}")
@@ -384,11 +385,19 @@ def _built_controller(a: SimpleNamespace, cfg, target: np.ndarray):
     """The controller (LACC or VF-CC at the pressure and tolerance asked) and the ZV shaper of every move
     (None without --shaping-damping-ratio).  Returns (controller, shaper)."""
     from ancf import Model
-    from controller import LACC, VFCC
+    from controller import LACC, VFCC, DynamicLACC
     model = Model(cfg.actuator_params())
     p, tol = a.pressure_kpa * 1e3, a.tolerance_mm * 1e-3
-    ctrl = (LACC(model, p, compliance=a.compliance or "exact", tolerance=tol) if a.controller == "lacc"
-            else VFCC(model, p, tolerance=tol))
+    if a.controller == "dynamic-lacc":
+        # stepped every millisecond (the run waits one period after each command, controller/run.py); the
+        # model's damping: the plant's ratio on the simulated rig, else the shaping ratio, else 0.05
+        zeta = (a.plant_damping_ratio if getattr(a, "dynamics", False) and a.plant_damping_ratio is not None
+                else (a.shaping_damping_ratio or 0.05))
+        ctrl = DynamicLACC(model, p, tolerance=tol, latency=0.0, damping_ratio=zeta)
+    elif a.controller == "lacc":
+        ctrl = LACC(model, p, compliance=a.compliance or "exact", tolerance=tol)
+    else:
+        ctrl = VFCC(model, p, tolerance=tol)
     shaper = None
     if a.shaping_damping_ratio is not None:
         from controller import zv_shaper

@@ -59,6 +59,12 @@ FREQ_HZ = {"low": 0.01, "high": 20.0}
 LOOP_MS = clitools.number_range(0.0, 10_000.0, unit="ms")
 MOTOR_RATE = clitools.number_range(0.0, low_open=True, unit="mm/s")
 RATIO = clitools.number_range(0.0, 1.0)
+#: the dynamic LACC's observer bandwidth [Hz]: below a quarter of the 1 kHz loop's Nyquist frequency
+OBSERVER_HZ = clitools.number_range(0.0, 125.0, low_open=True, high_open=True, unit="Hz")
+#: time from a measurement to the motors acting on its command [ms]: at most 30 periods of the 1 kHz loop
+LOOP_LATENCY_MS = clitools.number_range(0.0, 30.0, unit="ms")
+#: the bound of the modes' frequency error the dynamic LACC stays stable for [%] (0: the model as exact)
+MODEL_ERROR_PCT = clitools.number_range(0.0, 50.0, high_open=True, unit="%")
 
 
 def _console(as_json: bool) -> Console:
@@ -166,12 +172,12 @@ def stiffness(pressures_kpa: str = typer.Option("0,25,50",
 
 
 def _control(name: str, out: pathlib.Path, as_json: bool, preset: str = "paper", force: bool = False,
-             mismatch: bool = False) -> None:
+             mismatch: bool = False, study_kw: Optional[dict] = None) -> None:
     con = _console(as_json)
     with _scheduler_errors(None):
         params = paper.resolve_params(preset)
         out = prepare_output_dir(out, paper.study_files(name), force=force)     # before the study runs
-        extra = {}
+        extra = dict(study_kw or {})
         if mismatch:      # the simulated rig of ``bellows control --rig sim --mismatch`` around this preset
             from controller import PlantOptions
             extra["plant_options"] = PlantOptions.mismatched(base=params)
@@ -217,13 +223,25 @@ def table1(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
                                          "controllers' own noise-free model: +15 % line mass, stiffness × 0.95, +5 g "
                                          "tip, 0.05 mm tracker noise, 1 µm motor steps, 0.1 N tendon friction "
                                          "(PlantOptions.mismatched, as bellows control --rig sim --mismatch)."),
+           plant_friction: Optional[str] = typer.Option(
+               None, help="Tendon friction coefficients μ of the plant's actuator, comma separated, each in "
+                          "[0, 1] (e.g. 0,0.1,0.3): Table I once per μ, the controllers' model frictionless, "
+                          "LACC run on to 20 iterations (iterations to 0.1 mm); docs/friction.md."),
+           friction_aware: bool = typer.Option(False, "--friction-aware", help="With --plant-friction: also the "
+                                               "LACC whose model has the plant's μ (controller.friction_aware)."),
            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Table I: VF-CC vs LACC residual error after five iterations (up / horizontal / down).
 
     The plant is simulated (locked-length FK with the load hidden); by default it is the controllers' own model
-    without noise, with --mismatch an imperfect rig.  The paper's numbers are measurements on its physical rig."""
-    _control("table1", out, as_json, preset, force, mismatch=mismatch)
+    without noise, with --mismatch an imperfect rig, with --plant-friction a rig whose tendons have friction.
+    The paper's numbers are measurements on its physical rig."""
+    if friction_aware and plant_friction is None:
+        raise typer.BadParameter("needs --plant-friction (the plant's μ values)", param_hint="'--friction-aware'")
+    kw = {} if plant_friction is None else {
+        "friction": clitools.parse_numbers(plant_friction, "--plant-friction", low=0.0, high=1.0),
+        "friction_aware": friction_aware}
+    _control("table1", out, as_json, preset, force, mismatch=mismatch, study_kw=kw)
 
 
 @app.command("dynamic", short_help="Cyclic loads 0.125–2 Hz: quasi-static LACC on a static vs a dynamic plant.")
@@ -245,6 +263,19 @@ def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2",
                                                 f"first mode, {RATIO.text}."),
             shaping: bool = typer.Option(False, "--shaping", help="Also run the dynamic plant with ZV-shaped "
                                          "moves (input shaping at the model's first locked mode)."),
+            dynamic_lacc: bool = typer.Option(False, "--dynamic-lacc", help="Also run the dynamic LACC (load "
+                                              "observer at 1 kHz) on the dynamic plant."),
+            mismatch: bool = typer.Option(False, "--mismatch", help="Every plant differs from the controllers' "
+                                          "model: EI -20 %, D_eff +2.5 %, the model's damping ratio half the "
+                                          "plant's, 0.05 mm tracker noise."),
+            observer_bandwidth_hz: float = typer.Option(12.0, callback=OBSERVER_HZ, help="Dynamic LACC: the "
+                                                        f"observer's bandwidth asked, {OBSERVER_HZ.text} (lowered "
+                                                        "where --model-error-pct needs it)."),
+            loop_latency_ms: float = typer.Option(2.0, callback=LOOP_LATENCY_MS, help="Dynamic LACC: time from a "
+                                                  f"measurement to its command acting, {LOOP_LATENCY_MS.text}."),
+            model_error_pct: float = typer.Option(12.0, callback=MODEL_ERROR_PCT, help="Dynamic LACC: the plant's "
+                                                  "modal frequency error the loop stays stable for, "
+                                                  f"{MODEL_ERROR_PCT.text} (0: the model taken as exact)."),
             preset: str = typer.Option("paper", help=PRESET_HELP),
             out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
             force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -261,7 +292,11 @@ def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2",
             res = dynamic_loading(frequencies=freqs, cycles=cycles, cyclic_mass=mass_g * 1e-3,
                                   motor_rate=motor_rate_mm_s * 1e-3, settle_time=settle_ms * 1e-3,
                                   compute_time=compute_ms * 1e-3, actuation_latency=latency_ms * 1e-3,
-                                  damping=damping_ratio, shaping=shaping, params=params, out=out,
+                                  damping=damping_ratio, shaping=shaping, dynamic_lacc=dynamic_lacc,
+                                  mismatch=mismatch, observer_bandwidth_hz=observer_bandwidth_hz,
+                                  loop_latency=loop_latency_ms * 1e-3,
+                                  model_error=model_error_pct * 1e-2 if model_error_pct > 0 else None,
+                                  params=params, out=out,
                                   progress=lambda f, n: st.update(f"{f:g} Hz, {n} plant done"))
     if as_json:
         _echo_json(res)
