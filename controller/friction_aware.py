@@ -52,7 +52,7 @@ from ancf.errors import InputError
 
 from .base import Controller, StepReport
 from .errors import ControllerError, check_finite, number
-from .lacc import G, regularised_solve
+from .lacc import G, regularised_solve, safeguards
 
 
 def _free_twin(model: Model) -> Model:
@@ -177,12 +177,7 @@ class FrictionAwareLACC(Controller):
                  max_step_force: Optional[float] = 1.0, rcond: float = 0.05, ik_tol: float = 1e-6,
                  ik_max_iter: int = 12, fd_force: float = 0.01, initial_state: Optional[fr.FrictionState] = None):
         super().__init__(model, pressure, tolerance=tolerance)
-        self.validity_force = number("validity_force", validity_force, strict=True)
-        self.max_step_force = None if max_step_force is None else number("max_step_force", max_step_force,
-                                                                         strict=True)
-        self.rcond = number("rcond", rcond, strict=True)
-        if self.rcond >= 1:
-            raise InputError(f"rcond must be in (0, 1), got {rcond!r}")
+        self.validity_force, self.max_step_force, self.rcond = safeguards(validity_force, max_step_force, rcond)
         self.ik_tol = number("ik_tol [m]", ik_tol, strict=True)
         if isinstance(ik_max_iter, bool) or not isinstance(ik_max_iter, (int, np.integer)) or ik_max_iter < 1:
             raise InputError(f"ik_max_iter must be an integer >= 1, got {ik_max_iter!r}")

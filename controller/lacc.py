@@ -85,6 +85,17 @@ def regularised_solve(C: np.ndarray, e: np.ndarray, rcond: float) -> np.ndarray:
     return Vt[keep].T @ ((U[:, keep].T @ e) / s[keep])
 
 
+
+def safeguards(validity_force, max_step_force, rcond) -> tuple:
+    """``(validity_force [N], max_step_force [N] or None, rcond)`` checked (the load-estimate safeguards of the module
+    docstring: > 0 each, rcond < 1); InputError naming the first out of range."""
+    vf = number("validity_force", validity_force, strict=True)
+    ms = None if max_step_force is None else number("max_step_force", max_step_force, strict=True)
+    rc = number("rcond", rcond, strict=True)
+    if rc >= 1:
+        raise InputError(f"rcond must be in (0, 1), got {rcond!r}")
+    return vf, ms, rc
+
 class LACC(Controller):
     """Load-aware compliance controller (Algorithm 1).
 
@@ -120,12 +131,7 @@ class LACC(Controller):
         self.active_rule = active_rule or ("exact" if compliance == "exact" else "paper")
         if not isinstance(self.active_rule, str) or self.active_rule not in ("paper", "exact"):
             raise InputError(f"active_rule must be 'paper' or 'exact', got {active_rule!r}")
-        self.validity_force = number("validity_force", validity_force, strict=True)
-        self.max_step_force = None if max_step_force is None else number("max_step_force", max_step_force,
-                                                                         strict=True)
-        self.rcond = number("rcond", rcond, strict=True)
-        if self.rcond >= 1:
-            raise InputError(f"rcond must be in (0, 1), got {rcond!r}")
+        self.validity_force, self.max_step_force, self.rcond = safeguards(validity_force, max_step_force, rcond)
         self.gain = number("gain", gain, strict=True)
         self.fallback_gain = number("fallback_gain", fallback_gain, strict=True)
         if isinstance(backtracks, bool) or not isinstance(backtracks, (int, np.integer)) or backtracks < 0:

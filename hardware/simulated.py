@@ -136,6 +136,15 @@ class PlantOptions:
         return cls(**opts)
 
 
+def _plant_failed(what: str, l_act, F, exc: ConvergenceError) -> ConvergenceError:
+    """The plant's own solve ``what`` failed at motor lengths ``l_act`` [m] and tip load ``F`` [N]: a
+    ConvergenceError that says where and keeps the solver's record of ``exc``."""
+    return ConvergenceError(f"simulated rig: {what} failed at lengths {', '.join(f'{x * 1e3:.3f}' for x in l_act)} "
+                            f"mm, tip load ({', '.join(f'{x:.4g}' for x in F)}) N: {exc}", solver=exc.solver,
+                            iterations=exc.iterations, residual_norm=exc.residual_norm, tolerance=exc.tolerance,
+                            history=exc.history)
+
+
 class _Plant:
     """The physics: motor lengths, pressure, hidden load, clock; locked FK with friction; fault schedule."""
 
@@ -264,11 +273,7 @@ class _Plant:
         try:
             return fk_locked_history(m, prev, l_act, self.pressure, F)
         except ConvergenceError as exc:
-            raise ConvergenceError(f"simulated rig: locked FK with tendon friction failed at lengths "
-                                   f"{', '.join(f'{x * 1e3:.3f}' for x in l_act)} mm, tip load "
-                                   f"({', '.join(f'{x:.4g}' for x in F)}) N: {exc}", solver=exc.solver,
-                                   iterations=exc.iterations, residual_norm=exc.residual_norm,
-                                   tolerance=exc.tolerance, history=exc.history) from exc
+            raise _plant_failed("locked FK with tendon friction", l_act, F, exc) from exc
         finally:
             self.solves += 1
 
@@ -302,11 +307,7 @@ class _Plant:
             try:
                 return self.model.fk_locked(l_act, self.pressure, F)
             except ConvergenceError as exc:   # the plant itself failed: say where, keep the solver's record
-                raise ConvergenceError(f"simulated rig: locked FK failed at lengths "
-                                       f"{', '.join(f'{x * 1e3:.3f}' for x in l_act)} mm, tip load "
-                                       f"({', '.join(f'{x:.4g}' for x in F)}) N: {exc}", solver=exc.solver,
-                                       iterations=exc.iterations, residual_norm=exc.residual_norm,
-                                       tolerance=exc.tolerance, history=exc.history) from exc
+                raise _plant_failed("locked FK", l_act, F, exc) from exc
         finally:
             self.solves += 1
 
