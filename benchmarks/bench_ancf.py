@@ -153,15 +153,23 @@ def friction_cost(repeats: int = 50) -> dict:
     ref = free.fk((2.0, 0.5, 0.0), 30e3)
     prev = fric.fk_history((2.0, 0.5, 0.0), 30e3)
     fric.fk_history((2.05, 0.5, 0.0), 30e3, state=prev)                 # compile / load kernels
-    t = {"FK warm, frictionless": [], "FK history step, mu = 0.3": []}
+    from controller.friction_aware import friction_ik
+    target, load = free.fk((2.05, 0.52, 0.0), 30e3).tip, np.zeros(3)     # reachable, ≈ 0.5 mm from the state
+    friction_ik(fric, free, prev, target, 30e3, load)
+    t = {"FK warm, frictionless": [], "FK history step, mu = 0.3": [], "IK warm, frictionless": [],
+         "IK with friction, mu = 0.3": []}
     for _ in range(repeats):
         t["FK warm, frictionless"].append(timed(free.fk, (2.05, 0.5, 0.0), 30e3, q0=ref.q)[1])
         t["FK history step, mu = 0.3"].append(timed(fric.fk_history, (2.05, 0.5, 0.0), 30e3, state=prev)[1])
+        t["IK warm, frictionless"].append(timed(free.ik, target, 30e3, load, q0=ref.q, tensions0=ref.tensions)[1])
+        t["IK with friction, mu = 0.3"].append(timed(friction_ik, fric, free, prev, target, 30e3, load)[1])
     med = {k: statistics.median(v) * 1e3 for k, v in t.items()}
-    print(f"\nwhat friction costs per FK (median of {repeats}, milliseconds, n = 6)")
+    print(f"\nwhat friction costs per FK and IK (median of {repeats}, milliseconds, n = 6; the IK with friction is "
+          "controller.friction_aware.friction_ik, a LACC-sized correction from a friction state)")
     for k, v in med.items():
         print(f"  {k:28s} {v:9.3f}")
-    print(f"  ratio {med['FK history step, mu = 0.3'] / med['FK warm, frictionless']:.1f}x")
+    print(f"  ratio FK {med['FK history step, mu = 0.3'] / med['FK warm, frictionless']:.1f}x, "
+          f"IK {med['IK with friction, mu = 0.3'] / med['IK warm, frictionless']:.1f}x")
     return med
 
 

@@ -80,12 +80,17 @@ def _broyden(B: np.ndarray, dx: np.ndarray, df: np.ndarray) -> np.ndarray:
     return B if nx == 0 else B + np.outer(df - B @ dx, dx) / nx
 
 
+#: largest change of a motor length in one step of :func:`friction_ik` [m] (a Broyden step is scaled down to it)
+MAX_LENGTH_STEP = 5e-3
+
+
 def friction_ik(model: Model, free: Model, state: fr.FrictionState, target, pressure: float, load, *,
                 tol: float = 1e-6, max_iter: int = 12, free_eq=None):
     """IK with friction: motor lengths l (m,) [m] such that the locked friction step from ``state`` under
     ``load`` (3,) [N] at ``pressure`` [Pa] puts the tool point on ``target`` (3,) [m] within ``tol`` [m]
-    (module docstring, step 2).  ``free`` is the frictionless twin of ``model``; ``free_eq`` its IK state for
-    (target, load) if known.  Returns (lengths, FrictionState, frictionless IK state, iterations).  Raises
+    (module docstring, step 2; Broyden steps on the motor lengths, each length changed by at most
+    :data:`MAX_LENGTH_STEP` per step).  ``free`` is the frictionless twin of ``model``;
+    ``free_eq`` its IK state for (target, load) if known.  Returns (lengths, FrictionState, frictionless IK state, iterations).  Raises
     InfeasibleTargetError (the frictionless IK's, or motor tensions outside the limits) or
     :class:`~controller.errors.ControllerError` (no convergence in ``max_iter`` friction solves)."""
     pd = check_finite("target", target, (3,))
@@ -101,6 +106,7 @@ def friction_ik(model: Model, free: Model, state: fr.FrictionState, target, pres
             _check_tensions(model, st, pd)
             return lengths, st, free_eq, it
         dl = -np.linalg.lstsq(B, r, rcond=None)[0]
+        dl *= min(1.0, MAX_LENGTH_STEP / max(float(np.abs(dl).max()), 1e-300))   # a trust region on the lengths
         st_new = fr.fk_locked_history(model, state, lengths + dl, pressure, F)
         r_new = st_new.tip - pd
         B = _broyden(B, dl, r_new - r)

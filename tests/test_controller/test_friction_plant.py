@@ -184,3 +184,18 @@ def test_documented_table_is_the_programs():
     for mu, block in res["friction"].items():
         for name, e in block.items():
             assert rows[(mu, name)] == _program_row(mu, name, e)
+
+
+def test_friction_ik_from_a_state_with_a_slack_tendon():
+    """From a state with a slack tendon to a target that makes it just taut under friction: without a bound on
+    the Broyden step, one step sent that tendon's motor length to -2e9 mm and the locked solve refused it; the
+    steps are now at most MAX_LENGTH_STEP per motor."""
+    from ancf import Model, presets
+    from controller.friction_aware import MAX_LENGTH_STEP, friction_ik
+    free = Model(presets.paper())
+    fric = Model(presets.paper().replace(tendon_friction=0.3))
+    prev = fric.fk_history((2.0, 0.5, 0.0), 30e3)
+    target = free.fk((2.05, 0.52, 0.0), 30e3).tip
+    lengths, st, free_eq, its = friction_ik(fric, free, prev, target, 30e3, np.zeros(3))
+    assert np.linalg.norm(st.tip - target) < 1e-6 and its <= 12
+    assert np.abs(lengths - free_eq.tendon_lengths).max() <= its * MAX_LENGTH_STEP
