@@ -276,16 +276,27 @@ def test_the_kernel_inputs_are_checked_at_its_boundary():
 
 
 def test_the_tool_point_inertia_kernel_is_the_mass_modules():
-    """The kernel's allocation-free tool-point inertia gives ancf.dynamics.mass's values (and so its complex-step
-    derivatives, checked there against finite differences)."""
+    """The kernels call ancf.dynamics.mass.tool_point_inertia itself (one allocation-free implementation); its
+    complex-step derivatives ∂f/∂s, ∂f/∂v_s match central finite differences of its force, and its mass block is
+    ∂f/∂(x_r, x_s) (f is linear in the accelerations)."""
     from ancf.dynamics.mass import tool_point_inertia
+    assert cs.tool_point_inertia is tool_point_inertia
     rng = np.random.default_rng(3)
+    h_fd = 1e-6
     for _ in range(5):
         s, vs, xr, xs = (rng.normal(size=3) for _ in range(4))
-        ref = tool_point_inertia(s, vs, xr, xs, 0.005, 0.01)
-        got = cs.tool_point_inertia_c(s, vs, xr, xs, 0.005, 0.01)
-        for a, b in zip(ref, got):
-            assert np.allclose(a, b, rtol=1e-13, atol=1e-15 * float(np.abs(a).max()))
+        f, Ds, Dv, B = tool_point_inertia(s, vs, xr, xs, 0.005, 0.01)
+        for j in range(3):
+            e = np.eye(3)[j] * h_fd
+            fd_s = (tool_point_inertia(s + e, vs, xr, xs, 0.005, 0.01)[0]
+                    - tool_point_inertia(s - e, vs, xr, xs, 0.005, 0.01)[0]) / (2 * h_fd)
+            fd_v = (tool_point_inertia(s, vs + e, xr, xs, 0.005, 0.01)[0]
+                    - tool_point_inertia(s, vs - e, xr, xs, 0.005, 0.01)[0]) / (2 * h_fd)
+            assert np.allclose(Ds[:, j], fd_s, rtol=1e-6, atol=1e-9 * float(np.abs(Ds).max()))
+            assert np.allclose(Dv[:, j], fd_v, rtol=1e-6, atol=1e-9 * float(np.abs(Dv).max()))
+        dx = rng.normal(size=6)
+        f2 = tool_point_inertia(s, vs, xr + dx[:3], xs + dx[3:], 0.005, 0.01)[0]
+        assert np.allclose(f2 - f, B @ dx, rtol=1e-12, atol=1e-15 * float(np.abs(f2 - f).max()))
 
 
 @pytest.mark.parametrize("n, kl", [(36, 11), (37, 12), (20, 3), (8, 7)])

@@ -45,6 +45,7 @@ from numba import njit
 
 from ..assembly import assemble
 from ..compiled_solvers import reduce_mat, reduce_rows, reduce_vec, tip_jacobian, tip_position, to_full
+from .mass import tool_point_inertia
 
 #: kernel results: every row asked for done, or stopped before ``row`` (the caller runs it in Python)
 DONE, FALLBACK = 0, 1
@@ -121,61 +122,6 @@ def axial_damping_c(q, v, n, N, wq, c_a, tangents):
 
 
 @njit(cache=True, nogil=True)
-def _tip_force(s, vs, xr, xs, h, m, t, A, out):
-    """:func:`ancf.dynamics.mass._tip_force_c` (m J_pᵀ p̈ on the tip node, complex arithmetic for the complex
-    step) without temporary arrays: t, A (3,) complex work arrays."""
-    s2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2]
-    sn = np.sqrt(s2)
-    for c in range(3):
-        t[c] = s[c] / sn
-    tx = t[0] * xs[0] + t[1] * xs[1] + t[2] * xs[2]
-    tu = t[0] * vs[0] + t[1] * vs[1] + t[2] * vs[2]
-    uu = vs[0] * vs[0] + vs[1] * vs[1] + vs[2] * vs[2]
-    for c in range(3):
-        A[c] = xr[c] + h * ((xs[c] - t[c] * tx) / sn - (2 * tu * (vs[c] - t[c] * tu) + t[c] * (uu - tu * tu)) / s2)
-    tA = t[0] * A[0] + t[1] * A[1] + t[2] * A[2]
-    for c in range(3):
-        out[c] = m * A[c]
-        out[3 + c] = m * h * (A[c] - t[c] * tA) / sn
-
-
-@njit(cache=True, nogil=True)
-def tool_point_inertia_c(s, vs, xr, xs, h, m):
-    """:func:`ancf.dynamics.mass.tool_point_inertia` (the same complex steps) with its work arrays allocated
-    once: (f (6,) [N], ∂f/∂s (6, 3), ∂f/∂v_s (6, 3), the mass block (6, 6))."""
-    eps = 1e-30
-    f = np.empty(6, np.complex128)
-    t = np.empty(3, np.complex128)
-    A = np.empty(3, np.complex128)
-    sc = s.astype(np.complex128)
-    vc = vs.astype(np.complex128)
-    xrc = xr.astype(np.complex128)
-    xsc = xs.astype(np.complex128)
-    _tip_force(sc, vc, xrc, xsc, h, m, t, A, f)
-    out = f.real.copy()
-    Ds = np.empty((6, 3))
-    Dv = np.empty((6, 3))
-    for j in range(3):
-        sc[j] += 1j * eps
-        _tip_force(sc, vc, xrc, xsc, h, m, t, A, f)
-        sc[j] = s[j]
-        for i in range(6):
-            Ds[i, j] = f[i].imag / eps
-        vc[j] += 1j * eps
-        _tip_force(sc, vc, xrc, xsc, h, m, t, A, f)
-        vc[j] = vs[j]
-        for i in range(6):
-            Dv[i, j] = f[i].imag / eps
-    sn = np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
-    J = np.zeros((3, 6))
-    for c in range(3):
-        J[c, c] = 1.0
-        for d in range(3):
-            J[c, 3 + d] = h * ((1.0 if c == d else 0.0) - s[c] * s[d] / (sn * sn)) / sn
-    return out, Ds, Dv, m * (J.T @ J)
-
-
-@njit(cache=True, nogil=True)
 def _values(q, arr, par):
     """(E0 [J] the energy without tendon and pressure loads, tendon lengths (m,) [m]) at q."""
     N, wq, ea, ei, vc, mg, E, d, co, so = arr[2:12]
@@ -229,7 +175,7 @@ def _system(z1, v1, x, L, arr, par):
         Kt = Kt + reduce_mat(Dq, P, use_P)
         Ct = Ct + reduce_mat(Dv, P, use_P)
     if par[P_TIPMOVES] > 0:
-        fi, Ds, Dvs, B = tool_point_inertia_c(q[-3:].copy(), v1[-3:].copy(), x[-6:-3].copy(), x[-3:].copy(),
+        fi, Ds, Dvs, B = tool_point_inertia(q[-3:].copy(), v1[-3:].copy(), x[-6:-3].copy(), x[-3:].copy(),
                                             par[P_HTOOL], par[P_MTIP])
         r[-6:] += fi
         Mz = Mz_c.copy()

@@ -43,25 +43,28 @@ def tip_mass_matrix(q: np.ndarray, tool_offset: float, tip_mass: float) -> np.nd
 
 
 # --------------------------------------------------------------------------- the tool point's inertia in time
-@njit(cache=True)
-def _tip_force_c(s, vs, xr, xs, h, m, out):
-    """m J_pᵀ p̈ on (r_{n+1}, r_x,{n+1}) written to ``out`` (6,) — complex arithmetic for the complex step.
+@njit(cache=True, nogil=True)
+def _tip_force_c(s, vs, xr, xs, h, m, t, A, out):
+    """m J_pᵀ p̈ on (r_{n+1}, r_x,{n+1}) written to ``out`` (6,) — complex arithmetic for the complex step; t, A (3,)
+    complex work arrays (no temporaries: the transient kernels call it every Newton iteration).
     p̈ = x_r + h (Dt x_s + ∇²t[v_s, v_s]), Dt = (I − t tᵀ)/|s|, ∇²t[u, u] = −[2 (t·u)(u − t (t·u))
     + t (|u|² − (t·u)²)] / |s|²."""
     s2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2]
     sn = np.sqrt(s2)
-    t = s / sn
+    for c in range(3):
+        t[c] = s[c] / sn
     tx = t[0] * xs[0] + t[1] * xs[1] + t[2] * xs[2]
     tu = t[0] * vs[0] + t[1] * vs[1] + t[2] * vs[2]
     uu = vs[0] * vs[0] + vs[1] * vs[1] + vs[2] * vs[2]
-    A = xr + h * ((xs - t * tx) / sn - (2 * tu * (vs - t * tu) + t * (uu - tu * tu)) / s2)
+    for c in range(3):
+        A[c] = xr[c] + h * ((xs[c] - t[c] * tx) / sn - (2 * tu * (vs[c] - t[c] * tu) + t[c] * (uu - tu * tu)) / s2)
     tA = t[0] * A[0] + t[1] * A[1] + t[2] * A[2]
     for c in range(3):
         out[c] = m * A[c]
         out[3 + c] = m * h * (A[c] - t[c] * tA) / sn
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def tool_point_inertia(s, vs, xr, xs, h, m):
     """The tool-point mass m at offset h in a transient run (:mod:`ancf.dynamics.transient`).
 
@@ -71,23 +74,27 @@ def tool_point_inertia(s, vs, xr, xs, h, m):
     J_loc = [I, h Dt(s)] = ∂f/∂(x_r, x_s))."""
     eps = 1e-30
     f = np.empty(6, np.complex128)
+    t = np.empty(3, np.complex128)
+    A = np.empty(3, np.complex128)
     sc = s.astype(np.complex128)
     vc = vs.astype(np.complex128)
     xrc = xr.astype(np.complex128)
     xsc = xs.astype(np.complex128)
-    _tip_force_c(sc, vc, xrc, xsc, h, m, f)
+    _tip_force_c(sc, vc, xrc, xsc, h, m, t, A, f)
     out = f.real.copy()
     Ds = np.empty((6, 3))
     Dv = np.empty((6, 3))
     for j in range(3):
-        sp = sc.copy()
-        sp[j] += 1j * eps
-        _tip_force_c(sp, vc, xrc, xsc, h, m, f)
-        Ds[:, j] = f.imag / eps
-        vp = vc.copy()
-        vp[j] += 1j * eps
-        _tip_force_c(sc, vp, xrc, xsc, h, m, f)
-        Dv[:, j] = f.imag / eps
+        sc[j] += 1j * eps
+        _tip_force_c(sc, vc, xrc, xsc, h, m, t, A, f)
+        sc[j] = s[j]
+        for i in range(6):
+            Ds[i, j] = f[i].imag / eps
+        vc[j] += 1j * eps
+        _tip_force_c(sc, vc, xrc, xsc, h, m, t, A, f)
+        vc[j] = vs[j]
+        for i in range(6):
+            Dv[i, j] = f[i].imag / eps
     sn = np.sqrt(s[0] * s[0] + s[1] * s[1] + s[2] * s[2])
     J = np.zeros((3, 6))
     for c in range(3):
