@@ -56,8 +56,8 @@ from ancf import Model
 from ancf.errors import InputError
 
 from .base import Controller, StepReport
-from .errors import check_finite, number
-from .lacc import G as GRAVITY
+from .errors import number
+from .lacc import G as GRAVITY, start_inputs
 from .observer import LoadObserver, modal_model
 
 FEEDFORWARDS = ("static", "dynamic")
@@ -146,11 +146,7 @@ class DynamicLACC(Controller):
     def start(self, target, initial_load=(0.0, 0.0, 0.0)) -> np.ndarray:
         """IK for the target under ``initial_load`` (from the stored droop state, as LACC), the modal model
         there and the observer at rest; returns the tendon lengths (m,) [m]."""
-        pd = check_finite("target", target, (3,))
-        F0 = check_finite("initial_load", initial_load, (3,))
-        if np.linalg.norm(F0) > self.validity_force:
-            raise InputError(f"initial load estimate {np.linalg.norm(F0):.3g} N is outside the validity range "
-                             f"{self.validity_force:.3g} N")
+        pd, F0 = start_inputs(target, initial_load, self.validity_force)
         droop = self._warm_start()
         eq = self.model.ik(pd, self.pressure, F0, q0=droop.q, tensions0=droop.tensions)   # may raise Infeasible
         self.target, self.state = pd, eq

@@ -52,7 +52,7 @@ from ancf.errors import InputError
 
 from .base import Controller, StepReport
 from .errors import ControllerError, check_finite, number
-from .lacc import G, regularised_solve, safeguards
+from .lacc import G, regularised_solve, safeguards, start_inputs
 
 
 def _free_twin(model: Model) -> Model:
@@ -207,11 +207,7 @@ class FrictionAwareLACC(Controller):
 
     def start(self, target, initial_load=(0.0, 0.0, 0.0)) -> np.ndarray:
         """The friction IK for (p_d, p, F̂⁰) from the episode's initial state; returns l_c [m]."""
-        pd = check_finite("target", target, (3,))
-        F0 = check_finite("initial_load", initial_load, (3,))
-        if np.linalg.norm(F0) > self.validity_force:
-            raise InputError(f"initial load estimate {np.linalg.norm(F0):.3g} N is outside the validity range "
-                             f"{self.validity_force:.3g} N")
+        pd, F0 = start_inputs(target, initial_load, self.validity_force)
         S0 = self.initial_state or self.model.fk_history(np.zeros(self.model.m), self.pressure, F0)
         droop = self._warm_start()
         free_eq = self.free.ik(pd, self.pressure, F0, q0=droop.q, tensions0=droop.tensions)

@@ -96,6 +96,17 @@ def safeguards(validity_force, max_step_force, rcond) -> tuple:
         raise InputError(f"rcond must be in (0, 1), got {rcond!r}")
     return vf, ms, rc
 
+
+def start_inputs(target, initial_load, validity_force: float) -> tuple:
+    """``(p_d (3,) [m], F̂⁰ (3,) [N])`` of an episode's start, checked: finite, the right shape, and ‖F̂⁰‖ within the
+    load estimate's validity range ``validity_force`` [N]; InputError otherwise."""
+    pd = check_finite("target", target, (3,))
+    F0 = check_finite("initial_load", initial_load, (3,))
+    if np.linalg.norm(F0) > validity_force:
+        raise InputError(f"initial load estimate {np.linalg.norm(F0):.3g} N is outside the validity range "
+                         f"{validity_force:.3g} N of the compliance linearisation")
+    return pd, F0
+
 class LACC(Controller):
     """Load-aware compliance controller (Algorithm 1).
 
@@ -156,11 +167,7 @@ class LACC(Controller):
 
     def start(self, target, initial_load=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Algorithm 1 lines 3–4: IK for (p_d, p, F̂⁰) from the stored droop state; returns l_c [m]."""
-        pd = check_finite("target", target, (3,))
-        F0 = check_finite("initial_load", initial_load, (3,))
-        if np.linalg.norm(F0) > self.validity_force:
-            raise InputError(f"initial load estimate {np.linalg.norm(F0):.3g} N is outside the validity range "
-                             f"{self.validity_force:.3g} N of the compliance linearisation")
+        pd, F0 = start_inputs(target, initial_load, self.validity_force)
         droop = self._warm_start()
         eq = self.model.ik(pd, self.pressure, F0, q0=droop.q, tensions0=droop.tensions)   # may raise Infeasible
         self.target, self.command_target = pd, pd.copy()
