@@ -50,12 +50,10 @@ from .mass import tool_point_inertia
 #: kernel results: every row asked for done, or stopped before ``row`` (the caller runs it in Python)
 DONE, FALLBACK = 0, 1
 
-#: indices into ``par`` (P_TAU, P_PC, P_CHECKP, P_PMIN, P_PMAX describe the run's pressure; the kernels read the
-#: pressures of the load table, which the caller makes with them)
-(P_N, P_USEP, P_HTOOL, P_CAX, P_HASCR, P_MTIP, P_TIPMOVES, P_FSCALE, P_LMODE, P_KPEN, P_FHOLD, P_SHOLD, P_TAU,
- P_PC, P_CHECKP, P_PMIN, P_PMAX, P_RHO, P_AM, P_AF, P_GAMMA, P_BETA, P_H, P_HSUB, P_MAXIT, P_VARYING,
- P_BAND, P_PDEP) = range(28)
-N_PAR = 28
+#: indices into ``par`` (the run's pressures are in the load table: the caller samples its supply and limits)
+(P_N, P_USEP, P_HTOOL, P_CAX, P_HASCR, P_MTIP, P_TIPMOVES, P_FSCALE, P_LMODE, P_KPEN, P_FHOLD, P_SHOLD, P_RHO,
+ P_AM, P_AF, P_GAMMA, P_BETA, P_H, P_HSUB, P_MAXIT, P_VARYING, P_BAND, P_PDEP) = range(23)
+N_PAR = 23
 #: length of ``prev`` before the tendon lengths
 N_PREV = 10
 #: columns of the load table: time [s], pressure [Pa], usable (1) or not (0), pressure factors f_A, f_I,

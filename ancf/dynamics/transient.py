@@ -882,11 +882,10 @@ class _FastRows:
                      (cs.P_CAX, plant.c_ax), (cs.P_HASCR, plant.C_R is not None), (cs.P_MTIP, p.tip_mass),
                      (cs.P_TIPMOVES, plant.tip_moves_mass), (cs.P_FSCALE, plant.force_scale),
                      (cs.P_LMODE, loads.length_mode), (cs.P_KPEN, loads.k_pen), (cs.P_FHOLD, loads.F_hold),
-                     (cs.P_SHOLD, loads.s_hold), (cs.P_TAU, loads.tau or 0.0), (cs.P_PC, float(loads.pc_sig(0.0))),
-                     (cs.P_CHECKP, loads.check_limits), (cs.P_PMIN, p.pressure_min), (cs.P_PMAX, p.pressure_max),
-                     (cs.P_RHO, c.rho_inf), (cs.P_AM, c.alpha_m), (cs.P_AF, c.alpha_f), (cs.P_GAMMA, c.gamma),
-                     (cs.P_BETA, c.beta), (cs.P_H, stepper.h), (cs.P_HSUB, stepper.h / 2 ** stepper.base),
-                     (cs.P_MAXIT, stepper.max_iter), (cs.P_VARYING, loads.varying),
+                     (cs.P_SHOLD, loads.s_hold), (cs.P_RHO, c.rho_inf), (cs.P_AM, c.alpha_m), (cs.P_AF, c.alpha_f),
+                     (cs.P_GAMMA, c.gamma), (cs.P_BETA, c.beta), (cs.P_H, stepper.h),
+                     (cs.P_HSUB, stepper.h / 2 ** stepper.base), (cs.P_MAXIT, stepper.max_iter),
+                     (cs.P_VARYING, loads.varying),
                      (cs.P_BAND, _band(model, plant, loads)), (cs.P_PDEP, p.stiffness.pressure_dependent)):
             par[k] = float(v)
         self.par, self.loads, self.law, self.m = par, loads, p.stiffness, model.m
