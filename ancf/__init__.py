@@ -15,6 +15,7 @@ eq. (1) Q_p pressure              :mod:`ancf.forces.pressure`
 eq. (1) Q_f tip load, eq. (2b)    :mod:`ancf.forces.tip_load`, :mod:`ancf.kinematics`
 assembly of eq. (1)               :mod:`ancf.assembly`
 FK, IK (2), locked FK (3)–(6)     :mod:`ancf.model`, :mod:`ancf.solvers`
+multi-segment chain (statics)     :mod:`ancf.chain`, :mod:`ancf.chain_model` (docs/multisegment.md)
 ================================  ====================================================
 
 ``ancf.__version__`` is the installed distribution's version.  The package attributes are loaded lazily (PEP 562): ``import ancf.errors`` costs only that module (no
@@ -36,9 +37,15 @@ _LAZY = {
     "compliance": ("ancf.compliance", None),
     "Model": ("ancf.model", "Model"),
     "Equilibrium": ("ancf.model", "Equilibrium"),
+    "ChainParams": ("ancf.chain", "ChainParams"),
+    "Cap": ("ancf.chain", "Cap"),
+    "load_actuator": ("ancf.chain", "load_actuator"),
+    "ChainModel": ("ancf.chain_model", "ChainModel"),
+    "ChainEquilibrium": ("ancf.chain_model", "ChainEquilibrium"),
 }
 
-__all__ = ["ActuatorParams", "Tendon", "StiffnessLaw", "Model", "Equilibrium", "presets", "BellowsError",
+__all__ = ["ActuatorParams", "Tendon", "StiffnessLaw", "Model", "Equilibrium", "presets", "ChainParams", "Cap",
+           "load_actuator", "ChainModel", "ChainEquilibrium", "BellowsError",
            "ConfigError", "ConvergenceError", "InfeasibleTargetError", "InputError", "LimitError", "OutputExistsError",
            "UnstableEquilibriumError",
            "CollapsedStateError"]

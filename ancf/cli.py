@@ -242,14 +242,19 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
                   "least-squares forms (see validation/checks/compliance_check.py for their error).")
 
 
-def params(preset: str = typer.Option("paper", help=PRESET_HELP),
+#: ``bellows params --preset``: the one-segment presets and the multi-segment ones (ancf.chain)
+PARAMS_PRESET_HELP = (f"Preset name {one_of([*presets.NAMES, *presets.CHAIN_NAMES])} or a path to an actuator .toml "
+                      "file (one segment, or a chain with [[segment]] tables).")
+
+
+def params(preset: str = typer.Option("paper", help=PARAMS_PRESET_HELP),
            out: Optional[pathlib.Path] = typer.Option(None, help="Write the TOML to this .toml file instead."),
            force: bool = typer.Option(False, "--force", help=FORCE_HELP)):
     """Print a preset as TOML (a starting point for your own actuator file; SI units in the key names —
     length_mm, angle_deg, pressure_max_kPa, ... are accepted too).  The file reads back to the same
-    parameters."""
+    parameters; a multi-segment actuator prints as a chain file ([[segment]] and [[cap]] tables)."""
     path = None if out is None else prepare_output_file(out, force=force, suffixes=(".toml",))
-    text = presets.get(preset).to_toml()
+    text = presets.get_any(preset).to_toml()
     if path is None:
         typer.echo(text, nl=False)
     else:

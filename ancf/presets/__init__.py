@@ -15,6 +15,11 @@ below are the defensible readings of that sentence (docs/paper-readings.md has t
 ``paper_constant()``   the default reading with constant EA = EA(1), EI = EI(1).
 ``four_tendon()``      paper geometry with four tendons at 90° and a constant law.
 
+Multi-segment actuators (:class:`ancf.chain.ChainParams`, docs/multisegment.md; ``CHAIN_NAMES``, :func:`get_any`):
+
+``two_segment()``      two segments, each the ``paper`` bellows at half length (80 mm, 3 elements, the same section
+                       law), one chamber and three tendons each (segment 2's turned 60°), a 10 mm, 10 g cap.
+
 Every linear reading keeps the law's zero at λ₀ = −b/a = 0.426: a length scaling changes the stiffness,
 not where it vanishes.
 """
@@ -102,10 +107,39 @@ NAMES = {"paper": paper, "paper_unscaled": paper_unscaled, "paper_scaled": paper
 READINGS = ("paper_unscaled", "paper_scaled", "paper_scaled_020", "paper_diameter")
 
 
-def get(name: str) -> ActuatorParams:
-    """Preset by name, or parameters from a TOML file if ``name`` ends in ``.toml``."""
+def two_segment():
+    """Two half-length ``paper`` segments in series (``two_segment.toml``) → :class:`ancf.chain.ChainParams`."""
+    from ..chain import ChainParams
+    return ChainParams.from_toml(_HERE / "two_segment.toml")
+
+
+#: multi-segment presets (a :class:`ancf.chain.ChainParams` each; ``bellows params`` prints them)
+CHAIN_NAMES = {"two_segment": two_segment}
+
+
+def get_any(name: str):
+    """A preset of either kind by name (``NAMES`` or ``CHAIN_NAMES``), or an actuator file (today's format →
+    ActuatorParams, a file with [[segment]] tables → ChainParams)."""
     if name.endswith(".toml"):
-        return ActuatorParams.from_toml(name)
+        from ..chain import load_actuator
+        return load_actuator(name)
+    if name in CHAIN_NAMES:
+        return CHAIN_NAMES[name]()
+    if name in NAMES:
+        return NAMES[name]()
+    raise ConfigError(f"unknown preset '{name}'; known: {', '.join([*NAMES, *CHAIN_NAMES])} (or a path to a .toml "
+                      "file)")
+
+
+def get(name: str) -> ActuatorParams:
+    """Preset by name, or parameters from a TOML file if ``name`` ends in ``.toml`` (one segment: a multi-segment
+    preset or file is a ConfigError saying so)."""
+    if name.endswith(".toml") or name in CHAIN_NAMES:
+        out = get_any(name)
+        if not isinstance(out, ActuatorParams):
+            raise ConfigError(f"'{name}' is a multi-segment actuator ({out.n_segments} segments); this takes a "
+                              "one-segment actuator (ancf.chain_model.ChainModel models chains)")
+        return out
     try:
         return NAMES[name]()
     except KeyError:
