@@ -25,7 +25,8 @@ ones stay — exact for loads small enough to keep the sliding pattern.
 Locked tendons (:func:`fk_locked_history`, :func:`locked_compliance`): the motor holds the tendon's length;
 stuck guides fix the tendon's material, so a span between them keeps its length (a length constraint with its
 tension as multiplier), and across a slipping guide the tension follows the cone (the law in
-:func:`fk_locked_history`'s docstring).  :meth:`ancf.Model.fk_locked` and :mod:`ancf.compliance`'s locked forms
+:func:`fk_locked_history`'s docstring); :func:`locked_length_jacobian` is a step's derivative in the motor
+lengths (its pattern held).  :meth:`ancf.Model.fk_locked` and :mod:`ancf.compliance`'s locked forms
 stay frictionless whatever μ is.  The pull-through test (:func:`pull_through`): the shape held, the capstan
 law applied along a motor-tension protocol.  μ = 0: :meth:`ancf.Model.fk_history` is
 :meth:`ancf.Model.fk` (the same call, bit for bit) with every segment at its motor tension.
@@ -654,6 +655,60 @@ def locked_compliance(model: Model, state: FrictionState, load_direction=None, *
     return _c.Compliance(C_p=_c._tool(model, first.equilibrium, Jp, Cq), C_q=_c._full(model, Cq),
                          active=tuple(int(i) for i in np.flatnonzero(taut)), mode="locked", method="friction",
                          dT_dF=dT)
+
+
+def _locked_layout_jacobian(model: Model, state: FrictionState):
+    """(𝒥, layout) of a state of :func:`fk_locked_history`: the Jacobian of (force rows, span rows) in (z, span
+    multipliers) under the state's own pattern — kept by the solve, else re-evaluated from the state (the
+    multipliers: each motor span's motor tension, each other span's first segment tension)."""
+    kept = state.equilibrium.__dict__.get("_locked_friction")
+    if kept is not None:
+        return kept
+    eq = state.equilibrium
+    taut = np.zeros(model.m, bool)
+    taut[list(eq.active)] = True
+    lay = _layout(taut, state.sliding)
+    lam = np.array([eq.tensions[i] if motor else state.segment_tensions[i, a] for i, a, _b, motor in lay], float)
+    parts = _locked_eval(model, eq.q, lam, lay, state.sliding, np.zeros(len(lay)), state.friction,
+                         float(eq.pressure), eq.tip_force, True)
+    if parts is None:
+        raise InputError("the locked friction state lies outside the model's domain")
+    return parts["J"], lay
+
+
+def locked_length_jacobian(model: Model, state: FrictionState) -> tuple[np.ndarray, np.ndarray]:
+    """The motors' lengths' effect on a locked friction step: (∂p/∂l⁰ (3, m) [m/m] of the tool point,
+    ∂T/∂l⁰ (m, m) [N/m] of the motor tensions) of :func:`fk_locked_history` at its result ``state``, the
+    step's stick/slip pattern held (exact for changes of l⁰ that keep it, e.g. a motor moving on the way it
+    moved; the response is one-sided like :func:`locked_compliance`'s).
+
+    Implicit function theorem on the converged step R(x; l⁰) = 0, x = (z, span multipliers λ): only the span
+    rows depend on l⁰ — a motor span holds Σ l_ik − c_s T_i = L_u with ∂L_u/∂l⁰_i = 1, an empty motor span
+    (guide 0 stuck) T_i = L_u with ∂L_u/∂l⁰_i = −1/c_s (0 without a series stiffness), the other spans none —,
+    so with 𝒥 = ∂R/∂x (the layout's Jacobian, as in :func:`locked_compliance`)
+    δx = 𝒥⁻¹ [0; ∂L/∂l⁰] δl⁰, δp = (J_p + J_u) δz (J_u the shear compliance's part) and δT_i = δλ of tendon i's motor span.  Slack
+    tendons have zero columns and rows.  μ = 0: the derivative of :meth:`ancf.Model.fk_locked`."""
+    from . import compliance as _c
+    if not isinstance(state, FrictionState) or state.locked_lengths is None:
+        raise InputError("locked_length_jacobian needs a FrictionState of fk_locked_history (with its locked "
+                         f"lengths), got {type(state).__name__}")
+    _check_state(model, state, float(model.params.tendon_friction))
+    J, lay = _locked_layout_jacobian(model, state)
+    nz = model.nz
+    rhs = np.zeros((nz + len(lay), model.m))
+    for u, (i, a, b, motor) in enumerate(lay):
+        if motor:
+            rhs[nz + u, i] = (-1.0 / model._cs if model._cs > 0 else 0.0) if a == b else 1.0
+    X = np.linalg.solve(J, rhs)
+    eq = state.equilibrium
+    Jp = model._reduce_vec(model._tip_jacobian(eq.q))
+    sh = _c._shear(model, eq)
+    dp = (Jp if sh is None else Jp + sh[0]) @ X[:nz]
+    dT = np.zeros((model.m, model.m))
+    for u, (i, _a, _b, motor) in enumerate(lay):
+        if motor and eq.tensions[i] > 0:
+            dT[i] = X[nz + u]
+    return dp, dT
 
 
 # ------------------------------------------------------------------------------------------------ pull-through

@@ -634,7 +634,8 @@ class Model:
                  pressure=0.0, pressure_tau: Optional[float] = None, pressure0: Optional[float] = None,
                  tip_force=(0.0, 0.0, 0.0), damping=None, rho_inf: float = 0.9,
                  tendon_penalty: Optional[float] = None, holding_force: Optional[float] = None,
-                 check_limits: bool = True, max_halvings: int = 8, max_iter: int = 12, progress=None):
+                 check_limits: bool = True, max_halvings: int = 8, max_iter: int = 12, progress=None,
+                 segment_tensions=None):
         """Transient response over [0, ``t_end``] [s] with steps ≤ ``dt`` [s] (:mod:`ancf.dynamics.transient`,
         docs/dynamics.md) → :class:`~ancf.dynamics.Simulation` (``.t``, ``.q``, ``.tip`` [m], ``.energy`` [J], …).
 
@@ -657,13 +658,16 @@ class Model:
         A step too coarse for the motion (its energy balance creating more energy than the motion has) is
         repeated in halved substeps, output rows still every ``dt`` (events ``refined``); ConvergenceError naming
         a step that would do when 64 substeps are not enough.  Ctrl-C (SIGINT, read between steps) returns the
-        rows done so far with ``interrupted=True``."""
+        rows done so far with ``interrupted=True``.  With ``tendon_friction`` μ > 0 the guides' stick/slip history
+        runs along (:mod:`ancf.dynamics.friction_step`): ``segment_tensions`` (m, n) [N] its start (default:
+        every segment at the start's motor tension), e.g. a FrictionState's or a previous run's last row."""
         from .dynamics.transient import simulate
         return simulate(self, t_end, dt, q0, v0, tensions=tensions, lengths=lengths, pressure=pressure,
                         pressure_tau=pressure_tau, pressure0=pressure0, tip_force=tip_force, damping=damping,
                         rho_inf=rho_inf, tendon_penalty=tendon_penalty, holding_force=holding_force,
                         check_limits=check_limits,
-                        max_halvings=max_halvings, max_iter=max_iter, progress=progress)
+                        max_halvings=max_halvings, max_iter=max_iter, progress=progress,
+                        segment_tensions=segment_tensions)
 
     def inadmissibility(self, q) -> Optional[str]:
         """None when the full coordinates ``q`` (ndof,) are in the model's domain, else a text naming the

@@ -145,9 +145,11 @@ def verification_cost(repeats: int = 200) -> dict:
 
 
 def friction_cost(repeats: int = 50) -> dict:
-    """What tendon friction costs per FK (docs/friction.md): a warm frictionless FK (``Model.fk``) beside one step
-    of the friction history (``Model.fk_history``, μ = 0.3, from the previous step's state), the same small
-    tension increment at n = 6, interleaved; medians [ms]."""
+    """What tendon friction costs per FK and IK (docs/friction.md): a warm frictionless FK (``Model.fk``) beside one
+    step of the friction history (``Model.fk_history``, μ = 0.3, from the previous step's state), the same small
+    tension increment at n = 6, and a warm frictionless IK beside the IK with friction
+    (``controller.friction_aware.friction_ik``, with the number of locked friction solves it makes), interleaved;
+    medians [ms]."""
     free = Model(presets.paper())
     fric = Model(presets.paper().replace(tendon_friction=0.3))
     ref = free.fk((2.0, 0.5, 0.0), 30e3)
@@ -155,7 +157,7 @@ def friction_cost(repeats: int = 50) -> dict:
     fric.fk_history((2.05, 0.5, 0.0), 30e3, state=prev)                 # compile / load kernels
     from controller.friction_aware import friction_ik
     target, load = free.fk((2.05, 0.52, 0.0), 30e3).tip, np.zeros(3)     # reachable, ≈ 0.5 mm from the state
-    friction_ik(fric, free, prev, target, 30e3, load)
+    solves = friction_ik(fric, free, prev, target, 30e3, load)[3]
     t = {"FK warm, frictionless": [], "FK history step, mu = 0.3": [], "IK warm, frictionless": [],
          "IK with friction, mu = 0.3": []}
     for _ in range(repeats):
@@ -165,7 +167,8 @@ def friction_cost(repeats: int = 50) -> dict:
         t["IK with friction, mu = 0.3"].append(timed(friction_ik, fric, free, prev, target, 30e3, load)[1])
     med = {k: statistics.median(v) * 1e3 for k, v in t.items()}
     print(f"\nwhat friction costs per FK and IK (median of {repeats}, milliseconds, n = 6; the IK with friction is "
-          "controller.friction_aware.friction_ik, a LACC-sized correction from a friction state)")
+          f"controller.friction_aware.friction_ik, a LACC-sized correction from a friction state: Newton steps with "
+          f"the exact Jacobian of the locked friction step, {solves} locked friction solves)")
     for k, v in med.items():
         print(f"  {k:28s} {v:9.3f}")
     print(f"  ratio FK {med['FK history step, mu = 0.3'] / med['FK warm, frictionless']:.1f}x, "
@@ -173,12 +176,56 @@ def friction_cost(repeats: int = 50) -> dict:
     return med
 
 
+def chain_cost(repeats: int = 50) -> dict:
+    """FK of a chain per segment count K = 1, 2, 3 (ancf.chain_model.ChainModel; docs/multisegment.md): each segment
+    the ``two_segment`` preset's (the paper bellows at half length, n = 3, three tendons, turned 120°/K from the
+    previous segment's), 10 g / 10 mm caps; 2 N on the distal segment's first tendon, 30 kPa in every chamber.
+    Cold: from the straight chain; warm: from the solution at 1.95 N.  The one-segment row has ancf.Model's FK
+    beside it (the same numbers; the chain's Newton loop runs in Python, Model's compiled)."""
+    import math
+
+    from ancf import Cap, ChainModel, ChainParams, Tendon
+    seg = presets.two_segment().segments[1]
+    rows = {}
+    for K in (1, 2, 3):
+        segs = tuple(seg.replace(name=f"s{k + 1}", tip_mass=seg.tip_mass if k == K - 1 else 0.0,
+                                 tool_offset=seg.tool_offset if k == K - 1 else 0.0,
+                                 tendons=tuple(Tendon(distance=t.distance, angle=t.angle + math.radians(120 * k / K))
+                                               for t in presets.two_segment().segments[0].tendons))
+                     for k in range(K))
+        model = ChainModel(ChainParams(segments=segs, caps=(Cap(mass=0.01, length=0.01),) * (K - 1)))
+        T = np.zeros(3 * K)
+        T[-3] = 2.0
+        pr = np.full(K, 30e3)
+        T0 = T.copy()
+        T0[-3] = 1.95
+        z0 = model.fk(T0, pr).z
+        cold = [timed(model.fk, T, pr)[1] for _ in range(repeats)]
+        warm = [timed(model.fk, T, pr, z0=z0)[1] for _ in range(repeats)]
+        rows[K] = (statistics.median(cold) * 1e3, statistics.median(warm) * 1e3)
+        if K == 1:
+            single = Model(segs[0])                  # the one-segment chain's own actuator
+    q0 = single.fk((1.95, 0, 0), 30e3).q
+    ref = (statistics.median([timed(single.fk, (2.0, 0, 0), 30e3)[1] for _ in range(repeats)]) * 1e3,
+           statistics.median([timed(single.fk, (2.0, 0, 0), 30e3, q0=q0)[1] for _ in range(repeats)]) * 1e3)
+    print(f"\nFK of a chain per segment count (median of {repeats}, milliseconds; segments of 80 mm, n = 3)")
+    print(f"  {'segments':10s} {'cold':>9s} {'warm':>9s}")
+    for K, (c, w) in rows.items():
+        print(f"  {K:<10d} {c:9.3f} {w:9.3f}")
+    print(f"  {'Model (1)':10s} {ref[0]:9.3f} {ref[1]:9.3f}")
+    return {"chain": rows, "model": ref}
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=200)
     ap.add_argument("--verification-only", action="store_true", help="only the verification cost table")
     ap.add_argument("--friction-only", action="store_true", help="only the friction cost table")
+    ap.add_argument("--chain-only", action="store_true", help="only the FK per segment count table")
     args = ap.parse_args()
+    if args.chain_only:
+        chain_cost(min(args.repeats, 50))
+        sys.exit(0)
     if args.friction_only:
         friction_cost(args.repeats)
         sys.exit(0)

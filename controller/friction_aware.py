@@ -24,19 +24,22 @@ the tip the model predicts for command k under a load F.
    fk_locked_history(S_{k−1}, l_k, p, F̂_k): the model's history re-solved with the estimate, so that its tip
    is the measured one.
 2. **IK with friction** (:func:`friction_ik`; ancf has none).  l_{k+1} solves h(l) = tip of
-   fk_locked_history(S_k, l, p, F̂_k) = p_d by Broyden's method from the frictionless IK's lengths for
-   (p_d, F̂_k), the first Jacobian ∂tip/∂l that of the frictionless locked model there (forward differences of
-   :meth:`ancf.Model.fk_locked`, cheap); the Broyden updates learn the friction's (stuck spans make the
-   actuator stiffer, pulling and releasing differ).  The motor tensions of the solution must lie within the
+   fk_locked_history(S_k, l, p, F̂_k) = p_d by Newton's method from the frictionless IK's lengths for
+   (p_d, F̂_k), with the exact Jacobian ∂h/∂l of the step each iterate solved
+   (:func:`ancf.friction.locked_length_jacobian`: the implicit function theorem on the converged locked
+   friction equilibrium, its stick/slip pattern held — stuck spans make the actuator stiffer, pulling and
+   releasing differ), each step's motor changes kept within :data:`MAX_LENGTH_STEP`.  The Jacobian is
+   one-sided (exact for motor changes that keep the pattern); where a step changes the pattern the next
+   iterate's Jacobian is that of the new one.  The motor tensions of the solution must lie within the
    actuator's tension limits, else :class:`~ancf.errors.InfeasibleTargetError`.
 
 On a perfect plant (the controller's model) the first step is history-free (from slack every guide slips), so
 the first measurement gives F̂ up to the cut axial component and the next command lands within the IK
 tolerance; what is left comes from the axial cut and the history's remaining differences.  Safeguard: an
 estimate beyond ``validity_force`` is not taken — the estimate is frozen and the IK target is shifted
-against the error instead (position correction, as LACC's fallback).  Cost per correction: ≈ 6–12 locked
-friction solves (each ≈ 10× a frictionless FK), ≈ 0.3–1 s at n = 6.  At μ = 0 the same loop runs on the
-frictionless locked equations (fk_locked_history is fk_locked's there).
+against the error instead (position correction, as LACC's fallback).  Cost per correction: ≈ 12–14 locked
+friction solves (each ≈ 10× a frictionless FK; docs/friction.md states the measured times).  At μ = 0 the same
+loop runs on the frictionless locked equations (fk_locked_history is fk_locked's there).
 """
 
 from __future__ import annotations
@@ -62,25 +65,13 @@ def _free_twin(model: Model) -> Model:
     return Model(model.params.replace(tendon_friction=0.0))
 
 
-def length_jacobian(free: Model, eq, pressure: float, load, step: float = 1e-6) -> np.ndarray:
-    """∂tip/∂l (3, m) [m/m] of the frictionless locked model at the equilibrium ``eq`` (taut tendons), by
-    forward differences of :meth:`ancf.Model.fk_locked` with motor steps ``step`` [m]."""
-    l0 = eq.tendon_lengths
-    J = np.zeros((3, l0.size))
-    for j in range(l0.size):
-        l1 = l0.copy()
-        l1[j] += step
-        J[:, j] = (free.fk_locked(l1, pressure, load, q0=eq.q, tensions0=eq.tensions).tip - eq.tip) / step
-    return J
-
-
 def _broyden(B: np.ndarray, dx: np.ndarray, df: np.ndarray) -> np.ndarray:
     """Broyden's ("good") rank-one update of the Jacobian B so that B dx = df."""
     nx = float(dx @ dx)
     return B if nx == 0 else B + np.outer(df - B @ dx, dx) / nx
 
 
-#: largest change of a motor length in one step of :func:`friction_ik` [m] (a Broyden step is scaled down to it)
+#: largest change of a motor length in one step of :func:`friction_ik` [m] (a Newton step is scaled down to it)
 MAX_LENGTH_STEP = 5e-3
 
 
@@ -88,16 +79,16 @@ def friction_ik(model: Model, free: Model, state: fr.FrictionState, target, pres
                 tol: float = 1e-6, max_iter: int = 12, free_eq=None):
     """IK with friction: motor lengths l (m,) [m] such that the locked friction step from ``state`` under
     ``load`` (3,) [N] at ``pressure`` [Pa] puts the tool point on ``target`` (3,) [m] within ``tol`` [m]
-    (module docstring, step 2; Broyden steps on the motor lengths, each length changed by at most
-    :data:`MAX_LENGTH_STEP` per step).  ``free`` is the frictionless twin of ``model``;
-    ``free_eq`` its IK state for (target, load) if known.  Returns (lengths, FrictionState, frictionless IK state, iterations).  Raises
-    InfeasibleTargetError (the frictionless IK's, or motor tensions outside the limits) or
+    (module docstring, step 2: Newton steps on the motor lengths with the exact Jacobian of the step,
+    :func:`ancf.friction.locked_length_jacobian`, each length changed by at most :data:`MAX_LENGTH_STEP` per
+    step).  ``free`` is the frictionless twin of ``model``; ``free_eq`` its IK state for (target, load) if
+    known.  Returns (lengths, FrictionState, frictionless IK state, iterations: the locked friction solves
+    made).  Raises InfeasibleTargetError (the frictionless IK's, or motor tensions outside the limits) or
     :class:`~controller.errors.ControllerError` (no convergence in ``max_iter`` friction solves)."""
     pd = check_finite("target", target, (3,))
     F = check_finite("load", load, (3,))
     if free_eq is None:
         free_eq = free.ik(pd, pressure, F, q0=state.q, tensions0=np.maximum(state.motor_tensions, 0.0))
-    B = length_jacobian(free, free_eq, pressure, F)
     lengths = free_eq.tendon_lengths.copy()
     st = fr.fk_locked_history(model, state, lengths, pressure, F)
     r = st.tip - pd
@@ -105,15 +96,14 @@ def friction_ik(model: Model, free: Model, state: fr.FrictionState, target, pres
         if np.linalg.norm(r) < tol:
             _check_tensions(model, st, pd)
             return lengths, st, free_eq, it
-        dl = -np.linalg.lstsq(B, r, rcond=None)[0]
+        if it == max_iter:
+            break
+        Jl, _ = fr.locked_length_jacobian(model, st)
+        dl = -np.linalg.lstsq(Jl, r, rcond=None)[0]
         dl *= min(1.0, MAX_LENGTH_STEP / max(float(np.abs(dl).max()), 1e-300))   # a trust region on the lengths
-        st_new = fr.fk_locked_history(model, state, lengths + dl, pressure, F)
-        r_new = st_new.tip - pd
-        B = _broyden(B, dl, r_new - r)
-        lengths, st, r = lengths + dl, st_new, r_new
-    if np.linalg.norm(r) < tol:
-        _check_tensions(model, st, pd)
-        return lengths, st, free_eq, max_iter + 1
+        lengths = lengths + dl
+        st = fr.fk_locked_history(model, state, lengths, pressure, F)
+        r = st.tip - pd
     raise ControllerError(f"IK with friction did not reach the target within {tol * 1e3:g} mm in {max_iter} "
                           f"solves (left {np.linalg.norm(r) * 1e3:.4g} mm)")
 

@@ -175,8 +175,10 @@ class _Plant:
         self.dyn = None
         self.mu = float(model.params.tendon_friction)
         if options.dynamics and self.mu > 0:
-            raise InputError("the dynamic plant (dynamics=True) has no tendon friction law: the plant actuator's "
-                             f"tendon_friction must be 0, got {self.mu:g}")
+            raise InputError("the dynamic plant (dynamics=True) holds its tendons by length, and tendon friction "
+                             "with held lengths (stuck spans keeping their length, fk_locked_history) has no "
+                             "time-stepped form (Model.simulate's friction is for tendons driven by tension): the "
+                             f"plant actuator's tendon_friction must be 0, got {self.mu:g}")
         if options.dynamics:
             from .sim_dynamics import DynamicActuator
             self.dyn = DynamicActuator(model, options.tendon_stiffness, options.damping, options.pressure_tau,

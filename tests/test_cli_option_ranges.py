@@ -80,6 +80,7 @@ RANGES = [
     ("identify", "--heldout-fraction", ["-0.1", "1", "1.5", *NAN_INF]),
     *[(c, "--tension-max-n", POSITIVE) for c in ("identify", "report")],      # the upper limit: with the cases
     *[(c, "--pressure-max-kpa", POSITIVE) for c in ("identify", "report")],
+    ("report", "--tendon-friction", RATIO),
     *[(c, "--workers", WORKERS) for c in ("identify", "validate", "report", "calibrate")],
     *[(c, "--forms", ["", ",", "no_such_form"]) for c in ("identify", "report")],
     ("calibrate", "--target-ea-n", POSITIVE),
@@ -124,6 +125,8 @@ RANGES = [
     ("paper dynamic", "--loop-latency-ms", [*NON_NEGATIVE, "31"]),
     ("paper dynamic", "--model-error-pct", [*NON_NEGATIVE, "50", "101"]),
     ("paper table1", "--plant-friction", [*NUMBERS, "-0.1", "1.5", "0,2"]),
+    ("paper loading", "--plant-friction", [*NUMBERS, "-0.1", "1.5", "0,2"]),
+    ("paper loading", "--aware-compute-ms", [*NON_NEGATIVE, "10001"]),
     ("paper convergence", "--n-values", [*NUMBERS, "0", "1.5", "201"]),
     ("paper convergence", "--n-ref", N_ELEMENTS),
     ("paper loads", "--mass-kg", [*POSITIVE, "1.5"]),

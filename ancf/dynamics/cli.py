@@ -217,6 +217,10 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
     warm_up()
     p = pressure_kpa * 1e3
     start = model.fk(T0, p, F, check_limits=not no_limits)
+    friction = {}
+    if model.params.tendon_friction > 0:      # at rest on the tendons' friction history, loaded from slack
+        fstart = model.fk_history(T0, p, F, check_limits=not no_limits)
+        start, friction = fstart.equilibrium, {"segment_tensions": fstart.segment_tensions}
     settled = model.fk(T1, p, F, q0=start.q, check_limits=not no_limits)
     # a ratio is the first mode's about the state the response settles on (not the start, which the step
     # leaves at once)
@@ -235,12 +239,13 @@ def simulate(tensions_n: str = typer.Option(..., help="Tendon tensions [N] appli
             warnings.simplefilter("ignore", UndampedWarning)             # warned above, once
             sim = model.simulate(t_end_s, dt_ms * 1e-3, q0=start.q, tensions=tensions, pressure=p, tip_force=F,
                                  damping=damping, rho_inf=rho_inf, check_limits=not no_limits,
-                                 progress=lambda t, te: bar.update(task, completed=t, t=t))
+                                 progress=lambda t, te: bar.update(task, completed=t, t=t), **friction)
     folder.mkdir(parents=True, exist_ok=True)
     write_simulation_csv(folder / "simulation.csv", sim)
     if pvd:
         paraview.write_pvd(folder / "simulation.pvd", paraview.simulation_frames(model, sim, pvd_frames))
-    final = settled
+    # with tendon friction the state a step settles on depends on its path: no static reference to report
+    final = settled if model.params.tendon_friction == 0 else None
     info = model_info(preset, model.params)
     summary = {"preset": model.params.name, "model": info, "start_tensions_N": T0.tolist(), "tensions_N": T1.tolist(),
                "ramp_ms": ramp_ms, "pressure_kPa": pressure_kpa, "tip_force_N": F.tolist(),

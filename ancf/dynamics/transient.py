@@ -13,6 +13,9 @@ Equations of motion in the free coordinates z (q = q_fix + P z, docs/dynamics.md
   locked or moving) as a one-sided spring T_i = k max(0, l_i(q) − l⁰_i) — k the actuator's
   ``tendon_stiffness`` when it has one (then this *is* the tendon), else the penalty ``tendon_penalty`` —
   with the exact tangent k ∇l ∇lᵀ + T ∇²l; a tendon goes slack and taut again by itself (events).
+  With tendon friction (``tendon_friction`` μ > 0, tensions prescribed; held lengths refused) the tendon force
+  is the capstan law's per-segment one, the guides' stick/slip history carried from step to step
+  (:mod:`.friction_step`; its rows run on the Python path, and its dissipation is in D below).
 * Pressure: a prescribed signal p(t), or a first-order supply p' = (p_cmd(t) − p)/τ (``pressure_tau``),
   integrated with the trapezoidal rule.
 * Tip force F(t), a dead load at the tool point.
@@ -53,6 +56,7 @@ import numpy as np
 from ..assembly import assemble
 from ..errors import CollapsedStateError, ConvergenceError, InputError, LimitError, check_finite, check_scalar
 from .damping import UndampedWarning, axial_damping, damping_source, undamped_message
+from .friction_step import dissipation_increment, friction_history
 from .integrator import AlphaCoefficients, StepFailed, StepState, alpha_step
 from .interrupt import StopFlag
 from .mass import consistent_mass, tool_point_inertia
@@ -71,7 +75,10 @@ class Simulation:
     dt [s] the step used; damping: the coefficients used {alpha [1/s], beta [s], axial [N s]};
     damping_source: where they come from — "given" (the call's ``damping=``), "actuator" (the actuator's
     coefficients) or "none" (the actuator states no damping and none was given: an undamped run, announced
-    by an :class:`~ancf.dynamics.damping.UndampedWarning`); rho_inf; wall_time [s]."""
+    by an :class:`~ancf.dynamics.damping.UndampedWarning`); rho_inf; wall_time [s].
+    With tendon friction (μ > 0, :mod:`.friction_step`): segment_tensions (N, m, n) [N] the guides' segment
+    tensions (the next run's history: ``simulate(..., segment_tensions=sim.segment_tensions[-1])``) and
+    friction_dissipated (N,) [J] the friction's share of ``dissipated``; None without friction."""
     t: np.ndarray
     q: np.ndarray
     v: np.ndarray
@@ -91,6 +98,8 @@ class Simulation:
     wall_time: float = 0.0
     interrupted: bool = False
     damping_source: str = "given"
+    segment_tensions: Optional[np.ndarray] = None
+    friction_dissipated: Optional[np.ndarray] = None
 
     @property
     def real_time_factor(self) -> float:
@@ -154,7 +163,8 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
              tip_force=(0.0, 0.0, 0.0), damping=None, rho_inf: float = 0.9,
              tendon_penalty: Optional[float] = None, holding_force: Optional[float] = None,
              check_limits: bool = True, max_halvings: int = 8,
-             max_iter: int = 12, progress: Optional[Callable[[float, float], None]] = None) -> Simulation:
+             max_iter: int = 12, progress: Optional[Callable[[float, float], None]] = None,
+             segment_tensions=None) -> Simulation:
     """Integrate the model in time (module docstring); see :meth:`ancf.Model.simulate` for the arguments.
 
     The steps: the run's inputs checked (:func:`_check_run`), the loads made and checked on the whole output
@@ -167,7 +177,10 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
         loads = _make_loads(model, tensions, lengths, pressure, tip_force, pressure_tau, tendon_penalty,
                             holding_force, check_limits)
         loads.check_grid(times)
+        fric = friction_history(model, loads, segment_tensions)      # tendon friction's history, None at μ = 0
         p_init = _initial_pressure(loads, pressure0)
+        if fric is not None and q0 is None:                             # at rest on the friction history
+            q0 = fric.start(loads, p_init, check_limits)
         z, vz = _start_state(model, loads, q0, v0, p_init)
         source = damping_source(model.params, damping)
         if source == "none":
@@ -175,6 +188,7 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
                                                            "integrator's numerical dissipation (rho_inf < 1)")),
                           stacklevel=3)
         plant, coeffs = _make_plant(model, loads, z, p_init, damping)
+        plant.friction = fric
         n_out, rec, stepper = _run_refined(plant, loads, z, vz, p_init, times, h, rho_inf, max_halvings, max_iter,
                                            progress, stop)
     sl = slice(0, n_out)
@@ -183,7 +197,9 @@ def simulate(model, t_end: float, dt: float, q0=None, v0=None, *, tensions=None,
                       kinetic=rec.kinetic[sl], potential=rec.potential[sl], work=rec.work[sl],
                       dissipated=rec.dissipated[sl], newton_iterations=rec.iterations[sl], dt=h, damping=coeffs,
                       rho_inf=rho_inf, events=stepper.events, wall_time=_time.perf_counter() - wall0,
-                      interrupted=n_out < len(times), damping_source=source)
+                      interrupted=n_out < len(times), damping_source=source,
+                      segment_tensions=None if rec.Tseg is None else rec.Tseg[sl],
+                      friction_dissipated=None if rec.Tseg is None else rec.friction_dissipated[sl])
 
 
 def _run_refined(plant, loads, z, vz, p_init: float, times: np.ndarray, h: float, rho_inf: float, max_halvings: int,
@@ -193,6 +209,8 @@ def _run_refined(plant, loads, z, vz, p_init: float, times: np.ndarray, h: float
     still fails at k = MAX_REFINE.  Returns (rows done, the :class:`_Recorder`, the :class:`_Stepper`)."""
     model, events = plant.model, []
     for base in range(MAX_REFINE + 1):
+        if plant.friction is not None:
+            plant.friction.reset()
         stepper = _Stepper(h, AlphaCoefficients.from_rho(rho_inf), max_halvings, max_iter,
                            max(model.default_tol, 1e-10), base=base)
         rec = _Recorder(plant, _EnergyParts(model, loads), len(times))
@@ -405,6 +423,7 @@ class _Plant:
     Ct_const: Optional[np.ndarray] = None
     c_ax: float = 0.0
     force_scale: float = 0.0
+    friction: Optional[object] = None           # the guides' history (:mod:`.friction_step`), None at μ = 0
 
     @property
     def tip_moves_mass(self) -> bool:
@@ -447,15 +466,20 @@ class _Plant:
         M, K_t, C_t (nz, nz), force scale [N])."""
         model, length_mode = self.model, self.loads.length_mode
         red_v, red_m = model._reduce_vec, model._reduce_mat
+        fric = self.friction
 
         def system(z1, v1, x):
             q = model._to_full(z1)
-            T1 = self.tendons(q, t1, l01)[0] if length_mode else T1_fixed
-            ev = model._evaluate(q, T1, pr1, F1, True, 1.0, bool(length_mode))
-            if not np.isfinite(ev.energy):
-                raise StepFailed(f"the state left the model's domain ({model.inadmissibility(q)})")
-            r = self.Mz_const @ x + red_v(ev.Q)
-            Kt = red_m(ev.K)
+            if fric is None:
+                T1 = self.tendons(q, t1, l01)[0] if length_mode else T1_fixed
+                ev = model._evaluate(q, T1, pr1, F1, True, 1.0, bool(length_mode))
+                if not np.isfinite(ev.energy):
+                    raise StepFailed(f"the state left the model's domain ({model.inadmissibility(q)})")
+                Q, K = ev.Q, ev.K
+            else:                                # the segments' forces and tangent (tensions prescribed)
+                Q, K = fric.forces(q, T1_fixed, pr1, F1)
+            r = self.Mz_const @ x + red_v(Q)
+            Kt = red_m(K)
             Mz = self.Mz_const
             Ct = self.Ct_const
             if self.C_R is not None:
@@ -467,7 +491,8 @@ class _Plant:
                 Ct = Ct + red_m(Dv)
             if self.tip_moves_mass:
                 r, Mz, Kt, Ct = self._tool_point(q, v1, x, r, Kt, Ct)
-            Kt = self.add_springs(Kt, ev.J_l, T1)
+            if fric is None:
+                Kt = self.add_springs(Kt, ev.J_l, T1)
             return r, Mz, Kt, Ct, self.force_scale + float(np.linalg.norm(Mz @ x))
         return system
 
@@ -623,6 +648,9 @@ class _Recorder:
         self.work = np.zeros(n_rows)
         self.dissipated = np.zeros(n_rows)
         self.iterations = np.zeros(n_rows, dtype=int)
+        fric = plant.friction
+        self.Tseg = None if fric is None else np.empty((n_rows, model.m, model.n))
+        self.friction_dissipated = None if fric is None else np.zeros(n_rows)
         self.prev: Optional[dict] = None          # the last row's parts, tensions, power and loads
 
     def point(self, st: StepState, t: float, pr: float, F, l0) -> dict:
@@ -632,8 +660,11 @@ class _Recorder:
         q = plant.model._to_full(st.z)
         vq = plant.full_v(st.v)
         T, _ = plant.tendons(q, t, l0)
-        return {"q": q, "vq": vq, "pt": self.energy.parts(q), "T": T, "pw": plant.dissipation_power(q, vq, st.v),
-                "pr": pr, "F": F, "l0": l0, "t": t}
+        row = {"q": q, "vq": vq, "pt": self.energy.parts(q), "T": T, "pw": plant.dissipation_power(q, vq, st.v),
+               "pr": pr, "F": F, "l0": l0, "t": t}
+        if plant.friction is not None:
+            row["Tseg"], row["lseg"] = plant.friction.at(q, T)
+        return row
 
     def record(self, i: int, st: StepState, t: float, pr: float, F, l0, n_it: int = 0, mids=()) -> None:
         """Row i: the state st at time t [s] under pressure pr [Pa], tip force F [N], lengths l0 [m]; the work
@@ -646,14 +677,20 @@ class _Recorder:
         self.kinetic[i] = 0.5 * float(vq @ Mf @ vq)
         self.potential[i] = self.energy.potential(pt, T, pr, F, l0)
         self.iterations[i] = n_it
+        if self.Tseg is not None:
+            self.Tseg[i] = row["Tseg"]
         if self.prev is not None:
-            dW = dD = 0.0
+            dW = dD = dF = 0.0
             chain = [self.prev, *mids, row]
             for a, b in zip(chain[:-1], chain[1:]):
                 w, d = self._increment(a, b)
                 dW, dD = dW + w, dD + d
+                if self.Tseg is not None:
+                    dF += dissipation_increment(a, b)
             self.work[i] = self.work[i - 1] + dW
-            self.dissipated[i] = self.dissipated[i - 1] + dD
+            self.dissipated[i] = self.dissipated[i - 1] + dD + dF
+            if self.Tseg is not None:
+                self.friction_dissipated[i] = self.friction_dissipated[i - 1] + dF
         self.prev = row
 
     def _increment(self, a: dict, b: dict) -> tuple[float, float]:
@@ -721,6 +758,8 @@ class _Stepper:
                 self._halve(exc, tt, t1, hh)
                 continue
             n_it += k
+            if plant.friction is not None:                  # the converged step's tensions: the next one's history
+                plant.friction.commit(plant.model._to_full(st_new.z), T1)
             st, tt, pr_s = st_new, t1, pr1
             if point is not None and t1 != t_target:
                 mids.append(point(st, t1, pr1, F1, l01))
@@ -862,7 +901,7 @@ class _FastRows:
 
     @staticmethod
     def eligible(plant: _Plant, loads: _Loads) -> bool:
-        return COMPILED_ROWS
+        return COMPILED_ROWS and plant.friction is None      # rows with tendon friction: the Python path
 
     def __init__(self, plant: _Plant, loads: _Loads, stepper: _Stepper, rec: _Recorder, times: np.ndarray):
         from . import compiled_step as cs

@@ -154,6 +154,7 @@ def _doc_rows() -> dict:
     """{(μ, configuration): row cells} of the documented table."""
     text = DOC.read_text()
     sec = text[text.index("## Controller on a plant with friction"):]
+    sec = sec[:sec.index("\n#", 1)]                     # up to the next heading (the loading subsection's table)
     rows = {}
     for line in sec.splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]

@@ -87,6 +87,7 @@ HELDOUT = clitools.number_range(0.0, 1.0, high_open=True)                # valid
 RANGE_FACTOR = clitools.number_range(1.0, 10.0, low_open=True)         # beyond 10× it is another design
 START_S = clitools.number_range(0.0, unit="s")
 END_S = clitools.number_range(0.0, low_open=True, unit="s")
+FRICTION = clitools.number_range(0.0, 1.0)                 # ActuatorParams.tendon_friction's range
 TMAX_OPT = typer.Option(None, callback=TENSION_N, help="Largest tendon tension of the virtual experiments, "
                                                        f"{TENSION_N.text} (default: the design's).")
 PMAX_OPT = typer.Option(None, callback=PRESSURE_KPA, help="Largest pressure of the virtual experiments, "
@@ -410,6 +411,10 @@ def report_cmd(
         fem_error: bool = typer.Option(True, help=FEM_ERROR_HELP),
         tension_max_n: Optional[float] = TMAX_OPT,
         pressure_max_kpa: Optional[float] = PMAX_OPT,
+        tendon_friction: Optional[float] = typer.Option(
+            None, callback=FRICTION, help=f"Tendon friction coefficient μ [-], {FRICTION.text}, of the FEM's tendons; "
+                                          "overrides the design's tendon_friction (default: the design's, 0 = "
+                                          "frictionless). μ > 0 adds tension cycles rod vs FEM (hysteresis)."),
         mesh: str = MESH_OPT,
         forms: Optional[str] = FORMS_OPT,
         fit_distance: bool = FIT_D_OPT,
@@ -427,18 +432,26 @@ def report_cmd(
     names = _forms(forms, quick)
     _cases_check(cases)
     _base_check(measurements, base)
+    if tendon_friction is not None and measurements is not None:
+        raise typer.BadParameter("applies to the FEM of a design, not to --measurements", param_hint="'--tendon-friction'")
     fem = None if measurements is not None else _fem_design(design, tension_max_n, pressure_max_kpa)
     limits = {} if fem is None else fem[3]         # checked with the CLI's option names (--tension-max-n, …)
     run = run_report(out, design=None if fem is None else fem[0], measurements=measurements, base=base, quick=quick,
                      fem_error=fem_error, tension_max=limits.get("tension_max"),
                      pressure_max=limits.get("pressure_max"), mesh=mesh, forms=names,
                      fit_distance=fit_distance, cases=cases, workers=workers, scheduler=scheduler, cache_dir=cache,
-                     force=force, command=_command_line(), log=console.print)
+                     force=force, command=_command_line(), log=console.print, tendon_friction=tendon_friction)
     res, val, stiff = run.identification, run.validation, run.stiffness
     _print_identification(res)
     if val is not None:
         _print_validation(val)
     _print_modes(res.modes)
+    if run.friction:
+        f = run.friction
+        console.print(f"tendon friction: μ = {f['mu_used']:.4g} ({f['mu_source']}; the design's {f['mu_design']:g}), "
+                      f"hysteresis {f['status']}: " + ", ".join(
+                          f"{r['pressure_kPa']:g} kPa loop ratio {r['loop_ratio']:.2f}" for r in f["rows"]
+                          if not r.get("error")))
     console.print(f"{run.seconds:.0f} s; wrote {run.report} (open it in a browser), actuator.toml, "
                   f"fit.json{', validation.json' if val else ''}{', stiffness.json' if stiff else ''} and figures/ in "
                   f"{run.out}")

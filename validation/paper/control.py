@@ -642,10 +642,12 @@ def _loading_plant_options(plant_options: Optional[PlantOptions], motor_rate: fl
     return plant_options
 
 
-def _loading_run(model, pressure, target, opts, timing: dict, profile, duration, compliance, fixed_compute=None):
+def _loading_run(model, pressure, target, opts, timing: dict, profile, duration, compliance, fixed_compute=None,
+                 ctrl=None):
     """One timed LACC episode under the load ``profile``: (TimedResult, summary dict with SI and mm keys).
-    ``timing``: compute_scale, actuation_latency, settle_time, sample_dt (run_timed's keywords)."""
-    ctrl = LACC(model, pressure, compliance=compliance)
+    ``timing``: compute_scale, actuation_latency, settle_time, sample_dt (run_timed's keywords); ``ctrl`` the
+    controller to run instead of LACC(``compliance``) on ``model``."""
+    ctrl = ctrl or LACC(model, pressure, compliance=compliance)
     plant = SimulatedPlant(model, pressure, load=profile, options=opts)
     t0 = time.perf_counter()
     r = run_timed(ctrl, plant, target, duration=duration,
@@ -754,7 +756,9 @@ def loading(*, pressure: float = PRESSURE, tensions=None, peak_mass: Optional[fl
             cycles: int = 4, compliance: str = "exact", motor_rate: float = 5e-3, actuation_latency: float = 0.02,
             settle_time: float = 0.1, compute_scale: float = 1.0, sample_dt: float = 0.05,
             loop_periods: Sequence[float] = (0.25, 0.5, 1.0, 2.0), compare: Optional[str] = "ik",
-            plant_options: Optional[PlantOptions] = None, params=None, out: PathLike = None) -> dict:
+            plant_options: Optional[PlantOptions] = None, params=None, out: PathLike = None,
+            friction: Optional[Sequence[float]] = None, friction_aware: bool = False,
+            friction_compute: Optional[Sequence[float]] = None) -> dict:
     """Continuous (0 → ``peak_mass`` → 0 over ``ramp_up`` + ``ramp_down`` s) and cyclic (``cyclic_mass``
     at ``frequency`` Hz, ``cycles`` cycles) tip loading with LACC in the loop (Sec. V-E).
 
@@ -772,7 +776,24 @@ def loading(*, pressure: float = PRESSURE, tensions=None, peak_mass: Optional[fl
     Returns ``{"continuous": {...}, "cyclic": {...}, "bandwidth": [...], "compute_ms_median", "table", ...}``
     with ``max_error`` [m], ``rms_error`` [m], ``uncontrolled_max_drift`` [m], ``corrections`` and the
     time series.
+
+    Tendon friction (docs/friction.md, "Loading experiments with friction"): with ``friction`` (plant
+    coefficients μ, each in 0 … 1) the same two load cases run once per μ on the plant whose actuator has
+    ``tendon_friction`` μ, LACC(``compliance``) with the frictionless model, and with ``friction_aware`` (μ > 0)
+    :class:`controller.friction_aware.FrictionAwareLACC` whose model is the plant's actuator.  Each
+    correction takes a fixed time on the loop's clock, ``friction_compute`` = (LACC, friction-aware LACC) [s]
+    (default, or a None entry: :data:`FRICTION_LOADING_COMPUTE`), so that the runs repeat exactly; ``compare``
+    and the bandwidth study are not run.  Returns ``{"friction": {f"{μ:g}": {case: {"uncontrolled_max_drift" [m], "lacc": {...},
+    "aware": {...}}}}, "table", "settings", "load_note"}``, each controller's entry with ``max_error``,
+    ``rms_error`` [m], mm copies, ``corrections``, ``error_norm`` [m] over ``t`` [s] and the measured
+    ``compute_wall_ms_median``.
     """
+    if friction is not None:            # checked before anything runs
+        friction = _friction_values(friction)
+        friction_compute = _loading_compute((None, None) if friction_compute is None else friction_compute)
+    elif friction_aware or friction_compute is not None:
+        from ancf.errors import InputError
+        raise InputError("friction_aware and friction_compute need friction (the plant's coefficients μ)")
     params = params or presets.paper()
     model = Model(params)
     peak_mass, cyclic_mass, load_note = _loading_masses(params, pressure, tensions, peak_mass, cyclic_mass)
@@ -791,6 +812,19 @@ def loading(*, pressure: float = PRESSURE, tensions=None, peak_mass: Optional[fl
         return _loading_run(model, pressure, target, opts, timing, profile, duration, comp, fixed_compute)
 
     duration_y = cycles / frequency
+    settings = {"pressure_Pa": pressure, "tensions_N": list(tensions), "target_m": target,
+                "peak_mass_kg": peak_mass, "ramp_up_s": ramp_up, "ramp_down_s": ramp_down,
+                "cyclic_mass_kg": cyclic_mass, "frequency_Hz": frequency, "cycles": cycles,
+                "compliance": compliance, "motor_rate_m_per_s": motor_rate,
+                "actuation_latency_s": actuation_latency, "settle_time_s": settle_time,
+                "compute_scale": compute_scale, "sample_dt_s": sample_dt, "compare": compare,
+                "actuator": params.name}
+    if friction is not None:
+        setup = {"model": model, "pressure": pressure, "target": target, "opts": opts, "timing": timing,
+                 "lengths0": lengths0, "compliance": compliance, "load_note": load_note,
+                 "cases": {"continuous": (continuous, ramp_up + ramp_down), "cyclic": (cyclic, duration_y)},
+                 "settings": {k: v for k, v in settings.items() if k not in ("compare", "compute_scale")}}
+        return _loading_friction(setup, friction, friction_aware, friction_compute, out)
     res, series = _loading_cases(run, model, pressure, lengths0, opts,
                                  {"continuous": (continuous, ramp_up + ramp_down), "cyclic": (cyclic, duration_y)},
                                  compliance, compare)
@@ -800,14 +834,112 @@ def loading(*, pressure: float = PRESSURE, tensions=None, peak_mass: Optional[fl
     res["table"] = _loading_table(res, compliance, compare, load_note)
     res["load_note"] = load_note
     res["paper"] = PAPER_LOADING
-    res["settings"] = {"pressure_Pa": pressure, "tensions_N": list(tensions), "target_m": target,
-                       "peak_mass_kg": peak_mass, "ramp_up_s": ramp_up, "ramp_down_s": ramp_down,
-                       "cyclic_mass_kg": cyclic_mass, "frequency_Hz": frequency, "cycles": cycles,
-                       "compliance": compliance, "motor_rate_m_per_s": motor_rate,
-                       "actuation_latency_s": actuation_latency, "settle_time_s": settle_time,
-                       "compute_scale": compute_scale, "sample_dt_s": sample_dt, "compare": compare,
-                       "actuator": params.name}
+    res["settings"] = settings
     fig = _loading_figure(res, series, compliance, compare, frequency) if out is not None else None
+    _write(out, "loading", res, fig)
+    return res
+
+
+
+# ============================================================================== loading with tendon friction
+#: compute time per correction [s] on the loop's clock in the loading study with friction: (LACC, the
+#: friction-aware LACC).  Fixed, so that the runs repeat exactly (the frictionless study times each step by the
+#: wall clock): LACC's steps take 2–8 ms; the friction-aware LACC's corrections (≈ 12–14 locked friction solves)
+#: took a median 0.44–0.46 s in short runs of this study on a shared 2-core machine (0.8–1.9 s when it was more
+#: loaded); each run's ``compute_wall_ms_median`` states the machine's own.
+FRICTION_LOADING_COMPUTE = (0.01, 0.5)
+
+
+def _loading_compute(values) -> tuple[float, float]:
+    """(LACC, friction-aware LACC) compute times [s]: two numbers in 0 … 10 s (None: the default's)."""
+    from ancf.errors import InputError
+    try:
+        out = tuple(float(d if x is None else x) for x, d in zip(values, FRICTION_LOADING_COMPUTE, strict=True))
+    except (TypeError, ValueError):
+        raise InputError(f"friction_compute must be (LACC, friction-aware LACC) times [s], got {values!r}") from None
+    if not all(0.0 <= x <= 10.0 for x in out):
+        raise InputError(f"friction_compute must be two times in 0 … 10 s, got {values!r}")
+    return out
+
+
+def _friction_summary(r, s: dict) -> dict:
+    """The run's summary (:func:`_loading_run`) with its tip error norm [m] over its sample times t [s], the
+    measured wall-clock compute renamed (the loop used the fixed time)."""
+    out = {k: v for k, v in s.items() if k not in ("median_compute_ms", "wall_s")}
+    out["compute_wall_ms_median"] = s["median_compute_ms"]
+    out["rms_error_mm"] = 1e3 * s["rms_error"]
+    out["t"], out["error_norm"] = r.t, r.error_norm
+    return out
+
+
+def _loading_friction_block(setup: dict, mu: float, aware: bool, computes) -> dict:
+    """One plant μ of the loading study with friction: per load case the uncontrolled drift, LACC (frictionless
+    model) and, with ``aware`` and μ > 0, the friction-aware LACC (the plant's actuator as its model)."""
+    from controller.friction_aware import FrictionAwareLACC
+    model, pressure, target, timing = setup["model"], setup["pressure"], setup["target"], setup["timing"]
+    opts = _friction_plant(model.params, setup["opts"], mu)
+    block = {}
+    for key, (prof, dur) in setup["cases"].items():
+        r, s = _loading_run(model, pressure, target, opts, timing, prof, dur, setup["compliance"], computes[0])
+        drift = float(_uncontrolled_drift(model, pressure, setup["lengths0"], prof, r.t, opts).max())
+        case = {"uncontrolled_max_drift": drift, "uncontrolled_max_drift_mm": 1e3 * drift,
+                "lacc": _friction_summary(r, s)}
+        if aware and mu > 0:
+            ctrl = FrictionAwareLACC(Model(opts.params), pressure)
+            ra, sa = _loading_run(model, pressure, target, opts, timing, prof, dur, None, computes[1], ctrl=ctrl)
+            case["aware"] = _friction_summary(ra, sa)
+        block[key] = case
+    return block
+
+
+def _loading_friction_table(res: dict, aware: bool, compliance: str, computes) -> str:
+    """The printed table of the loading study with friction: per plant μ and load case the drift and the errors."""
+    header = ["plant μ", "load case", "uncontrolled drift mm", f"LACC({compliance}) max mm", "rms mm", "corrections"]
+    if aware:
+        header += ["friction-aware max mm", "rms mm", "corrections"]
+    rows = []
+    for mu, block in res["friction"].items():
+        for key, c in block.items():
+            row = [mu, key, f"{c['uncontrolled_max_drift_mm']:.2f}", f"{c['lacc']['max_error_mm']:.3f}",
+                   f"{c['lacc']['rms_error_mm']:.3f}", str(c["lacc"]["corrections"])]
+            if aware:
+                a = c.get("aware")
+                row += ["–", "–", "–"] if a is None else [f"{a['max_error_mm']:.3f}", f"{a['rms_error_mm']:.3f}",
+                                                          str(a["corrections"])]
+            rows.append(row)
+    note = ("\ncontrollers' model frictionless" + (", the friction-aware LACC's the plant's actuator" if aware else "")
+            + f"; compute per correction on the loop's clock: LACC {1e3 * computes[0]:g} ms"
+            + (f", friction-aware LACC {1e3 * computes[1]:g} ms" if aware else "") + " (fixed)")
+    return _fmt_table(header, rows) + note
+
+
+def _loading_friction_figure(res: dict, aware: bool):
+    """Tip error over time per load case, one colour per plant μ (the friction-aware LACC dashed)."""
+    plt = _pyplot()
+    blocks = res["friction"]
+    fig, axs = plt.subplots(1, 2, figsize=(13, 4))
+    for ax, key in zip(axs, ("continuous", "cyclic")):
+        for i, (mu, block) in enumerate(blocks.items()):
+            c = block[key]
+            ax.plot(c["lacc"]["t"], np.asarray(c["lacc"]["error_norm"]) * 1e3, "-", color=f"C{i}", lw=1,
+                    label=f"LACC, plant μ = {mu}")
+            if aware and "aware" in c:
+                ax.plot(c["aware"]["t"], np.asarray(c["aware"]["error_norm"]) * 1e3, "--", color=f"C{i}", lw=1,
+                        label=f"friction-aware, μ = {mu}")
+        ax.set_title(key)
+        ax.set_xlabel("t [s]")
+    _finish_axes(fig, axs, "tip error [mm]")
+    return fig
+
+
+def _loading_friction(setup: dict, mus: list, aware: bool, computes: tuple, out: PathLike) -> dict:
+    """The loading study per plant μ (:func:`loading` with ``friction``: the checked μ values and compute times)."""
+    res: dict = {"friction": {f"{mu:g}": _loading_friction_block(setup, mu, aware, computes) for mu in mus}}
+    res["table"] = _loading_friction_table(res, aware, setup["compliance"], computes)
+    res["load_note"] = setup["load_note"]
+    res["settings"] = {**setup["settings"], "friction": mus, "friction_aware": aware,
+                       "compute_s": {"lacc": computes[0], "friction_aware": computes[1] if aware else None}}
+    fig = _loading_friction_figure(res, aware) if out is not None else None
     _write(out, "loading", res, fig)
     return res
 

@@ -16,6 +16,7 @@ unknown keys and missing units are errors)::
     cap_com_offset_mm = 2.5
     tip_offset_mm = 0
     mounting = "horizontal"      # or "vertical_down" (hanging, tip below the base), "vertical_up"
+    tendon_friction = 0          # optional: Coulomb friction coefficient μ of the tendons at their guides, 0 … 1
 
     [material]
     model = "neo_hookean"        # or "mooney_rivlin" (with c10_MPa, c01_MPa)
@@ -45,6 +46,11 @@ default, as on the paper's rig: gravity ``−z``), ``"vertical_down"`` (hanging,
 ``+x``) or ``"vertical_up"`` (standing on its base: gravity ``−x``); :func:`design_mounting` reads it,
 :func:`mounting_gravity` gives the vector [m/s²].  Any other value is a :class:`ConfigError`.
 
+**Tendon friction.**  ``tendon_friction`` (dimensionless, 0 … 1 as ``ActuatorParams.tendon_friction``; default 0,
+frictionless; every preset is frictionless) is the capstan coefficient μ of the tendons at their routing guides
+(docs/friction.md); :func:`design_friction` reads it.  ``bellows report`` then checks the identified actuator's
+hysteresis against the FEM's (:mod:`validation.checks.hysteresis`).
+
 The operating range (:func:`design_limits`; default 5 N, 120 kPa) sets the loads of the virtual experiments.
 The ``paper`` preset (the soft, calibrated bellows) states 100 kPa: its FEM has an inflation limit point
 between 105 and 115 kPa (neo-Hookean wall, coarse mesh — no equilibrium beyond it; the Newton solve fails
@@ -73,7 +79,8 @@ try:  # Python >= 3.11
 except ModuleNotFoundError:  # pragma: no cover
     import tomli as tomllib
 
-__all__ = ["load_design", "design_to_toml", "design_limits", "design_mounting", "mounting_gravity", "PRESETS",
+__all__ = ["load_design", "design_to_toml", "design_limits", "design_mounting", "design_friction", "mounting_gravity",
+           "PRESETS",
            "DEFAULT_LIMITS", "MOUNTINGS", "DEFAULT_MOUNTING"]
 
 #: standard gravity [m/s²]
@@ -101,6 +108,8 @@ PLAUSIBLE = {
     "mu": (1e3, 1e9, False), "kappa": (1e3, 1e11, False), "c10": (-1e9, 1e9, True), "c01": (-1e9, 1e9, True),
     "density": (100.0, 20000.0, False), "tension_max": (1e-3, 1e3, False), "pressure_max": (1e3, 10e6, False),
 }
+#: largest tendon friction coefficient a design may state (as ActuatorParams.tendon_friction)
+FRICTION_MAX = 1.0
 TEXT_KEYS = ("name", "description", "profile_file", "profile_unit", "model", "formulation", "mounting")
 #: keys a design with a profile_file must not state (read off the table)
 TABLE_DERIVED = ("length", "root_radius", "crest_radius", "wall_thickness")
@@ -193,6 +202,18 @@ def design_mounting(source) -> str:
     return value
 
 
+def design_friction(source) -> float:
+    """The tendons' friction coefficient μ [-] of the design (module docstring): 0 for a preset; a design file's
+    ``tendon_friction`` key (default 0), a number in 0 … 1 — ConfigError otherwise."""
+    if isinstance(source, str) and source in PRESETS:
+        return 0.0
+    value = _read(source).get("tendon_friction", 0.0)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0.0 <= value <= FRICTION_MAX):
+        raise ConfigError(f"{source}: tendon_friction must be a friction coefficient μ in 0 … {FRICTION_MAX:g} "
+                          f"(dimensionless, no unit), got {value!r}")
+    return float(value)
+
+
 def _read(source) -> dict:
     path = pathlib.Path(source)
     if path.suffix.lower() != ".toml":
@@ -214,8 +235,10 @@ def load_design(source):
     raw = _read(source)
     design_limits(source)                      # the optional [limits] table is checked here too
     design_mounting(source)                    # and the mounting
+    design_friction(source)                    # and the tendon friction
     raw.pop("limits", None)
     raw.pop("mounting", None)
+    raw.pop("tendon_friction", None)
     mat_raw = raw.pop("material", None)
     if not isinstance(mat_raw, dict):
         raise ConfigError(f"{path}: missing [material] table")
@@ -309,11 +332,15 @@ def _material(mat_raw: dict, where: str):
 
 
 def design_to_toml(geometry, material, name: str = "bellows", limits: dict | None = None,
-                   mounting: str = DEFAULT_MOUNTING) -> str:
+                   mounting: str = DEFAULT_MOUNTING, tendon_friction: float = 0.0) -> str:
     """The design as TOML in the format of :func:`load_design`, in SI units (m, kg, rad, Pa) so that it reads
     back exactly (a table profile is referred to by the absolute path of its file); ``limits`` ({"tension_max": N,
-    "pressure_max": Pa}) adds the [limits] table; ``mounting`` (:data:`MOUNTINGS`) is written as given."""
+    "pressure_max": Pa}) adds the [limits] table; ``mounting`` (:data:`MOUNTINGS`) is written as given;
+    ``tendon_friction`` μ (0 … 1) is written when > 0."""
     mounting_gravity(mounting)
+    if isinstance(tendon_friction, bool) or not isinstance(tendon_friction, (int, float)) \
+            or not 0.0 <= tendon_friction <= FRICTION_MAX:
+        raise ConfigError(f"tendon_friction must be in 0 … {FRICTION_MAX:g}, got {tendon_friction!r}")
     g = geometry
     if getattr(g, "is_table", False):
         if not g.profile.source:
@@ -328,7 +355,8 @@ def design_to_toml(geometry, material, name: str = "bellows", limits: dict | Non
     lines = [f"name = {json.dumps(str(name))}", *shape, f"n_convolutions = {int(g.n_convolutions)}", f"collar_length_m = {g.collar_length!r}",
              f"tendon_radius_m = {g.tendon_radius!r}", f"tendon_angles_rad = {list(g.tendon_angles)!r}",
              f"cap_mass_kg = {g.cap_mass!r}", f"cap_com_offset_m = {g.cap_com_offset!r}",
-             f"tip_offset_m = {g.tip_offset!r}", f"mounting = {json.dumps(mounting)}", "", "[material]"]
+             f"tip_offset_m = {g.tip_offset!r}", f"mounting = {json.dumps(mounting)}",
+             *([f"tendon_friction = {float(tendon_friction)!r}"] if tendon_friction else []), "", "[material]"]
     if material.c01:
         lines += ['model = "mooney_rivlin"', f"c10_Pa = {material.mu / 2 - material.c01!r}", f"c01_Pa = {material.c01!r}"]
     else:

@@ -21,7 +21,8 @@ error per state; the reduced model vs the FEM on held-out states (tip, shape, co
 per axis, locked/constant stiffness ratio) beside the FEM's own discretisation error
 (:mod:`validation.checks.fem_error`), shape overlays and compliance ellipses; the Fig. 9 analogue;
 dynamics (the rod's first bending and axial frequencies beside the FEM's, per pressure:
-:mod:`validation.checks.modes_compare`); diagnostics (what the numbers imply, the paper's values beside ours);
+:mod:`validation.checks.modes_compare`); for a design with tendon friction, the hysteresis of tension cycles, rod vs
+FEM (both branches, loop areas: :mod:`validation.checks.hysteresis`); diagnostics (what the numbers imply, the paper's values beside ours);
 provenance (versions, git revision).
 """
 
@@ -41,8 +42,9 @@ from validation.checks.compare import N_SHAPE_POINTS, SHAPE_TARGET_PCT, Validati
 from validation.identification.forms import MEANINGS, REPORTED, display_unit
 from validation.identification.identify import MEASURED_SHEAR, PARSIMONY, IdentificationResult
 from validation.checks.modes_compare import modes_sentences, pressure_factor_text
+from validation.checks.hysteresis import LOOP_TARGET_PCT, TIP_TARGET_PCT
 
-__all__ = ["build_report", "write_report", "report_figures", "headline", "sections"]
+__all__ = ["build_report", "write_report", "report_figures", "headline", "sections", "friction_item", "friction_rows"]
 
 #: The paper's identified values (Sec. II-B), shown beside ours.
 PAPER_DIAMETERS_MM = {"D_a": 29.59, "D_eff": 26.05}
@@ -65,7 +67,7 @@ def _mm(v) -> str:
 
 
 def report_figures(ident: IdentificationResult, validation: Optional[ValidationResult] = None,
-                   stiffness: Optional[dict] = None) -> dict:
+                   stiffness: Optional[dict] = None, friction: Optional[dict] = None) -> dict:
     """{name: PNG bytes} of every figure the report shows (a figure with nothing to show is left out)."""
     out = {"forms": figs.forms_figure(ident.comparison)}
     f = ident.fit
@@ -87,6 +89,8 @@ def report_figures(ident: IdentificationResult, validation: Optional[ValidationR
         out["shapes_3d"] = figs.view3d_figure(validation.rows)
     if stiffness is not None:
         out["stiffness"] = figs.stiffness_figure(stiffness)
+    if friction:
+        out["friction"] = figs.friction_figure(friction)
     return {k: v for k, v in out.items() if v}
 
 
@@ -416,13 +420,63 @@ def _fem_error_note(fe: Optional[dict]) -> tuple[Optional[dict], Optional[str]]:
                   f"(section 3a). Each verdict reads the FEM's error beside the model's: {fe.get('rule', '')}.")
 
 
-def headline(val: Optional[ValidationResult]) -> dict:
+def _cycle_misses(r: dict) -> tuple[float, str]:
+    """(the worst ratio error / target of one compared cycle, what it is in words)."""
+    parts = [(r["loop_error_pct"] / LOOP_TARGET_PCT, f"loop area rod / {FEM_NAME} {r['loop_ratio']:.2f} "
+                                                     f"({r['loop_error_pct']:.1f} % off, target {LOOP_TARGET_PCT:g} %)")]
+    for b in ("loading", "unloading"):
+        x = r[f"tip_{b}_mean_pct"]
+        parts.append((x / TIP_TARGET_PCT, f"mean tip error on the {b} branch {x:.2f} % of L (target {TIP_TARGET_PCT:g} %)"))
+    worst = max(p[0] for p in parts)
+    return worst, "; ".join(t for v, t in parts if v > 1.0) or "; ".join(t for _, t in parts)
+
+
+def friction_item(friction: Optional[dict]) -> Optional[dict]:
+    """The headline item of the tendon friction check (:func:`validation.checks.hysteresis.verdict`), or None
+    without one.  The FEM is taken as exact (its error is not estimated for the cycles)."""
+    if not friction:
+        return None
+    judged = [r for r in friction["rows"] if r.get("role") != "fit"]
+    mu = f"μ = {friction['mu_used']:.3g}, {_mu_source_text(friction)}"
+    status = friction["status"]
+    if status == "incomplete":
+        bad = [f"{r['pressure_kPa']:g} kPa ({r['error']})" for r in judged if r.get("error")]
+        return {"status": "incomplete", "anchor": "sec-friction", "severity": 0.0,
+                "text": f"Tendon friction ({mu}): not every cycle could be compared: {', '.join(bad) or 'none judged'}."}
+    compared = [(r, *_cycle_misses(r)) for r in judged if not r.get("error")]
+    r, worst, what = max(compared, key=lambda x: x[1])
+    which = "in-sample: the cycle μ was fitted to" if r["role"] == "in-sample" else "a cycle not used for μ"
+    if status == "fails":
+        n_bad = sum(1 for x in compared if x[0]["passes"] is False)
+        return {"status": "fails", "anchor": "sec-friction", "severity": worst,
+                "text": f"Tendon friction hysteresis ({mu}): at {r['pressure_kPa']:g} kPa ({which}) {what} — "
+                        f"{worst:.1f} × the target, the {FEM_NAME} taken as exact; fails on {n_bad} of "
+                        f"{len(compared)} judged cycle(s)."}
+    return {"status": "passes", "anchor": "sec-friction", "severity": worst,
+            "text": f"Tendon friction hysteresis ({mu}): within the loop-area ({LOOP_TARGET_PCT:g} %) and tip "
+                    f"({TIP_TARGET_PCT:g} % of L) targets on all {len(compared)} judged cycle(s); worst at "
+                    f"{r['pressure_kPa']:g} kPa ({which}): {worst:.2f} × the target."}
+
+
+def _mu_source_text(friction: dict) -> str:
+    """How the rod's μ was found, in words."""
+    fit = friction.get("fit")
+    if friction["mu_source"] == "identified" and fit:
+        return (f"identified from the {FEM_NAME}'s cycle at {fit['pressure_kPa']:g} kPa, 95 % interval "
+                f"{fit['interval'][0]:.3g} … {fit['interval'][1]:.3g}; the design states {friction['mu_design']:g}")
+    return f"the design's μ (no fit: the {FEM_NAME}'s cycle for it failed)"
+
+
+def headline(val: Optional[ValidationResult], friction: Optional[dict] = None) -> dict:
     """The report's headline, failures first: {"fails": [item, …] (worst first: (model − FEM error) / target),
     "undecided": […], "incomplete": […], "passes": […], "notes": [str]}; an item is {"status", "text", "anchor"
     (the section's id), "severity"}.  Only presents the verdicts of
     :func:`validation.checks.fem_error.assess` (or, for a validation without them, the same rule with the FEM
-    taken as exact); decides none."""
+    taken as exact); decides none.  ``friction``: the tendon friction check, one more item
+    (:func:`friction_item`)."""
     items = [] if val is None else _target_items(val)
+    if friction_item(friction) is not None:
+        items.append(friction_item(friction))
     fe_item, fe_note = _fem_error_note(None if val is None else val.fem_error)
     if fe_item is not None:
         items.append(fe_item)
@@ -570,6 +624,42 @@ def _modes_rows(modes: Optional[dict]) -> list[dict]:
     return out
 
 
+def friction_rows(friction: Optional[dict]) -> list[dict]:
+    """The friction section's table rows (text cells; verdict "pass"/"fail"/"" for the cycle μ was fitted to)."""
+    out = []
+    for r in (friction or {}).get("rows", []):
+        row = {"p": f"{r['pressure_kPa']:g}", "role": {"fit": "used for μ", "validation": "validation",
+                                                        "in-sample": "used for μ (in-sample)"}[r["role"]],
+               "error": r.get("error", "")}
+        if not row["error"]:
+            row.update({k: f"{r[k]:.2f}" for k in ("loop_rod_Nmm", "loop_fem_Nmm", "loop_ratio", "tip_loading_mean_pct",
+                                                    "tip_loading_max_pct", "tip_unloading_mean_pct",
+                                                    "tip_unloading_max_pct")})
+            row["verdict"] = "" if r["role"] == "fit" else ("pass" if r["passes"] else "fail")
+        out.append(row)
+    return out
+
+
+def _friction_text(friction: dict) -> str:
+    """The section's sentence on μ: stated by the design, identified (with its interval), which cycles judge it."""
+    fit = friction.get("fit")
+    text = (f"The design states μ = {friction['mu_design']:g}; the {FEM_NAME} solves every cycle with it. ")
+    if friction["mu_source"] == "identified" and fit:
+        text += (f"The reduced model's μ = {fit['mu']:.4g} (95 % interval {fit['interval'][0]:.4g} … "
+                 f"{fit['interval'][1]:.4g}, from the {fit['basis']}; RMS residual {fit['residual_rms_mm']:.3f} mm) "
+                 f"is identified from the {FEM_NAME}'s tip data of the cycle at {fit['pressure_kPa']:g} kPa — the gap "
+                 "between its branches, unloading − loading tip at each tension, which a static or stiffness "
+                 "difference of the models leaves out (every other parameter held) — and written to the actuator "
+                 "file. ")
+        text += ("This quick report has that one cycle only: its numbers are in-sample (the full report validates "
+                 "μ on the cycles at 0 and the largest pressure)." if friction["in_sample"] else
+                 "The other cycles are not used for it and validate it.")
+    else:
+        text += (f"The {FEM_NAME}'s cycle to identify μ from failed: the reduced model takes the design's μ, "
+                 "written to the actuator file; every compared cycle validates it.")
+    return text
+
+
 def _provenance_rows(ident: IdentificationResult, command: Optional[str]) -> list:
     p = ident.provenance
     rows = [("created", p.get("created", "")), ("git revision", p.get("git_revision", "")),
@@ -587,7 +677,7 @@ def _provenance_rows(ident: IdentificationResult, command: Optional[str]) -> lis
 
 
 def sections(validation: Optional[ValidationResult], stiffness: Optional[dict], modes: Optional[dict],
-             has_ratio: bool) -> list[dict]:
+             has_ratio: bool, friction: Optional[dict] = None) -> list[dict]:
     """The report's sections in order, numbered as shown, each {"id" (its anchor), "title", "level" (2 or 3)}:
     the table of contents and every heading come from this one list."""
     out = [("sec-params", "Identified parameters", 2), ("sec-forms", "Model forms compared", 2)]
@@ -598,6 +688,8 @@ def sections(validation: Optional[ValidationResult], stiffness: Optional[dict], 
             out.append(("sec-ratio", "Locked / tension-held vertical stiffness ratio per state", 3))
     if stiffness:
         out.append(("sec-stiffness", "Stiffness vs tendon tension (the Fig. 9 protocol)", 2))
+    if friction:
+        out.append(("sec-friction", "Tendon friction: hysteresis of tension cycles", 2))
     if modes:
         out.append(("sec-dynamics", "Dynamics: first modes per pressure", 2))
     out.append(("sec-diagnostics", "Diagnostics", 2))
@@ -613,16 +705,17 @@ def sections(validation: Optional[ValidationResult], stiffness: Optional[dict], 
 def build_report(ident: IdentificationResult, validation: Optional[ValidationResult] = None,
                  stiffness: Optional[dict] = None, *, title: Optional[str] = None, command: Optional[str] = None,
                  toml_name: str = "actuator.toml", figures: Optional[dict] = None,
-                 modes: Optional[dict] = None) -> str:
+                 modes: Optional[dict] = None, friction: Optional[dict] = None) -> str:
     """The report as one HTML string (see the module docstring).  ``figures``: PNG bytes from
     :func:`report_figures` (computed if not given); ``modes``: the Dynamics section's data
-    (:func:`validation.checks.modes_compare.compare_modes`; no section without it)."""
+    (:func:`validation.checks.modes_compare.compare_modes`; no section without it); ``friction``: the tendon
+    friction check (:func:`validation.checks.hysteresis.friction_check`; no section without it)."""
     if not isinstance(ident, IdentificationResult):
         raise InputError(f"build_report needs an IdentificationResult, got {type(ident).__name__}")
     import jinja2
     env = jinja2.Environment(loader=jinja2.PackageLoader("validation.report", "templates"),
                              autoescape=jinja2.select_autoescape(["html", "j2"]), undefined=jinja2.StrictUndefined)
-    figures = report_figures(ident, validation, stiffness) if figures is None else figures
+    figures = report_figures(ident, validation, stiffness, friction) if figures is None else figures
     import collections
     # a figure not made (or not given) is an empty string, whichever figures the template shows
     b64 = collections.defaultdict(str, {k: base64.b64encode(v).decode("ascii") for k, v in figures.items() if v})
@@ -661,26 +754,29 @@ def build_report(ident: IdentificationResult, validation: Optional[ValidationRes
         "provenance_rows": _provenance_rows(ident, command),
         "modes": modes, "modes_rows": _modes_rows(modes),
         "modes_sentences": [] if not modes else modes_sentences(modes),
-        "headline": headline(validation),
+        "headline": headline(validation, friction),
+        "friction": friction or None, "friction_rows": friction_rows(friction),
+        "friction_text": "" if not friction else _friction_text(friction),
         "ratio_note": "" if validation is None else (
             "On a straight tube the difference is the FEM's lateral tip motion without cap rotation, which locked "
             "tendons cannot hold (docs/identification.md §4b); " + _shear_note(validation.params) + "."),
     }
-    toc = sections(validation, stiffness, modes, bool(ctx["ratio_rows"]))
+    toc = sections(validation, stiffness, modes, bool(ctx["ratio_rows"]), friction)
     ctx.update(toc=toc, sec={t["id"]: t["title"] for t in toc})
     return env.get_template("report.html.j2").render(**ctx)
 
 
 def write_report(path, ident: IdentificationResult, validation: Optional[ValidationResult] = None,
-                 stiffness: Optional[dict] = None, *, force: bool = False, figures_dir=None, **kw) -> pathlib.Path:
+                 stiffness: Optional[dict] = None, *, force: bool = False, figures_dir=None,
+                 friction: Optional[dict] = None, **kw) -> pathlib.Path:
     """Write :func:`build_report` to ``path`` (.html; not overwritten without ``force``); the figures also go
     to ``figures_dir`` as PNG files if given.  Returns the path."""
     p = prepare_output_file(path, force=force, suffixes=(".html",))
-    figures = report_figures(ident, validation, stiffness)
+    figures = report_figures(ident, validation, stiffness, friction)
     if figures_dir is not None:
         d = pathlib.Path(figures_dir)
         d.mkdir(parents=True, exist_ok=True)
         for k, v in figures.items():
             if v:
                 (d / f"{k}.png").write_bytes(v)
-    return atomic_write_text(p, build_report(ident, validation, stiffness, figures=figures, **kw))
+    return atomic_write_text(p, build_report(ident, validation, stiffness, figures=figures, friction=friction, **kw))

@@ -40,7 +40,7 @@ from validation.reference.experiments import EXTRAPOLATION
 
 __all__ = ["forms_figure", "correlation_figure", "residuals_figure", "shapes_figure", "ellipses_figure",
            "stiffness_figure", "error_map_figure", "error_points", "training_points", "shape_difference",
-           "view3d_figure", "worst_rows", "magnification", "view_angles"]
+           "view3d_figure", "worst_rows", "magnification", "view_angles", "friction_figure"]
 
 FEM_STYLE = {"color": "0.15", "lw": 2.0, "label": "FEM"}
 ANCF_STYLE = {"color": "tab:red", "lw": 1.4, "ls": "--", "label": "reduced model"}
@@ -496,5 +496,54 @@ def stiffness_figure(stiff: dict) -> bytes:
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("vertical tip stiffness [N/mm]")
     axes[0, 0].legend(frameon=False, fontsize=7)
+    fig.tight_layout()
+    return _png(fig)
+
+
+def _branch_plot(ax, T, u, s: int, color: str, who: str, dashed: bool) -> None:
+    """Loading (filled ▲, solid or dashed) and unloading (open ▽, dotted) of one model's cycle; ``s`` steps per
+    branch."""
+    ls = "--" if dashed else "-"
+    ax.plot(T[:s + 1], u[:s + 1], color=color, ls=ls, marker="^", ms=5, lw=1.6, label=f"{who}, loading")
+    ax.plot(T[s:], u[s:], color=color, ls=":", marker="v", ms=5, mfc="white", lw=1.6, label=f"{who}, unloading")
+
+
+def _branch_gap(T: np.ndarray, u: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
+    """(tensions (s + 1,) [N] ascending, unloading − loading u at each [mm]) of one cycle (both branches share the
+    tensions: the unloading branch visits the loading one's in reverse)."""
+    return T[:s + 1], u[s:][::-1] - u[:s + 1]
+
+
+def friction_figure(friction: dict) -> bytes:
+    """Per tension cycle of the friction check (:func:`validation.checks.hysteresis.friction_check`), one column per
+    pressure: top, the tip displacement u [mm] against the tension of tendon 1 [N], the FEM and the reduced model,
+    loading (▲, solid or dashed) and unloading (▽, dotted) apart, u along the FEM's loading direction from the
+    FEM's start; bottom, the gap between the branches (unloading − loading u at each tension [mm]), the hysteresis
+    itself.  Empty bytes when no cycle was compared."""
+    rows = [r for r in friction.get("rows", []) if not r.get("error")]
+    if not rows:
+        return b""
+    plt = _plt()
+    fig, axes = plt.subplots(2, len(rows), figsize=(3.6 * len(rows) + 0.6, 5.6), squeeze=False,
+                             gridspec_kw={"height_ratios": [3, 2]}, sharex="col")
+    for j, r in enumerate(rows):
+        T = np.asarray(r["tension_N"], float)
+        s = (len(T) - 1) // 2
+        ax, gap = axes[0, j], axes[1, j]
+        for key, style, who, dashed in (("u_fem_mm", FEM_STYLE, "FEM", False),
+                                        ("u_rod_mm", ANCF_STYLE, "reduced model", True)):
+            u = np.asarray(r[key], float)
+            _branch_plot(ax, T, u, s, style["color"], who, dashed)
+            gap.plot(*_branch_gap(T, u, s), color=style["color"], ls="--" if dashed else "-", marker="o", ms=4,
+                     label=who)
+        ax.set_title(f"{r['pressure_kPa']:g} kPa ({r['role']}): loop ratio {r['loop_ratio']:.2f}", fontsize=9)
+        gap.axhline(0.0, color="0.6", lw=0.8)
+        gap.set_xlabel("tension of tendon 1 [N]")
+        for a in (ax, gap):
+            a.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("tip displacement u [mm]")
+    axes[1, 0].set_ylabel("unloading − loading u [mm]")
+    axes[0, 0].legend(frameon=False, fontsize=7)
+    axes[1, 0].legend(frameon=False, fontsize=7)
     fig.tight_layout()
     return _png(fig)

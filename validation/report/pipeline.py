@@ -8,7 +8,11 @@
 2. from the FEM only: validate it on the held-out states (:func:`validation.checks.compare.compare_records`)
    and, unless ``quick``, the vertical stiffness vs tension study (:func:`~validation.checks.compare.stiffness_vs_tension`);
 3. the first vibration modes per pressure beside the FEM's (:func:`report_modes`);
-4. write ``actuator.toml``, ``fit.json``, ``validation.json``, ``stiffness.json``, ``report.html`` and
+4. from the FEM of a design with tendon friction μ > 0 only (the design's ``tendon_friction`` key,
+   :func:`validation.reference.designs.design_friction`, or ``tendon_friction=`` — which wins when given): tension
+   cycles of the FEM and of the rod, μ of the rod identified from the FEM's cycle at ½ p_max and validated on the
+   others (:func:`validation.checks.hysteresis.friction_check`); the identified actuator carries that μ;
+5. write ``actuator.toml``, ``fit.json``, ``validation.json``, ``stiffness.json``, ``report.html`` and
    ``figures/`` into one folder (every output checked before any work; nothing overwritten without ``force``).
 
 SI units throughout (``tension_max`` [N], ``pressure_max`` [Pa]).
@@ -28,7 +32,8 @@ from ancf.outputs import atomic_write_text, prepare_output_dir
 
 from validation.identification.forms import FORMS
 
-__all__ = ["run_report", "ReportRun", "FemDesign", "fem_design", "report_modes", "QUICK_FORMS", "REPORT_FILES"]
+__all__ = ["run_report", "ReportRun", "FemDesign", "fem_design", "report_modes", "report_friction",
+           "design_friction_of", "QUICK_FORMS", "REPORT_FILES"]
 
 #: The model forms of a quick report (no stiffness-vs-tension study, no FEM modes).
 QUICK_FORMS = ("paper", "separate", "pressure_ei", "pressure_ei_shear")
@@ -69,7 +74,8 @@ class ReportRun:
     identification : :class:`~validation.identification.identify.IdentificationResult`; validation :
     :class:`~validation.checks.compare.ValidationResult` (None from measurements); stiffness : the stiffness
     vs tension study (None from measurements or quick); modes : the Dynamics section's data; out : the folder;
-    files : the files written (paths); seconds : wall time [s]."""
+    files : the files written (paths); seconds : wall time [s]; friction : the tendon friction check
+    (:func:`validation.checks.hysteresis.friction_check`; None for a frictionless design or measured data)."""
     identification: Any
     validation: Any = None
     stiffness: Optional[dict] = None
@@ -77,6 +83,7 @@ class ReportRun:
     out: Optional[pathlib.Path] = None
     files: tuple = ()
     seconds: float = 0.0
+    friction: Optional[dict] = None
 
     @property
     def report(self) -> pathlib.Path:
@@ -98,9 +105,15 @@ class ReportRun:
         return "".join(parts)
 
 
-def _check_inputs(design, measurements, base, forms: Optional[Sequence[str]], quick: bool, cases: str):
+def _check_inputs(design, measurements, base, forms: Optional[Sequence[str]], quick: bool, cases: str,
+                  tendon_friction=None):
     """(form names, the base actuator or None) after checking the combination of inputs, before any work."""
     from ancf import ActuatorParams, presets
+    from validation.checks.hysteresis import check_friction
+    if tendon_friction is not None:
+        if measurements is not None:
+            raise InputError("tendon_friction applies to the FEM of a design (its tension cycles), not to measurements")
+        check_friction(tendon_friction)
     if design is not None and measurements is not None:
         raise InputError("give either design (virtual experiments on the FEM) or measurements (rig data), not both")
     if measurements is not None and base is None:
@@ -126,7 +139,8 @@ def run_report(out, *, design=None, measurements=None, base=None, quick: bool = 
                tension_max: Optional[float] = None, pressure_max: Optional[float] = None, mesh: str = "coarse",
                forms: Optional[Sequence[str]] = None, fit_distance: bool = False, cases: str = "default",
                workers: Optional[int] = None, scheduler: Optional[str] = None, cache_dir=None, force: bool = False,
-               command: Optional[str] = None, log: Optional[Callable[[str], Any]] = None) -> ReportRun:
+               command: Optional[str] = None, log: Optional[Callable[[str], Any]] = None,
+               tendon_friction: Optional[float] = None) -> ReportRun:
     """Identify, validate and write one report into the folder ``out`` (module docstring); returns a
     :class:`ReportRun`.
 
@@ -138,13 +152,15 @@ def run_report(out, *, design=None, measurements=None, base=None, quick: bool = 
     design's); mesh, forms, fit_distance, cases : as :func:`~validation.identification.identify.from_fem`;
     workers / scheduler / cache_dir : the FEM solves' processes, dask scheduler and on-disk cache (None: no
     cache); force : overwrite what ``out`` holds; command : recorded in the files and the report; log :
-    ``log(text)`` for progress lines (default: silent).
+    ``log(text)`` for progress lines (default: silent); tendon_friction : μ in 0 … 1 of the FEM's tendons,
+    overriding the design's ``tendon_friction`` (None: the design's; > 0 adds the tension cycles, step 4).
 
     Raises :class:`~ancf.errors.InputError` / :class:`~ancf.errors.ConfigError` on bad inputs and
     :class:`~ancf.errors.OutputExistsError` when ``out`` holds results, before any work."""
     log = log or (lambda text: None)
-    names, base = _check_inputs(design, measurements, base, forms, quick, cases)
+    names, base = _check_inputs(design, measurements, base, forms, quick, cases, tendon_friction)
     fem = None if measurements is not None else fem_design(design, tension_max, pressure_max)
+    mu = 0.0 if fem is None else design_friction_of(fem.name, tendon_friction)
     d = prepare_output_dir(out, REPORT_FILES, force=force)
     t0 = time.perf_counter()
     val = stiff = None
@@ -156,10 +172,38 @@ def run_report(out, *, design=None, measurements=None, base=None, quick: bool = 
         res, val, stiff = _from_fem(fem, names, quick=quick, fem_error=fem_error, mesh=mesh, fit_distance=fit_distance,
                                     cases=cases, workers=workers, scheduler=scheduler, cache_dir=cache_dir, log=log)
     res.modes = report_modes(res.params, fem, mesh, cache_dir, quick, log)
+    fric = None
+    if mu > 0:              # after the modes: the rod's modes are those of the frictionless actuator
+        fric = report_friction(res, fem, mu, mesh=mesh, quick=quick, workers=workers, scheduler=scheduler,
+                               cache_dir=cache_dir, log=log)
     if command:
         res.meta["command"] = command
-    files = _write(d, res, val, stiff, force=force, command=command)
-    return ReportRun(res, val, stiff, res.modes, d, files, time.perf_counter() - t0)
+    files = _write(d, res, val, stiff, force=force, command=command, friction=fric)
+    return ReportRun(res, val, stiff, res.modes, d, files, time.perf_counter() - t0, fric)
+
+
+def design_friction_of(design: str, override: Optional[float] = None) -> float:
+    """The tendon friction μ of the report of ``design``: ``override`` when given (checked, 0 … 1), else the
+    design's ``tendon_friction`` (:func:`validation.reference.designs.design_friction`)."""
+    from validation.checks.hysteresis import check_friction
+    from validation.reference.designs import design_friction
+    return design_friction(design) if override is None else check_friction(override)
+
+
+def report_friction(res, fem: FemDesign, mu: float, *, mesh: str, quick: bool, workers=None, scheduler=None,
+                    cache_dir=None, log=None, fem_cycles=None) -> dict:
+    """The tendon friction check of the identified ``res`` against the FEM design ``fem`` with friction ``mu``
+    (:func:`validation.checks.hysteresis.friction_check`, gravity as the design is mounted); ``res.params`` then
+    carries the μ the check used (identified, or the design's where the fit was not possible)."""
+    from validation.checks.hysteresis import friction_check
+    from validation.reference.designs import design_mounting, mounting_gravity
+    from validation.reference.fem_sweep import FemSpec
+    spec = FemSpec(fem.geometry, fem.material, mesh, gravity=mounting_gravity(design_mounting(fem.name)))
+    fric = friction_check(res.params, spec, fem.limits, mu, quick=quick, workers=workers, scheduler=scheduler,
+                          cache_dir=cache_dir, log=log, fem_cycles=fem_cycles)
+    res.params = res.params.replace(tendon_friction=fric["mu_used"])
+    res.meta["tendon_friction"] = {k: fric[k] for k in ("mu_design", "mu_used", "mu_source")}
+    return fric
 
 
 def _from_fem(fem: FemDesign, names, *, quick: bool, fem_error: bool, mesh: str, fit_distance: bool, cases: str,
@@ -225,17 +269,19 @@ def report_modes(params, fem: Optional[tuple], mesh: str, cache_dir, quick: bool
     return compare_modes(params, pressures, slack, fem=fem_rows)
 
 
-def _write(d: pathlib.Path, res, val, stiff, *, force: bool, command: Optional[str]) -> tuple:
-    """Write the report folder's files; returns their paths."""
+def _write(d: pathlib.Path, res, val, stiff, *, force: bool, command: Optional[str], friction=None) -> tuple:
+    """Write the report folder's files; returns their paths (validation.json holds the friction check, if any,
+    under "tendon_friction")."""
     from validation.report.build import write_report
     files = [d / "actuator.toml", d / "fit.json"]
     res.to_toml(files[0], force=force)
     res.save(files[1], force=force)
     if val is not None:
-        files.append(atomic_write_text(d / "validation.json", json.dumps(val.to_dict(), indent=1)))
+        data = val.to_dict() if friction is None else {**val.to_dict(), "tendon_friction": to_jsonable(friction)}
+        files.append(atomic_write_text(d / "validation.json", json.dumps(data, indent=1)))
     if stiff is not None:
         files.append(atomic_write_text(d / "stiffness.json", json.dumps(to_jsonable(stiff), indent=1)))
     files.append(write_report(d / "report.html", res, val, stiff, force=force, figures_dir=d / "figures",
-                              command=command, modes=res.modes))
+                              command=command, modes=res.modes, friction=friction))
     files.append(d / "figures")
     return tuple(pathlib.Path(f) for f in files)
