@@ -21,9 +21,19 @@ Run:  python benchmarks/bench_dynamics.py [--repeats 5]
    small motor moves): wall time per 1 ms rig period — one short run of ``Model.simulate`` with the motor
    lengths and the load as functions of time — with the compiled rows and on the Python path, interleaved.
 
+5. **Tendon friction** (``ancf.dynamics.friction_step``, Python path only): the `paper` actuator with μ = 0.3
+   against μ = 0, both on the Python path (``transient.COMPILED_ROWS = False``), interleaved: T₁ ramped
+   0.5 → 3 N in 0.2 s then held 0.1 s at 20 kPa, dt = 1 ms, α = 40 /s; time per step and Newton iterations per
+   step (medians).  ``--friction-only`` runs this item alone.
+
+6. **The reduced (modal) model** of the same actuator (``controller.observer.modal_model`` about the tension
+   step's final state, 4 locked modes, ζ = 0.05; ``ModalPlant``: its zero-order-hold matrices at 1 ms): time
+   per 1 ms step of ``ModalPlant.advance`` (a NumPy step in Python) beside the full model's compiled step.
+
 Runs 1–3 have constant loads; run 4's are time-varying (sampled on the step grid for the compiled rows).
 Per-step times are wall time / steps, everything included (setup, the energy check, the output rows).  The
-last line sets the `paper` 1 kHz real-time factor beside the cable's ratio to Exudyn, with the load average.
+last line sets the `paper` 1 kHz real-time factor (and its modal model's) beside the cable's ratio to Exudyn, with
+the load average.
 The machines are shared: read ratios of interleaved runs, not absolute times.
 """
 
@@ -121,11 +131,34 @@ def main(repeats: int = 5) -> dict:
                   f"   ({label})")
             out[label] = {"dt_s": dt, "wall_s": w, "real_time_factor": 2.0 / w, "us_per_step": w / steps * 1e6}
     out["rig_period_ms"] = rig_periods(pm)
+    out["modal_us_per_step"] = modal_step(pm, out["step response, 1 kHz loop"]["us_per_step"], repeats)
+    out["friction"] = friction_steps(repeats)
     rtf = out["step response, 1 kHz loop"]["real_time_factor"]
     ratio = out.get("cable_0.0005", {}).get("ratio")
     print(f"summary: cable / Exudyn {'n/a' if ratio is None else f'{ratio:.2f}×'} time (dt = 0.5 ms); 'paper' at "
-          f"1 kHz {rtf:.1f}× real time (target ≥ 20×); load average {os.getloadavg()[0]:.1f}")
+          f"1 kHz {rtf:.1f}× real time (target ≥ 20×), its modal model {1e3 / out['modal_us_per_step']:.0f}×; "
+          f"load average {os.getloadavg()[0]:.1f}")
     return out
+
+
+def modal_step(pm: Model, full_us: float, repeats: int, seconds: float = 2.0) -> float:
+    """Wall time [µs] per 1 ms step of the reduced modal plant (``controller.observer.ModalPlant``) about the
+    tension step's final state (T₁ = 2 N at 30 kPa), median of ``repeats`` runs of ``seconds``."""
+    from controller.observer import ModalPlant, modal_model
+
+    eq = pm.fk((2.0, 0.0, 0.0), 30e3)
+    mm = modal_model(pm, eq.tendon_lengths, 30e3, count=4, damping_ratio=0.05, near=eq)
+    load = np.zeros(3)
+    ws = []
+    for _ in range(repeats):
+        plant = ModalPlant(mm, lambda t: load, step=1e-3)
+        t0 = time.perf_counter()
+        plant.advance(seconds)
+        ws.append(time.perf_counter() - t0)
+    us = statistics.median(ws) / round(seconds / 1e-3) * 1e6
+    print(f"6. reduced modal model ({len(mm.omega)} modes, ModalPlant, 1 ms zero-order hold): {us:.1f} µs per step, "
+          f"{1e3 / us:.0f}× real time ({full_us / us:.1f}× faster than the full model's compiled step)")
+    return us
 
 
 def rig_periods(pm: Model, periods: int = 200) -> dict:
@@ -154,7 +187,41 @@ def rig_periods(pm: Model, periods: int = 200) -> dict:
     return res
 
 
+def friction_steps(repeats: int = 5) -> dict:
+    """Item 5: wall time per step [µs] and Newton iterations per step of a run with tendon friction (μ = 0.3)
+    and without (μ = 0), both on the Python path, interleaved (medians)."""
+    base = presets.paper()
+    models = {mu: Model(base.replace(tendon_friction=mu)) for mu in (0.0, 0.3)}
+    s0 = models[0.3].fk_history((0.5, 0.0, 0.0), 20e3)
+    def T(t):
+        return np.array([0.5 + 2.5 * min(t / 0.2, 1.0), 0.0, 0.0])
+    walls, its = {mu: [] for mu in models}, {mu: [] for mu in models}
+    transient.COMPILED_ROWS = False
+    try:
+        for _ in range(repeats):
+            for mu, m in models.items():
+                kw = {"segment_tensions": s0.segment_tensions} if mu else {}
+                sim = m.simulate(0.3, 1e-3, q0=s0.q, tensions=T, pressure=20e3, damping={"alpha": 40.0}, **kw)
+                walls[mu].append(sim.wall_time / (len(sim.t) - 1))
+                its[mu].append(float(sim.newton_iterations[1:].mean()))
+    finally:
+        transient.COMPILED_ROWS = True
+    res = {mu: {"us_per_step": statistics.median(walls[mu]) * 1e6, "newton_per_step": statistics.median(its[mu])}
+           for mu in models}
+    r0, r1 = res[0.0], res[0.3]
+    print(f"5. tendon friction, 'paper', Python path, dt = 1 ms (medians of {repeats}): μ = 0.3 "
+          f"{r1['us_per_step']:.0f} µs/step ({r1['newton_per_step']:.2f} Newton its/step), μ = 0 "
+          f"{r0['us_per_step']:.0f} µs/step ({r0['newton_per_step']:.2f}); ratio "
+          f"{r1['us_per_step'] / r0['us_per_step']:.1f}×; load average {os.getloadavg()[0]:.1f}")
+    return res
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
-    main(ap.parse_args().repeats)
+    ap.add_argument("--friction-only", action="store_true", help="run item 5 (tendon friction) alone")
+    args = ap.parse_args()
+    if args.friction_only:
+        friction_steps(args.repeats)
+    else:
+        main(args.repeats)

@@ -5,7 +5,8 @@ paper                             module
 ================================  ==========================================================
 Sec. III-E, Algorithm 1 (LACC)    :mod:`controller.lacc`
 LACC with tendon friction         :mod:`controller.friction_aware` (docs/friction.md)
-dynamic LACC (1 kHz, observer)    :mod:`controller.dynamic_lacc`, :mod:`controller.observer`
+dynamic LACC (1 kHz, observer)    :mod:`controller.dynamic_lacc`, :mod:`controller.observer`,
+                                  :mod:`controller.periodic` (a periodic load's frequency)
 Sec. IV-B, VF-CC baseline [25]    :mod:`controller.vfcc`
 plant protocol                    :mod:`controller.plant` (the simulated rig: :mod:`hardware.simulated`)
 loops (Table I, Sec. V-E timing)  :mod:`controller.loop`
@@ -36,11 +37,12 @@ from .feedforward import OpenLoopResult, run_open_loop
 from .shaping import zv_shaper
 from .observer import LoadObserver, ModalModel, modal_model
 from .dynamic_lacc import DynamicLACC
+from .periodic import PeriodEstimator
 
 __all__ = ["ControllerError", "NotConvergedError", "Controller", "StepReport", "LACC", "COMPLIANCE_METHODS",
            "FrictionAwareLACC",
            "VFCC", "Plant", "PlantOptions", "SimulatedPlant", "EpisodeResult", "TimedResult", "run_iterations",
-           "run_timed", "run_periodic", "DynamicLACC", "LoadObserver", "ModalModel", "modal_model", "RunOptions", "RunResult", "run_on_rig", "OpenLoopResult", "run_open_loop", "zv_shaper"]
+           "run_timed", "run_periodic", "DynamicLACC", "PeriodEstimator", "LoadObserver", "ModalModel", "modal_model", "RunOptions", "RunResult", "run_on_rig", "OpenLoopResult", "run_open_loop", "zv_shaper"]
 
 
 def __getattr__(name):

@@ -36,6 +36,27 @@ price is lag: the filter's delay (≈ 64 ms at 5 Hz) is not predicted (a lead wo
 the higher modes again), and the estimate follows the load only well below its bandwidth.  With
 ``model_error=None, command_filter_hz=None`` the model is taken as exact (the bandwidth as asked).
 
+**Internal model of a periodic load** (``internal_model``, default on; :mod:`controller.periodic`).  The
+controller does not know the load's profile or frequency.  Until it has one, it runs as above; meanwhile
+:class:`controller.periodic.PeriodEstimator` fits F̂ by a constant, a trend and a sinusoid and accepts a
+frequency once a whole fitted period is recorded, the fit leaves ≤ 5 % of the amplitude and an extremum lies
+inside the record (a step, a ramp or a hold is refused).  Then the observer gets the load's oscillator at that
+frequency (:meth:`controller.observer.LoadObserver.set_harmonic`), started from the fit: the fitted
+oscillation of F̂ divided by the observer's own response at that frequency (its lag) is the harmonic, the
+rest stays in the walk.  The harmonic's lengths are Re(K_h ẑ), ẑ the observer's phasor and
+
+    K_h = −P_l(iω)⁺ P_F(iω) e^{iωτ} / N_c(iω),
+
+P_l, P_F the modal model's length- and load-to-tip responses at ω (modes plus residual flexibility: the exact
+dynamic inverse at that frequency, not the static one), e^{iωτ} the lead time, N_c the command filter's
+response (its lag and gain at ω undone; elsewhere the filter acts as before).  The harmonic's noise q_h
+(``harmonic_noise``, 3e-5 N²/s) and the walk's are set so that the small-gain bound holds for the new loop:
+the largest q_h of ``harmonic_noise`` × 10^−j for which a walk noise exists, the walk's lowered until the
+bound holds (the bound binds in the first mode's band, 4.7–6.1 Hz, and at the second pair, 28–29 Hz, for the
+`paper` actuator).  Afterwards the frequency follows the phasor: a load at ω + δ turns ẑ e^{−iωt} at δ; over
+each period a drift above 0.3 % of ω moves the oscillator (its state kept, the bound rechecked).  A load
+that is not periodic never gets an oscillator, and the loop is the one above.
+
 **Safeguards, as LACC's**: the estimate is held within ``validity_force`` (its direction kept); tensions
 predicted outside [T_min, T_max] (T₀ + ∂T/∂l δl + ∂T/∂F δF) scale the length change back along its
 direction (the step is reported ``saturated``, ``reach_gap`` the tip the model then expects off the
@@ -59,6 +80,7 @@ from .base import Controller, StepReport
 from .errors import number
 from .lacc import G as GRAVITY, start_inputs
 from .observer import LoadObserver, modal_model
+from .periodic import PeriodEstimator
 
 FEEDFORWARDS = ("static", "dynamic")
 
@@ -82,6 +104,8 @@ class DynamicLACC(Controller):
         stay stable for: the observer's bandwidth is lowered below
         ``bandwidth_hz`` until the small-gain bound holds with ``gain_margin`` (module docstring,
         robustness; None: the model taken as exact, the bandwidth as asked)
+    internal_model : learn a periodic load's frequency online and add its oscillator to the observer (module
+        docstring, internal model);  harmonic_noise : its largest noise intensity q_h [N²/s]
     """
 
     name = "dynamic LACC"
@@ -91,8 +115,14 @@ class DynamicLACC(Controller):
                  modes: int = 4, feedforward: str = "dynamic", length_rate: Optional[float] = None,
                  relinearise_force: float = 0.1, validity_force: float = 0.2 * GRAVITY, tolerance: float = 2e-4,
                  model_error: Optional[float] = 0.12, gain_margin: float = 1.5,
-                 command_filter_hz: Optional[float] = 5.0):
+                 command_filter_hz: Optional[float] = 5.0, internal_model: bool = True,
+                 harmonic_noise: float = 3e-5):
         super().__init__(model, pressure, tolerance=tolerance)
+        if not isinstance(internal_model, bool):
+            raise InputError(f"internal_model must be True or False, got {internal_model!r}")
+        self.internal_model = internal_model
+        self.harmonic_noise = number("harmonic_noise [N²/s]", harmonic_noise, strict=True)
+        self.harmonic_hz: Optional[float] = None
         self.period = number("period [s]", period, strict=True)
         if self.period > 0.1:
             raise InputError(f"period must be at most 0.1 s for a dynamic observer, got {self.period:g} s")
@@ -162,6 +192,9 @@ class DynamicLACC(Controller):
         self._Fdd = np.zeros(3)
         self._lp = [mm.lengths.copy(), mm.lengths.copy()]
         self.relinearisations = 0
+        self.harmonic_hz, self._Kh = None, None
+        f1 = float(mm.frequencies_hz[0])
+        self.periods = PeriodEstimator(f_max=0.5 * f1) if self.internal_model else None
         return mm.lengths.copy()
 
     @property
@@ -189,6 +222,108 @@ class DynamicLACC(Controller):
             a = math.exp(-2 * math.pi * self.command_filter_hz * self.period)
             out = out * ((1 - a) / (1 - a * np.exp(-s * self.period))) ** 2
         return out
+
+    def command_filter(self, freqs_hz) -> np.ndarray:
+        """The command filter's response (len(f),) complex: ((1 − a)/(1 − a e^{−iωh}))² (1 without a filter)."""
+        s = 2j * math.pi * np.asarray(freqs_hz, float)
+        if self.command_filter_hz is None:
+            return np.ones_like(s)
+        a = math.exp(-2 * math.pi * self.command_filter_hz * self.period)
+        return ((1 - a) / (1 - a * np.exp(-s * self.period))) ** 2
+
+    def _harmonic_command(self, freq_hz: float) -> None:
+        """K_h (m, 3) complex: the lengths per harmonic load phasor at ``freq_hz`` (module docstring, internal
+        model) — the model's dynamic inverse −P_l(iω)⁺ P_F(iω) about the linearisation point, advanced by the
+        lead time and divided by the command filter's response; and the observer's map of it for the bound."""
+        mm = self.observer.modal
+        w = 2 * math.pi * freq_hz
+        H = mm.omega ** 2 / (mm.omega ** 2 - w ** 2 + 2j * mm.zeta * mm.omega * w)          # (k,)
+        P_F = mm.D_F + np.einsum("ki,kj,k->ij", mm.tip_shapes, mm.tip_shapes, H / mm.omega ** 2)
+        P_l = mm.D_l + np.einsum("ki,km,k->im", mm.tip_shapes, mm.g, H)
+        lead = np.exp(1j * w * self.lead_time) / self.command_filter([freq_hz])[0]
+        self._Kh = -np.linalg.pinv(P_l) @ P_F * lead
+        U = self.observer.U
+        Mh = np.hstack([(self._Kh @ U).real, (self._Kh @ U).imag])                       # (m, 2r)
+        self.observer.harmonic_map = lambda fs: self.command_filter(fs)[:, None, None] * Mh[None]
+
+    def _set_harmonic(self, freq_hz: float) -> None:
+        """The observer's oscillator at ``freq_hz`` [Hz] (module docstring, internal model), its state carried
+        over when it moves: its noise the largest of q_h × 10^−j (q_h: ``harmonic_noise``, or the present one)
+        for which some walk noise keeps the small-gain bound with ``model_error`` (the walk's noise lowered
+        until it holds, so that the two share it; with the model as exact: as asked).  Without such a noise the
+        oscillator is left out (``harmonic_hz`` None)."""
+        obs = self.observer
+        if obs.harmonic is None:
+            self._q_walk = obs.q
+        q_walk = obs.q
+        qh = self.harmonic_noise if obs.harmonic is None else obs.harmonic[1]
+        for _ in range(8):
+            obs.q = q_walk
+            obs.set_harmonic(freq_hz, qh)
+            self._harmonic_command(freq_hz)
+            if self.model_error is None or obs.stability_gain() <= 1.0 / self.gain_margin:
+                self.harmonic_hz = float(freq_hz)
+                return
+            start = int(math.floor(math.log10(q_walk))) - 6
+            lo, hi = obs._tune(obs.stability_gain, 1.0 / self.gain_margin, "a stable loop", first=start)
+            if lo < hi:
+                obs.q = 10.0 ** lo
+                obs._build()
+                self.harmonic_hz = float(freq_hz)
+                return
+            qh *= 0.1
+        obs.q = self._q_walk
+        obs.set_harmonic(None)
+        self.harmonic_hz, self._Kh = None, None
+
+    def _track(self, t: float) -> None:
+        """The internal model's frequency (module docstring): until the first lock from the period estimator's
+        fits of F̂; then from the drift of the oscillator's phase, every period: a load at ω + δ leaves the
+        phasor ẑ e^{−iωt} turning at δ, which moves the oscillator when |δ| exceeds 0.3 % of ω over two periods."""
+        obs, est = self.observer, self.periods
+        if self.harmonic_hz is None:
+            if est.add(t, obs.load):
+                self._lock(t)
+            return
+        w = 2 * math.pi * self.harmonic_hz
+        if t < self._drift[0] + 1.0 / self.harmonic_hz - 1e-9:
+            return
+        z = complex(np.vdot(self._drift[2], obs.phasor) * np.exp(-1j * w * t))
+        if abs(z) < est.min_amplitude:
+            self._drift = (t, None, self._drift[2], 0)
+            return
+        t_prev, z_prev, u, n = self._drift
+        self._drift = (t, z, u, n + 1)
+        if z_prev is None or n < 1:
+            return
+        delta = np.angle(z / z_prev) / (t - t_prev)                       # [rad/s]
+        if abs(delta) > 0.003 * w:
+            self._set_harmonic(self.harmonic_hz + delta / (2 * math.pi))
+            self._drift = (t, None, u, 0)
+
+    def _lock(self, t: float) -> None:
+        """The internal model at the estimator's frequency (module docstring).  On the first lock it starts from
+        the fit: the fitted oscillation of F̂ at t [s], divided by the observer's own response at that frequency
+        (its lag), is the oscillator's load; the walk keeps F̂ without the fitted oscillation."""
+        obs, est = self.observer, self.periods
+        f = est.frequency_hz
+        first = self.harmonic_hz is None
+        if first:
+            U = obs.U
+            T = U.T @ obs.response(f) @ U                                # (r, r): true load → F̂ at f
+            lagged = est.phasor(t)
+            true = U @ np.linalg.solve(T, U.T @ lagged)
+            walk = (obs.load - lagged.real, obs.load_rate - (2j * math.pi * f * lagged).real)
+        self._set_harmonic(f)
+        if first and self.harmonic_hz is not None:
+            obs.seed_harmonic(true, *walk)
+            self._drift = (t, None, est.fit[1], 0)
+
+    def _harmonic_lengths(self) -> np.ndarray:
+        """δl_h (m,) [m]: Re(K_h ẑ), ẑ the observer's harmonic load phasor (zeros without the oscillator)."""
+        if self._Kh is None:
+            return np.zeros(len(self._last))
+        return (self._Kh @ self.observer.phasor).real
 
     def _applied(self, t: float) -> np.ndarray:
         """The lengths the motors act on at controller time t [s] (the last command whose time has come)."""
@@ -248,13 +383,21 @@ class DynamicLACC(Controller):
         notes: list = []
         obs = self.observer
         obs.update(pm, self._applied(t), 0.5 * (self._applied(t - h) + self._applied(t)))
-        F, Fdot = obs.load, obs.load_rate
+        if self.periods is not None:
+            before = self.harmonic_hz
+            self._track(t)
+            if self.harmonic_hz != before:
+                notes.append("periodic load: internal model " + ("off" if self.harmonic_hz is None else
+                                                                  f"at {self.harmonic_hz:.4g} Hz"))
+        F, Fdot = obs.walk
         a = math.exp(-2 * math.pi * self.bandwidth_hz * h)
         self._Fdd = a * self._Fdd + (1 - a) * (Fdot - self._rate_prev) / h
         self._rate_prev = Fdot
         if np.linalg.norm(F - obs.modal.load) > self.relinearise_force and np.linalg.norm(F) <= self.validity_force:
             _, mm, note = self._linearise(F)
             obs.relinearise(mm, self._applied(t))
+            if self.harmonic_hz is not None:
+                self._harmonic_command(self.harmonic_hz)
             self.relinearisations += 1
             if note:
                 notes.append(note)
@@ -264,7 +407,7 @@ class DynamicLACC(Controller):
                          f"{self.validity_force:.3g} N")
             Fp = Fp * self.validity_force / np.linalg.norm(Fp)
         mm = obs.modal
-        dl, s = self._limit_tensions(self._desired(Fp, Fdot), Fp - mm.load)
+        dl, s = self._limit_tensions(self._desired(Fp, Fdot) + self._harmonic_lengths(), Fp - mm.load)
         saturated = s < 1.0
         gap = float(np.linalg.norm(mm.J_l @ dl + mm.C @ (Fp - mm.load))) if saturated else 0.0
         if saturated:
@@ -278,6 +421,6 @@ class DynamicLACC(Controller):
         self._last = cmd
         self._k += 1
         e = pm - self.target
-        return StepReport(e, float(np.linalg.norm(e)), False, cmd.copy(), F, "dynamic-lacc",
+        return StepReport(e, float(np.linalg.norm(e)), False, cmd.copy(), obs.load, "dynamic-lacc",
                           time.perf_counter() - t0, compliance=mm.C, active=tuple(self.state.active or ()),
                           notes=notes, saturated=saturated, reach_gap=gap)

@@ -19,8 +19,8 @@ differences of the locked FK (h = 1 µm), C_p from the exact KKT compliance (:fu
 **The load state.**  The load enters in displacement units, δd = C_p δF [m] (the static tip deflection it
 causes), as an integrated random walk: d̈ = w, E[w wᵀ] = q I δ(t) [m²/s³].  In these units the process noise
 is isotropic, so the filter has about the same bandwidth in every direction although the actuator is ~50×
-stiffer along its axis; F̂ = F₀ + C_p⁻¹ d̂.  Observer state x = [ξ (k), ξ̇ (k), δd (3), ḋ (3)], measured
-tip p_m = p₀ + δp + v, v the tracker's white noise (std σ per coordinate).
+stiffer along its axis; F̂ = F₀ + C_p⁻¹ d̂.  Observer state x = [ξ (k), ξ̇ (k), δd (r), ḋ (r)] (and the
+oscillator's (h_c, h_s) (2r), below), measured tip p_m = p₀ + δp + v, v the tracker's white noise (std σ per coordinate).
 
 **The filter.**  Exact zero-order-hold discretisation at the loop period h (matrix exponential; Q by Van
 Loan), the steady-state Kalman gain K from the discrete Riccati equation.  Per period:
@@ -54,6 +54,20 @@ the first mode the bound caps the bandwidth (≈ 3–6 Hz for ε = 12 % on the `
 ``model_error`` the process noise is lowered (bisection in log q) until sup_f ρ(L) ≤ 1/``gain_margin``.
 The bound is sufficient, not necessary, and holds for the modes the model keeps (``count``); the command
 filter keeps the loop's gain small above them.
+
+**Internal model of a periodic load** (:meth:`LoadObserver.set_harmonic`).  A load with a periodic part
+(the cyclic experiment's 1 − cos) is a constant plus a harmonic at its fundamental ω_L; the random walk reads
+the harmonic with the filter's lag.  With the oscillator the load along U is d + h_c, ḣ_c = ω_L h_s,
+ḣ_s = −ω_L h_c, white noise of intensity q_h on (h_c, h_s): an undamped mode of the filter's model at ω_L,
+so the steady-state filter's innovation has a zero there and a load at ω_L is read without lag or gain
+error (the internal-model principle; ``response(f_L)`` is the identity up to the load's zero-order hold
+e^{−iω_L h/2}).  Whatever the model mispredicts at ω_L is read as load too, and the controller cancels it:
+the tip error at ω_L goes to zero on a plant that differs from the model, as long as the loop is stable.
+The phasor :attr:`LoadObserver.phasor` = U (h_c − i h_s) is the harmonic a e^{i(ω_L t + φ)}: the controller
+advances it by rotation (exact for a sinusoid) instead of a rate.  In :meth:`stability_gain` the loop's
+controller map from a tip disturbance to the lengths is then G N(f) O_d(f) + M_h(f) O_h(f), O_d and O_h the
+filter's maps to the walk and to (h_c, h_s), M_h the controller's map of the oscillator's states
+(``harmonic_map``); the bound is the spectral radius of ΔP(f) times that map, as before.
 
 **Re-linearisation.**  When the estimate or the commanded lengths move away from the linearisation point
 (:meth:`LoadObserver.relinearise`), a new modal model is built about the new locked state; F̂ and its rate
@@ -203,6 +217,26 @@ def _matrices(mm: ModalModel, U: np.ndarray, plant: bool = False):
     return A, B, Gw, Gf, H, mm.D_l
 
 
+def _with_harmonic(A, B, Gw, Gf, H, k: int, r: int, U: np.ndarray, mm: ModalModel, omega: float, qh: float):
+    """The state space of :func:`_matrices` extended by the load's oscillator at ``omega`` [rad/s] (module
+    docstring, internal model): 2r states (h_c, h_s) after the random walk's, ḣ_c = ω h_s, ḣ_s = −ω h_c, the load
+    along U being d + h_c; white noise of intensity ``qh`` [N²/s] drives both.  Returns (A, B, Gw, Gf, H) with
+    the harmonic's noise as Gw's extra columns (scaled by √(qh / q) by the caller: Gw's first r are the walk's)."""
+    n = A.shape[0]
+    A2 = np.zeros((n + 2 * r, n + 2 * r))
+    A2[:n, :n] = A
+    A2[n:n + r, n + r:] = omega * np.eye(r)
+    A2[n + r:, n:n + r] = -omega * np.eye(r)
+    A2[k:2 * k, n:n + r] = mm.tip_shapes @ U
+    B2 = np.vstack([B, np.zeros((2 * r, B.shape[1]))])
+    Gh = np.zeros((n + 2 * r, 2 * r))
+    Gh[n:] = math.sqrt(qh) * np.eye(2 * r)
+    Gw2 = np.hstack([np.vstack([Gw, np.zeros((2 * r, Gw.shape[1]))]), Gh])
+    Gf2 = np.vstack([Gf, np.zeros((2 * r, Gf.shape[1]))])
+    H2 = np.hstack([H, mm.D_F @ U, np.zeros((3, r))])
+    return A2, B2, Gw2, Gf2, H2
+
+
 def _discretise(A, B, Gw, h: float):
     """Zero-order-hold (Ad, Bd) and the process-noise covariance per unit intensity Qd (Van Loan)."""
     n, m = B.shape
@@ -248,6 +282,8 @@ class LoadObserver:
         if not self.gain_margin >= 1:
             raise InputError(f"gain_margin must be at least 1, got {self.gain_margin:g}")
         self.loop_factor = loop_factor
+        self.harmonic: Optional[tuple] = None       # (ω [rad/s], q_h [N²/s]) of the load's oscillator, or None
+        self.harmonic_map: Optional[Callable[[np.ndarray], np.ndarray]] = None
         self.requested_bandwidth_hz = None
         if bandwidth_hz is not None:
             bw = number("bandwidth_hz", bandwidth_hz, strict=True)
@@ -280,8 +316,11 @@ class LoadObserver:
     def _gain(self, q: float):
         self.U = load_basis(self.modal.C, self.rcond)
         A, B, Gw, Gf, H, Dl = _matrices(self.modal, self.U)
-        Ad, Bd, Qd = _discretise(A, B, np.hstack([math.sqrt(q) * Gw, math.sqrt(self.force_noise) * Gf]),
-                                 self.period)
+        Gw = math.sqrt(q) * Gw
+        if self.harmonic is not None:
+            k, r = len(self.modal.omega), self.U.shape[1]
+            A, B, Gw, Gf, H = _with_harmonic(A, B, Gw, Gf, H, k, r, self.U, self.modal, *self.harmonic)
+        Ad, Bd, Qd = _discretise(A, B, np.hstack([Gw, math.sqrt(self.force_noise) * Gf]), self.period)
         R = self.sigma ** 2 * np.eye(3)
         P = sla.solve_discrete_are(Ad.T, H.T, Qd + 1e-30 * np.eye(len(Ad)), R)
         K = P @ H.T @ np.linalg.inv(H @ P @ H.T + R)
@@ -292,6 +331,11 @@ class LoadObserver:
         self.n = len(self.Ad)
         self.k = len(self.modal.omega)
         self.r = self.U.shape[1]
+        k, r = self.k, self.r
+        self._out = np.zeros((r, self.n))           # F̂ − F₀ along U: the walk d plus the oscillator's h_c
+        self._out[:, 2 * k:2 * k + r] = np.eye(r)
+        if self.harmonic is not None:
+            self._out[:, 2 * k + 2 * r:2 * k + 3 * r] = np.eye(r)
 
     def _tune(self, measure: Callable[[], float], level: float, what: str, first: int = -8) -> tuple:
         """(lo, hi) in log10 q, 0.01 apart: ``measure()`` (rising with q: the bandwidth, the stability gain) is
@@ -333,12 +377,58 @@ class LoadObserver:
     @property
     def load(self) -> np.ndarray:
         """F̂ (3,) [N]: the tip load estimate (beyond the model's own weight)."""
-        return self.modal.load + self.U @ self.x[2 * self.k:2 * self.k + self.r]
+        return self.modal.load + self.U @ (self._out @ self.x)
 
     @property
     def load_rate(self) -> np.ndarray:
-        """dF̂/dt (3,) [N/s]."""
-        return self.U @ self.x[2 * self.k + self.r:]
+        """dF̂/dt (3,) [N/s] (the walk's rate plus the oscillator's ω h_s)."""
+        k, r = self.k, self.r
+        rate = self.x[2 * k + r:2 * k + 2 * r].copy()
+        if self.harmonic is not None:
+            rate += self.harmonic[0] * self.x[2 * k + 3 * r:2 * k + 4 * r]
+        return self.U @ rate
+
+    @property
+    def walk(self) -> tuple:
+        """(F₀ + U d̂ (3,) [N], U ḋ̂ (3,) [N/s]): the load estimate without its oscillator part."""
+        k, r = self.k, self.r
+        return self.modal.load + self.U @ self.x[2 * k:2 * k + r], self.U @ self.x[2 * k + r:2 * k + 2 * r]
+
+    @property
+    def phasor(self) -> np.ndarray:
+        """(3,) complex [N]: the oscillator's load U (h_c − i h_s) = the harmonic a e^{i(ωt + φ)} now (its real
+        part is the harmonic load); zeros without an oscillator."""
+        if self.harmonic is None:
+            return np.zeros(3, complex)
+        k, r = self.k, self.r
+        return self.U @ (self.x[2 * k + 2 * r:2 * k + 3 * r] - 1j * self.x[2 * k + 3 * r:2 * k + 4 * r])
+
+    def set_harmonic(self, freq_hz: Optional[float], noise: float = 0.0) -> None:
+        """Add (or retune, or with None remove) the load's oscillator at ``freq_hz`` [Hz], driven by white noise
+        of intensity ``noise`` [N²/s] (module docstring, internal model); the estimate carries over: F̂, its rate
+        (the walk keeps what the oscillator no longer holds) and the modes."""
+        F, Fdot, ph = self.load, self.load_rate, self.phasor
+        old = self.harmonic
+        x_modes = self.x[:2 * self.k].copy()
+        if freq_hz is None:
+            self.harmonic = None
+        else:
+            f = number("freq_hz", freq_hz, strict=True)
+            if not f < 0.1 / self.period:
+                raise InputError(f"the load's oscillator must be below a fifth of the Nyquist frequency, got {f:g} Hz")
+            self.harmonic = (2 * math.pi * f, number("noise [N²/s]", noise, strict=True))
+        self._build()
+        k, r = self.k, self.r
+        x = np.zeros(self.n)
+        x[:2 * k] = x_modes
+        keep = ph if (self.harmonic is not None and old is not None) else np.zeros(3, complex)
+        x[2 * k:2 * k + r] = self.U.T @ (F - self.modal.load - keep.real)
+        x[2 * k + r:2 * k + 2 * r] = self.U.T @ (Fdot - (old[0] * -keep.imag if old is not None and
+                                                         self.harmonic is not None else 0.0))
+        if self.harmonic is not None:
+            x[2 * k + 2 * r:2 * k + 3 * r] = self.U.T @ keep.real
+            x[2 * k + 3 * r:] = -(self.U.T @ keep.imag)
+        self.x = x
 
     def relinearise(self, modal: ModalModel, lengths) -> None:
         """Move the filter to a new modal model (module docstring), the motors at ``lengths`` (m,) [m]: F̂, its
@@ -346,7 +436,7 @@ class LoadObserver:
         shapes: η_new = φ_newᵀ M Σ φ_old η_old) carry over."""
         old, k = self.modal, self.k
         ln = check_finite("lengths", lengths, (len(old.lengths),))
-        F, Fdot = self.load, self.load_rate
+        F, (_, rate), ph = self.load, self.walk, self.phasor
         dyn = self.x[:k] - old.quasi_static(ln - old.lengths, F - old.load)
         to_new = modal.shapes_M @ old.shapes.T                             # (k_new, k_old)
         vel = self.x[k:2 * k].copy()
@@ -356,9 +446,24 @@ class LoadObserver:
         x = np.zeros(self.n)
         x[:kk] = modal.quasi_static(ln - modal.lengths, F - modal.load) + to_new @ dyn
         x[kk:2 * kk] = to_new @ vel
-        x[2 * kk:2 * kk + r] = self.U.T @ (F - modal.load)
-        x[2 * kk + r:] = self.U.T @ Fdot
+        x[2 * kk:2 * kk + r] = self.U.T @ (F - modal.load - ph.real)
+        x[2 * kk + r:2 * kk + 2 * r] = self.U.T @ rate
+        if self.harmonic is not None:
+            x[2 * kk + 2 * r:2 * kk + 3 * r] = self.U.T @ ph.real
+            x[2 * kk + 3 * r:] = -(self.U.T @ ph.imag)
         self.x = x
+
+    def seed_harmonic(self, phasor, walk_load, walk_rate) -> None:
+        """Set the oscillator's load to ``phasor`` (3,) complex [N] (:attr:`phasor`'s convention) and the walk to
+        ``walk_load`` (3,) [N] and ``walk_rate`` (3,) [N/s] (a warm start from a fit; the modes kept)."""
+        if self.harmonic is None:
+            raise InputError("seed_harmonic needs the load's oscillator (set_harmonic first)")
+        k, r = self.k, self.r
+        ph = np.asarray(phasor, complex)
+        self.x[2 * k:2 * k + r] = self.U.T @ (check_finite("walk_load", walk_load, (3,)) - self.modal.load)
+        self.x[2 * k + r:2 * k + 2 * r] = self.U.T @ check_finite("walk_rate", walk_rate, (3,))
+        self.x[2 * k + 2 * r:2 * k + 3 * r] = self.U.T @ ph.real
+        self.x[2 * k + 3 * r:] = -(self.U.T @ ph.imag)
 
     def reset(self, load=(0.0, 0.0, 0.0)) -> None:
         """At rest under ``load`` (3,) [N] with the motors at the linearisation point."""
@@ -396,7 +501,7 @@ class LoadObserver:
         _, _, lam, V, W = self._closed_loop()
         zc = np.exp(1j * 2 * math.pi * freq * self.period)
         X = V @ (W / (zc - lam)[:, None])
-        return self.U @ X[4 * self.k:4 * self.k + self.r]
+        return self.U @ (self._out @ X[2 * self.k:])
 
     def bandwidth_Hz(self) -> float:
         """The estimate's bandwidth [Hz]: the lowest frequency at which the response u·T(f) u of the estimate
@@ -427,7 +532,7 @@ class LoadObserver:
         err = np.empty(steps)
         for j in range(steps):
             z = Phi @ z + g
-            err[j] = np.linalg.norm(self.U @ z[4 * k:4 * k + self.r] - u)
+            err[j] = np.linalg.norm(self.U @ (self._out @ z[2 * k:]) - u)
         bad = np.nonzero(err > within)[0]
         return 0.0 if len(bad) == 0 else float((bad[-1] + 1) * self.period)
 
@@ -447,9 +552,17 @@ class LoadObserver:
         lam, V = np.linalg.eig(Phi)
         W = np.linalg.solve(V, self.K)                                        # (n, 3)
         zc = np.exp(1j * w * self.period)
-        O = np.einsum("ij,fj,jl->fil", self.U @ V[2 * k:2 * k + r], zc[:, None] / (zc[:, None] - lam[None, :]), W)
+        resp = zc[:, None] / (zc[:, None] - lam[None, :])                     # (f, n)
+
+        def to(rows):                   # the filter's map from a tip disturbance to the states ``rows``: (f, ., 3)
+            return np.einsum("ij,fj,jl->fil", V[rows], resp, W)
+
         G = -np.linalg.pinv(mm.J_l) @ mm.C
         N = np.ones_like(w, dtype=complex) if self.loop_factor is None else np.asarray(self.loop_factor(fs), complex)
+        ctrl = np.einsum("mc,fci->fmi", G, self.U @ to(slice(2 * k, 2 * k + r))) * N[:, None, None]   # (f, m, 3)
+        if self.harmonic is not None and self.harmonic_map is not None:
+            ctrl = ctrl + np.einsum("fmh,fhi->fmi", np.asarray(self.harmonic_map(fs), complex),
+                                    to(slice(2 * k + 2 * r, 2 * k + 4 * r)))
         alpha = 2 * mm.zeta * mm.omega
 
         def modal(scale):
@@ -459,7 +572,7 @@ class LoadObserver:
         H0, worst = modal(1.0), 0.0
         for scale in np.linspace(1.0 - eps, 1.0 + eps, 25):
             dP = np.einsum("kc,fk,km->fcm", mm.tip_shapes, modal(scale) - H0, mm.g)      # (f, 3, m)
-            L = np.einsum("fic,fcm,mj->fij", O, dP, G) * N[:, None, None]
+            L = np.einsum("fcm,fmi->fci", dP, ctrl)
             worst = max(worst, float(np.max(np.abs(np.linalg.eigvals(L)))))
         return worst
 
@@ -469,9 +582,7 @@ class LoadObserver:
         s = number("tip_noise_m", tip_noise_m)
         Phi = (np.eye(self.n) - self.K @ self.H) @ self.Ad
         X = sla.solve_discrete_lyapunov(Phi, s ** 2 * self.K @ self.K.T)
-        k = self.k
-        r = self.r
-        Xf = self.U @ X[2 * k:2 * k + r, 2 * k:2 * k + r] @ self.U.T
+        Xf = self.U @ self._out @ X @ self._out.T @ self.U.T
         return np.sqrt(np.diag(Xf))
 
 

@@ -22,7 +22,8 @@ TENSIONS = (2.74461049, 2.125, 2.125)
 @pytest.mark.parametrize("kw", [dict(period=0.0), dict(period=0.2), dict(latency=-1e-3), dict(latency=0.05),
                                 dict(modes=0), dict(modes=True), dict(feedforward="fast"), dict(bandwidth_hz=0.0),
                                 dict(length_rate=0.0), dict(model_error=0.6), dict(model_error=0.0),
-                                dict(gain_margin=0.5), dict(command_filter_hz=0.0)])
+                                dict(gain_margin=0.5), dict(command_filter_hz=0.0), dict(internal_model="yes"),
+                                dict(harmonic_noise=0.0)])
 def test_refusals(kw):
     with pytest.raises(InputError):
         DynamicLACC(Model(presets.paper()), P, **kw)
@@ -72,6 +73,7 @@ def test_settles_on_a_linear_plant_with_softer_modes():
         r = run_periodic(ctrl, plant, target, duration=1.5, latency=2e-3, sample_dt=0.01)
         late[name] = r.max_error(after=1.2)
         if name == "robust":
+            assert ctrl.harmonic_hz is None              # a ramp to a hold is no periodic load: no internal model
             assert ctrl.observer.robust_limited and ctrl.bandwidth_used_hz < 12.0
             assert ctrl.observer.stability_gain() <= 1 / 1.5 + 1e-9
     assert late["robust"] < 0.5e-3, late
@@ -93,3 +95,30 @@ def test_bounded_on_the_mismatched_dynamic_rig():
     free = np.linalg.norm(m.fk_locked(m.ik(target, P).tendon_lengths, P, F).tip - target)
     assert r.max_error() < free
     assert r.max_error(after=0.9) < 1.5e-3
+
+
+def test_the_internal_model_rejects_the_cyclic_load_on_the_mismatched_linear_plant():
+    """The paper's cyclic load (80 g, 1 − cos) at 2 Hz on the mismatched actuator's linearised dynamics
+    (ModalPlant, 0.05 mm tracker noise), the controller not told the load: it learns the frequency from F̂
+    (within 1 %), adds the oscillator to the observer within the small-gain bound, and after ten cycles holds the
+    tip within 0.6 mm (measured 0.25 mm); without the internal model the same loop stays ≈ 27 mm off (the free
+    motion ≈ 29 mm)."""
+    from validation.paper.dynamic import _cyclic
+    m = Model(presets.paper())
+    target = m.fk(TENSIONS, P).tip
+    l0 = m.ik(target, P).tendon_lengths
+    soft = _soft_plant_modes(m, l0)
+    f, late = 2.0, {}
+    for im in (True, False):
+        plant = ModalPlant(soft, _cyclic(0.08, f), length_rate=0.05, noise_std=5e-5)
+        ctrl = DynamicLACC(m, P, latency=2e-3, length_rate=0.05, damping_ratio=0.05, relinearise_force=10.0,
+                           internal_model=im)
+        r = run_periodic(ctrl, plant, target, duration=10 / f, latency=2e-3, sample_dt=0.005)
+        late[im] = r.max_error(after=8 / f)
+        if im:
+            assert ctrl.harmonic_hz == pytest.approx(f, rel=0.01)
+            assert ctrl.observer.stability_gain() <= 1 / 1.5 + 1e-9
+        else:
+            assert ctrl.harmonic_hz is None
+    assert late[True] < 0.6e-3, late
+    assert late[False] > 10e-3, late

@@ -184,3 +184,36 @@ def test_robust_tuning_meets_the_stated_margin(setup):
         LoadObserver(mm, 1e-3, model_error=0.1, gain_margin=0.5)
     with pytest.raises(InputError):
         ob.stability_gain()                               # no bound given and none stored
+
+
+def test_the_internal_model_reads_a_load_at_its_frequency_without_lag(setup):
+    """With the oscillator at f (set_harmonic), the estimate's response to a true load at f is the identity
+    (the internal-model principle: the filter's innovation has a zero there; up to the half period of the
+    load's zero-order hold), while the walk alone lags and
+    misreads it; away from f the two filters stay close.  The state carries over: F̂ is unchanged by adding,
+    moving and removing the oscillator."""
+    *_, mm, _ = setup
+    f = 1.0
+    walk = LoadObserver(mm, 1e-3, tip_noise_std=5e-5, bandwidth_hz=3.0)
+    im = LoadObserver(mm, 1e-3, tip_noise_std=5e-5, bandwidth_hz=3.0)
+    im.x[2 * im.k:2 * im.k + im.r] = [0.05, -0.02]                      # some estimate to carry over
+    F0 = im.load.copy()
+    im.set_harmonic(f, 3e-5)
+    np.testing.assert_allclose(im.load, F0, atol=1e-12)
+    U = im.U
+    for fq in (f, 1.0 + 1e-9):                  # the identity but for the load's zero-order hold: e^{−iωh/2}
+        zoh = np.exp(-1j * math.pi * fq * 1e-3)
+        np.testing.assert_allclose(U.T @ im.response(fq) @ U, zoh * np.eye(im.r), atol=2e-5)
+    assert np.max(np.abs(U.T @ walk.response(f) @ U - np.eye(walk.r))) > 0.05
+    assert np.max(np.abs(U.T @ (im.response(20.0) - walk.response(20.0)) @ U)) < 0.3
+    im.seed_harmonic(U @ [0.1 + 0.05j, 0.0], F0, np.zeros(3))
+    ph, F1 = im.phasor.copy(), im.load.copy()
+    im.set_harmonic(1.01, 3e-5)
+    np.testing.assert_allclose(im.phasor, ph, atol=1e-12)
+    np.testing.assert_allclose(im.load, F1, atol=1e-12)
+    im.set_harmonic(None)
+    np.testing.assert_allclose(im.load, F1, atol=1e-12)
+    with pytest.raises(InputError):
+        im.seed_harmonic(ph, F1, np.zeros(3))                          # no oscillator
+    with pytest.raises(InputError):
+        im.set_harmonic(200.0, 1e-5)                                   # beyond a fifth of the Nyquist frequency

@@ -54,24 +54,45 @@ def test_bad_study_inputs():
         dynamic_loading(frequencies=(1.0,), cyclic_mass=-0.1)
     # the dynamic LACC's options are refused before any run starts
     for kw, what in ((dict(model_error=0.7), "model_error"), (dict(observer_bandwidth_hz=0.0), "bandwidth"),
-                     (dict(loop_latency=0.5), "latency")):
+                     (dict(loop_latency=0.5), "latency"), (dict(internal_model=1), "internal_model")):
         with pytest.raises(InputError, match=what):
             dynamic_loading(frequencies=(1.0,), dynamic_lacc=True, **kw)
 
 
 @pytest.mark.slow
 def test_the_documented_controller_table_is_the_programs_output():
-    """docs/dynamics.md's controller table (LACC, ZV-shaped LACC and the dynamic LACC on the fast loop,
+    """docs/dynamics.md's controller table (LACC, ZV-shaped LACC and the dynamic LACC without its internal model
+    on the fast loop,
     0.5 … 4 Hz, the plant as the model and mismatched) rerun: deterministic (fixed compute time, seeded tracker
     noise), so the page's lines must come back as they are (~40 min on 2 cores)."""
     import pathlib
     from validation.paper.dynamic import CONTROLLER_TABLE_PLANTS, FAST_LOOP, controller_table
     text = (pathlib.Path(__file__).parents[2] / "docs" / "dynamics.md").read_text()
     runs = {label: dynamic_loading(frequencies=(0.5, 1.0, 2.0, 4.0), cycles=2, shaping=True, dynamic_lacc=True,
-                                   mismatch=mismatch, **FAST_LOOP)
+                                   mismatch=mismatch, internal_model=False, **FAST_LOOP)
             for label, mismatch in CONTROLLER_TABLE_PLANTS}
     for line in controller_table(runs):
         assert line in text, line
+
+
+@pytest.mark.slow
+def test_the_documented_internal_model_table_is_the_programs_output():
+    """docs/dynamics.md's internal-model table (the dynamic LACC learning the load's frequency, on the
+    mismatched dynamic plant: 1 Hz over 4 cycles, 2 Hz over 6) rerun: deterministic (seeded tracker noise), so
+    the page's lines must come back as they are (~30 min on the shared 2 cores)."""
+    import pathlib
+    from validation.paper.dynamic import INTERNAL_MODEL_ROWS, internal_model_row, internal_model_table
+    text = (pathlib.Path(__file__).parents[2] / "docs" / "dynamics.md").read_text()
+    for line in internal_model_table([internal_model_row(f, c) for f, c in INTERNAL_MODEL_ROWS]):
+        assert line in text, line
+
+
+def test_internal_model_row_refuses_bad_inputs():
+    from validation.paper.dynamic import internal_model_row
+    with pytest.raises(InputError):
+        internal_model_row(0.0, 3)
+    with pytest.raises(InputError):
+        internal_model_row(1.0, 1)
 
 
 @pytest.mark.slow

@@ -212,8 +212,38 @@ def _control_command(name: str, summary: str):
 
 
 for _name, _summary in CONTROL_COMMANDS.items():
-    if _name != "table1":
+    if _name not in ("table1", "loading"):
         app.command(_name)(_control_command(_name, _summary))
+
+
+@app.command("loading")
+def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+            preset: str = typer.Option("paper", help=PRESET_HELP),
+            plant_friction: Optional[str] = typer.Option(
+                None, help="Tendon friction coefficients μ of the plant's actuator, comma separated, each in "
+                           "[0, 1] (e.g. 0,0.1,0.3): both load cases once per μ, LACC's model frictionless, "
+                           "each correction a fixed time on the loop's clock; docs/friction.md."),
+            friction_aware: bool = typer.Option(False, "--friction-aware", help="With --plant-friction: also the "
+                                                "LACC whose model has the plant's μ (controller.friction_aware)."),
+            aware_compute_ms: Optional[float] = typer.Option(
+                None, callback=LOOP_MS, help=f"With --friction-aware: its compute time per correction on the loop's "
+                                             f"clock, {LOOP_MS.text} (default 500, its measured median)."),
+            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """Continuous (0 → 110 g → 0 over 50 s) and cyclic (0.125 Hz) loading (paper Sec V-E).
+
+    With --plant-friction the plant's tendons have friction (one run per μ; the frictionless study's IK-compliance
+    comparison and bandwidth rows are not run)."""
+    if friction_aware and plant_friction is None:
+        raise typer.BadParameter("needs --plant-friction (the plant's μ values)", param_hint="'--friction-aware'")
+    if aware_compute_ms is not None and not friction_aware:
+        raise typer.BadParameter("needs --friction-aware", param_hint="'--aware-compute-ms'")
+    kw = {} if plant_friction is None else {
+        "friction": clitools.parse_numbers(plant_friction, "--plant-friction", low=0.0, high=1.0),
+        "friction_aware": friction_aware}
+    if aware_compute_ms is not None:
+        kw["friction_compute"] = (None, aware_compute_ms * 1e-3)
+    _control("loading", out, as_json, preset, force, study_kw=kw)
 
 
 @app.command("table1")
@@ -276,6 +306,9 @@ def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2",
             model_error_pct: float = typer.Option(12.0, callback=MODEL_ERROR_PCT, help="Dynamic LACC: the plant's "
                                                   "modal frequency error the loop stays stable for, "
                                                   f"{MODEL_ERROR_PCT.text} (0: the model taken as exact)."),
+            internal_model: bool = typer.Option(True, "--internal-model/--no-internal-model", help="Dynamic "
+                                                "LACC: learn a periodic load's frequency online and add its "
+                                                "oscillator to the observer (docs/dynamics.md)."),
             preset: str = typer.Option("paper", help=PRESET_HELP),
             out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
             force: bool = typer.Option(False, "--force", help=FORCE_HELP),
@@ -296,7 +329,7 @@ def dynamic(frequencies_hz: str = typer.Option("0.125,0.25,0.5,1,2",
                                   mismatch=mismatch, observer_bandwidth_hz=observer_bandwidth_hz,
                                   loop_latency=loop_latency_ms * 1e-3,
                                   model_error=model_error_pct * 1e-2 if model_error_pct > 0 else None,
-                                  params=params, out=out,
+                                  internal_model=internal_model, params=params, out=out,
                                   progress=lambda f, n: st.update(f"{f:g} Hz, {n} plant done"))
     if as_json:
         _echo_json(res)

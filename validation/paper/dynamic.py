@@ -50,15 +50,15 @@ def mismatched_plant(params, damping: float) -> tuple:
 
 
 def _dynamic_lacc_run(model, pressure, target, load, duration, opts, *, model_damping, noise, bandwidth_hz,
-                      latency, motor_rate, sample_dt, model_error):
+                      latency, motor_rate, sample_dt, model_error, internal_model=True):
     """One run of the dynamic LACC at 1 kHz on the dynamic plant (:func:`controller.loop.run_periodic`):
     (the run, the observer's bandwidth as built [Hz])."""
     ctrl = DynamicLACC(model, pressure, period=1e-3, latency=latency, bandwidth_hz=bandwidth_hz,
                        tip_noise_std=max(noise, 1e-5), damping_ratio=model_damping, length_rate=motor_rate,
-                       model_error=model_error)
+                       model_error=model_error, internal_model=internal_model)
     rig = SimulatedRig(model, pressure, load=load, options=opts)
     run = run_periodic(ctrl, rig, target, duration=duration, latency=latency, sample_dt=sample_dt)
-    return run, ctrl.bandwidth_used_hz
+    return run, ctrl.bandwidth_used_hz, ctrl.harmonic_hz
 
 
 def _uncontrolled(model, pressure, lengths, load, times, options) -> np.ndarray:
@@ -102,13 +102,27 @@ def _figure(rows: list, series: dict, shaping: bool, dl: bool, cyclic_mass: floa
     return fig
 
 
+def _rows_table(rows: list, shaping: bool, dl: bool) -> str:
+    """The study's text table of its rows (errors [mm]; the ZV and dynamic-LACC columns where run)."""
+    header = ["load [Hz]", "LACC static", "LACC dynamic", "LACC dyn. RMS", *(["dynamic, ZV"] if shaping else []),
+              *(["dyn. LACC", "dyn. LACC RMS"] if dl else []),
+              "free static", "free dynamic", "corrections s/d" + ("/ZV" if shaping else "")]
+    table = _fmt_table(header, [[f"{r['frequency_Hz']:g}", f"{r['static_max_mm']:.3f}", f"{r['dynamic_max_mm']:.3f}",
+                                 f"{r['dynamic_rms_mm']:.3f}", *([f"{r['shaped_max_mm']:.3f}"] if shaping else []),
+                                 *([f"{r['dlacc_max_mm']:.3f}", f"{r['dlacc_rms_mm']:.3f}"] if dl else []),
+                                 f"{r['uncontrolled_static_mm']:.2f}", f"{r['uncontrolled_dynamic_mm']:.2f}",
+                                 f"{r['corrections_static']}/{r['corrections_dynamic']}"
+                                 + (f"/{r['corrections_shaped']}" if shaping else "")] for r in rows])
+    return table
+
+
 def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.0), cycles: int = 3,
                     pressure: float = PRESSURE, tensions=None, cyclic_mass: float = PAPER_CYCLIC_MASS,
                     damping: float = 0.1, motor_rate: float = 5e-3, actuation_latency: float = 0.02,
                     settle_time=0.1, compute_time: float = 0.01, dynamics_step: float = 2e-3,
                     shaping: bool = False, dynamic_lacc: bool = False, mismatch: bool = False,
                     observer_bandwidth_hz: float = 12.0, loop_latency: float = 2e-3,
-                    model_error: Optional[float] = 0.12, params=None,
+                    model_error: Optional[float] = 0.12, internal_model: bool = True, params=None,
                     out: PathLike = None, progress=None) -> dict:
     """Cyclic tip loading (``cyclic_mass`` [kg], 0 → m → 0 as 1 − cos) at each of ``frequencies`` [Hz] for
     ``cycles`` cycles, LACC in the loop, on the static and the dynamic plant (module docstring).
@@ -121,7 +135,10 @@ def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.
     D_eff +2.5 %, the model assuming half the plant's damping ratio, 0.05 mm tracker noise).  ``model_error``:
     the dynamic LACC's bound of the modal frequencies' error (its observer bandwidth lowered until the loop
     is stable for it, :class:`controller.DynamicLACC`; None: the model taken as exact, ``observer_bandwidth_hz``
-    as asked); the bandwidth built is the row's ``dlacc_bandwidth_Hz``.
+    as asked); the bandwidth built is the row's ``dlacc_bandwidth_Hz``.  ``internal_model``: the dynamic LACC
+    learns a periodic load's frequency and adds its oscillator to the observer (:class:`controller.DynamicLACC`;
+    the frequency it ends with is the row's ``dlacc_internal_model_Hz``, None without one; the largest error
+    over the last cycle ``dlacc_last_cycle_mm``).
 
     Returns ``{"rows": [{frequency_Hz, static_max_mm, dynamic_max_mm, static_rms_mm, dynamic_rms_mm,
     uncontrolled_static_mm, uncontrolled_dynamic_mm, corrections_static, corrections_dynamic}], "table",
@@ -137,7 +154,7 @@ def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.
     model = Model(params)
     if dynamic_lacc:            # its options refused up front, before any run (the constructor only checks them)
         DynamicLACC(model, pressure, latency=loop_latency, bandwidth_hz=observer_bandwidth_hz,
-                    length_rate=motor_rate, model_error=model_error)
+                    length_rate=motor_rate, model_error=model_error, internal_model=internal_model)
     plant_params, noise, model_damping = None, 0.0, damping
     if mismatch:
         plant_params, _, noise = mismatched_plant(params, damping)
@@ -166,10 +183,11 @@ def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.
             plants.append(("dlacc", PlantOptions(**{**dyn_opts.__dict__, "dynamics_step": 1e-3}), None))
         for name, opts, shaper in plants:
             if name == "dlacc":
-                r, row["dlacc_bandwidth_Hz"] = _dynamic_lacc_run(
+                r, row["dlacc_bandwidth_Hz"], row["dlacc_internal_model_Hz"] = _dynamic_lacc_run(
                     model, pressure, target, load, duration, opts, model_damping=model_damping, noise=noise,
                     bandwidth_hz=observer_bandwidth_hz, latency=loop_latency, motor_rate=motor_rate,
-                    sample_dt=min(0.005, 0.02 / f), model_error=model_error)
+                    sample_dt=min(0.005, 0.02 / f), model_error=model_error, internal_model=internal_model)
+                row["dlacc_last_cycle_mm"] = float(r.error_norm[r.t >= duration - 1.0 / f].max()) * 1e3
             else:
                 rig = SimulatedRig(model, pressure, load=load, options=opts)
                 r = run_timed(LACC(model, pressure), rig, target, duration=duration, compute_time=compute_time,
@@ -188,15 +206,7 @@ def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.
                 progress(f, name)
         rows.append(row)
     dl = dynamic_lacc
-    header = ["load [Hz]", "LACC static", "LACC dynamic", "LACC dyn. RMS", *(["dynamic, ZV"] if shaping else []),
-              *(["dyn. LACC", "dyn. LACC RMS"] if dl else []),
-              "free static", "free dynamic", "corrections s/d" + ("/ZV" if shaping else "")]
-    table = _fmt_table(header, [[f"{r['frequency_Hz']:g}", f"{r['static_max_mm']:.3f}", f"{r['dynamic_max_mm']:.3f}",
-                                 f"{r['dynamic_rms_mm']:.3f}", *([f"{r['shaped_max_mm']:.3f}"] if shaping else []),
-                                 *([f"{r['dlacc_max_mm']:.3f}", f"{r['dlacc_rms_mm']:.3f}"] if dl else []),
-                                 f"{r['uncontrolled_static_mm']:.2f}", f"{r['uncontrolled_dynamic_mm']:.2f}",
-                                 f"{r['corrections_static']}/{r['corrections_dynamic']}"
-                                 + (f"/{r['corrections_shaped']}" if shaping else "")] for r in rows])
+    table = _rows_table(rows, shaping, dl)
     table += ("\ntip errors after the first cycle [mm] (max, and RMS where said); free: the motors held at the "
               "unloaded IK lengths"
               f"\nfirst locked bending mode {f1:.2f} Hz; {cyclic_mass * 1e3:.0f} g cyclic load; loop: compute "
@@ -218,7 +228,8 @@ def dynamic_loading(*, frequencies: Sequence[float] = (0.125, 0.25, 0.5, 1.0, 2.
                         "dynamics_step_s": dynamics_step, "shaping": shaping, "actuator": params.name,
                         "dynamic_lacc": dynamic_lacc, "mismatch": mismatch, "model_damping_ratio": model_damping,
                         "tracker_noise_m": noise, "observer_bandwidth_Hz": observer_bandwidth_hz,
-                        "loop_latency_s": loop_latency, "model_error": model_error}}
+                        "loop_latency_s": loop_latency, "model_error": model_error,
+                        "internal_model": internal_model}}
     fig = None if out is None else _figure(rows, series, shaping, dl, cyclic_mass, f1)
     _write(out, "dynamic_loading", res, fig)
     return res
@@ -242,4 +253,55 @@ def controller_table(runs: dict) -> list:
             lines.append(f"| {label} | {r['frequency_Hz']:g} | {r['dynamic_max_mm']:.2f} | {r['shaped_max_mm']:.2f} | "
                          f"{r['dlacc_max_mm']:.2f} | {r['dlacc_rms_mm']:.2f} | {r['dlacc_bandwidth_Hz']:.2f} | "
                          f"{r['uncontrolled_dynamic_mm']:.2f} |")
+    return lines
+
+
+#: docs/dynamics.md's internal-model table: (load frequency [Hz], cycles) on the fast loop with the mismatch
+#: (a 0.125 Hz row, 16 s of simulated time, costs over an hour on the shared 2 cores: not in the table)
+INTERNAL_MODEL_ROWS = ((1.0, 4), (2.0, 6))
+
+
+def internal_model_row(frequency: float, cycles: int, *, pressure: float = PRESSURE,
+                       cyclic_mass: float = PAPER_CYCLIC_MASS, damping: float = 0.1, internal_model: bool = True,
+                       params=None) -> dict:
+    """One row of docs/dynamics.md's internal-model table: the dynamic LACC alone (the settings of
+    :func:`dynamic_loading` with ``dynamic_lacc``, ``mismatch`` and :data:`FAST_LOOP`'s motors, 2 ms loop
+    latency) on the mismatched dynamic plant under the cyclic load at ``frequency`` [Hz] for ``cycles``, and
+    the free dynamic motion.  Keys as :func:`dynamic_loading`'s rows (``dlacc_*``, ``uncontrolled_dynamic_mm``)."""
+    if not 0 < frequency <= 20 or isinstance(cycles, bool) or not isinstance(cycles, int) or not 2 <= cycles <= 50:
+        raise InputError(f"frequency must be in (0, 20] Hz and cycles an integer 2…50, got {frequency!r}, {cycles!r}")
+    params = params or presets.paper()
+    model = Model(params)
+    plant_params, _, noise = mismatched_plant(params, damping)
+    tensions = configurations(params, pressure=pressure, directions={"loading": LOADING_DIRECTION},
+                              max_load_mass=cyclic_mass)["loading"]["tensions"]
+    target = model.fk(tensions, pressure, (0, 0, 0)).tip
+    lengths0 = model.ik(target, pressure, (0, 0, 0)).tendon_lengths
+    opts = PlantOptions(params=plant_params, noise_std=noise, length_rate=FAST_LOOP["motor_rate"], dynamics=True,
+                        damping=damping, dynamics_step=1e-3)
+    load, duration = _cyclic(cyclic_mass, frequency), cycles / frequency
+    r, bw, hz = _dynamic_lacc_run(model, pressure, target, load, duration, opts, model_damping=0.5 * damping,
+                                  noise=noise, bandwidth_hz=12.0, latency=2e-3, motor_rate=FAST_LOOP["motor_rate"],
+                                  sample_dt=min(0.005, 0.02 / frequency), model_error=0.12,
+                                  internal_model=internal_model)
+    judged = r.t >= 1.0 / frequency
+    en = r.error_norm[judged]
+    tips = _uncontrolled(model, pressure, lengths0, load, r.t, PlantOptions(**{**opts.__dict__, "dynamics_step": 2e-3}))
+    return {"frequency_Hz": float(frequency), "cycles": cycles, "dlacc_max_mm": float(en.max()) * 1e3,
+            "dlacc_rms_mm": float(np.sqrt(np.mean(en ** 2))) * 1e3,
+            "dlacc_last_cycle_mm": float(r.error_norm[r.t >= duration - 1.0 / frequency].max()) * 1e3,
+            "dlacc_bandwidth_Hz": bw, "dlacc_internal_model_Hz": hz,
+            "uncontrolled_dynamic_mm": float(np.linalg.norm(tips - tips[0], axis=1)[judged].max()) * 1e3}
+
+
+def internal_model_table(rows: Sequence[dict]) -> list:
+    """Markdown lines of docs/dynamics.md's internal-model table from :func:`internal_model_row` rows: max tip error after the first cycle and over the last cycle [mm], RMS
+    after the first cycle, the internal model's frequency as learnt [Hz], the free dynamic motion [mm]."""
+    lines = ["| load [Hz] | cycles | dyn. LACC + internal model, max after cycle 1 | max, last cycle | RMS | "
+             "learnt [Hz] | free |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        hz = r["dlacc_internal_model_Hz"]
+        lines.append(f"| {r['frequency_Hz']:g} | {r['cycles']} | {r['dlacc_max_mm']:.2f} | {r['dlacc_last_cycle_mm']:.2f} | "
+                     f"{r['dlacc_rms_mm']:.2f} | {'–' if hz is None else f'{hz:.3f}'} | "
+                     f"{r['uncontrolled_dynamic_mm']:.2f} |")
     return lines
