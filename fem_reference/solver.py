@@ -136,6 +136,13 @@ class _Slot:
         self.solver, self.pattern, self.owner = None, None, 0
 
 
+#: iterative refinement steps of PARDISO's symmetric indefinite solves (``iparm(8)``), set after the first
+#: factorisation has filled ``iparm`` with oneMKL's defaults (METIS ordering, pivot perturbation, Bunch–Kaufman
+#: pivoting: kept as they are).  0: refinement only where pivots were perturbed.  The default (2, every solve)
+#: measured on the default design's reduced tangent (12 398 unknowns): a solve 0.051–0.070 s against 0.017–0.020 s,
+#: the relative residual 1.0e-10 against 9.4e-11, the factorisation and its fill unchanged.
+SYMMETRIC_REFINEMENTS = 0
+
 #: real non-symmetric LU (mtype 11) and real symmetric indefinite LDLᵀ (mtype −2)
 _SLOTS = {11: _Slot(11), -2: _Slot(-2)}
 
@@ -190,6 +197,8 @@ class _PardisoFactor:
             ps.factorized_A = None
             ps.set_phase(22 if reuse else 12)
             ps._call_pardiso(A, np.zeros((A.shape[0], 1)))
+            if slot.mtype == -2:         # iparm now holds MKL's defaults (iparm(1) = 1): refinement only if perturbed
+                ps.iparm[7] = SYMMETRIC_REFINEMENTS
             self._fast = True
         except AttributeError:  # pragma: no cover - pypardiso internals changed: public path
             ps.factorize(A)
