@@ -96,11 +96,17 @@ def fem_cycle_task(task: dict) -> dict:
     """Worker: the FEM's tension cycle of ``task`` (spec, peak_N, pressure_Pa, steps, mu) → {"pressure_Pa",
     "scale" (2 s + 1,), "tip" (2 s + 1, 3) [m], "loop_area" [N m], "seconds", "error" ('' or the failure)}."""
     from validation.reference.fem_sweep import fem_model
+    return _cycle_record(task["pressure_Pa"], lambda: fem_model(task["spec"]).tension_cycle(
+        task["peak_N"], task["pressure_Pa"], steps=task["steps"], friction=task["mu"], gravity=True))
+
+
+def _cycle_record(pressure: float, run) -> dict:
+    """The result dict of :func:`fem_cycle_task` from ``run()`` (a tension cycle of the FEM or the rod), timed; a
+    :class:`~ancf.errors.BellowsError` it raises becomes the record's ``error``."""
     t0 = time.perf_counter()
-    out = {"pressure_Pa": float(task["pressure_Pa"]), "scale": None, "tip": None, "loop_area": None, "error": ""}
+    out = {"pressure_Pa": float(pressure), "scale": None, "tip": None, "loop_area": None, "error": ""}
     try:
-        cyc = fem_model(task["spec"]).tension_cycle(task["peak_N"], task["pressure_Pa"], steps=task["steps"],
-                                                   friction=task["mu"], gravity=True)
+        cyc = run()
     except BellowsError as exc:
         out["error"] = f"{type(exc).__name__}: {exc}"
     else:
@@ -138,17 +144,8 @@ def rod_cycle(model, plan: dict, pressure: float, mu: float) -> dict:
     """The rod's cycle of ``plan`` at ``pressure`` [Pa] with friction ``mu`` (:meth:`ancf.Model.tension_cycle`),
     in the form of :func:`fem_cycle_task`'s result."""
     from ancf import Model
-    t0 = time.perf_counter()
-    out = {"pressure_Pa": float(pressure), "scale": None, "tip": None, "loop_area": None, "error": ""}
-    try:
-        cyc = Model(model.params.replace(tendon_friction=float(mu))).tension_cycle(plan["peak_N"], pressure,
-                                                                                   steps=plan["steps"])
-    except BellowsError as exc:
-        out["error"] = f"{type(exc).__name__}: {exc}"
-    else:
-        out.update(scale=np.asarray(cyc.scale, float), tip=np.asarray(cyc.tip, float), loop_area=float(cyc.loop_area))
-    out["seconds"] = time.perf_counter() - t0
-    return out
+    return _cycle_record(pressure, lambda: Model(model.params.replace(tendon_friction=float(mu))).tension_cycle(
+        plan["peak_N"], pressure, steps=plan["steps"]))
 
 
 def branch_gap(tip) -> np.ndarray:
