@@ -14,6 +14,7 @@ from ancf import ActuatorParams, Tendon, presets
 from ancf.chain import Cap, ChainParams, load_actuator, load_actuator_string
 from ancf.errors import ConfigError
 from validation.commands.main import app, main
+from toml_values import toml_literal
 
 PRESETS = pathlib.Path(presets.__file__).parent
 runner = CliRunner()
@@ -139,20 +140,6 @@ _VALUES = st.one_of(st.booleans(), st.integers(-10**20, 10**20), st.floats(allow
                     st.just([{"a": 1}]), st.just([[1, 2]]))
 
 
-def _literal(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return '"' + "".join(c if c.isalnum() else "_" for c in v) + '"'
-    if isinstance(v, float):
-        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
-    if isinstance(v, dict):
-        return "{ x = 1 }"
-    if isinstance(v, list):
-        return "[" + ", ".join(_literal(x) if not isinstance(x, dict) else "{ a = 1 }" for x in v) + "]"
-    return str(v)
-
-
 _LINES = CHAIN.splitlines()
 _KEYED = [i for i, ln in enumerate(_LINES) if " = " in ln]
 
@@ -166,7 +153,7 @@ def test_a_mutated_chain_file_loads_or_raises_config_error(data):
         i = data.draw(st.sampled_from(_KEYED))
         kind = data.draw(st.sampled_from(["replace", "delete", "table"]))
         if kind == "replace":
-            lines[i] = f"{lines[i].split(' = ')[0]} = {_literal(data.draw(_VALUES))}"
+            lines[i] = f"{lines[i].split(' = ')[0]} = {toml_literal(data.draw(_VALUES))}"
         elif kind == "delete":
             lines[i] = ""
         else:

@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 
 from ancf import ActuatorParams, ConfigError, presets
 from ancf.params import PLAUSIBLE, plausible_ranges
+from toml_values import toml_literal
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 PAPER = (ROOT / "ancf" / "presets" / "paper.toml").read_text()
@@ -107,20 +108,6 @@ _values = st.one_of(
     st.just([]), st.just({"x": 1}), st.just([[1, 2], [3]]), st.just([{"a": 1}]))
 
 
-def _toml(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return '"' + "".join(c if c.isalnum() else "_" for c in v) + '"'
-    if isinstance(v, float):
-        return "nan" if math.isnan(v) else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
-    if isinstance(v, dict):
-        return "{ x = 1 }"
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml(x) if not isinstance(x, dict) else "{ a = 1 }" for x in v) + "]"
-    return str(v)
-
-
 _LINES = PAPER.splitlines()
 _VALUE_LINES = [i for i, ln in enumerate(_LINES) if " = " in ln]
 _OPTIONAL = ["shear_compliance_coeffs_mm_per_N_per_100kPa", "tendon_stiffness_N_per_m", "rayleigh_alpha_per_s",
@@ -135,11 +122,11 @@ def mutated_files(draw):
         i = draw(st.sampled_from(_VALUE_LINES))
         key = lines[i].split(" = ")[0] if " = " in lines[i] else None
         if kind == "replace" and key:
-            lines[i] = f"{key} = {_toml(draw(_values))}"
+            lines[i] = f"{key} = {toml_literal(draw(_values))}"
         elif kind == "delete":
             lines[i] = ""
         elif kind == "add":
-            lines.insert(i + 1, f"{draw(st.sampled_from(_OPTIONAL))} = {_toml(draw(_values))}")
+            lines.insert(i + 1, f"{draw(st.sampled_from(_OPTIONAL))} = {toml_literal(draw(_values))}")
         elif kind == "tendons":
             n = draw(st.integers(0, 40))
             angle = draw(st.floats(-720, 720, allow_nan=False))

@@ -216,6 +216,16 @@ for _name, _summary in CONTROL_COMMANDS.items():
         app.command(_name)(_control_command(_name, _summary))
 
 
+def _friction_study(plant_friction: Optional[str], friction_aware: bool) -> dict:
+    """The study's keyword arguments of ``--plant-friction`` (μ values in [0, 1]) and ``--friction-aware`` (which
+    needs it): {} without friction."""
+    if friction_aware and plant_friction is None:
+        raise typer.BadParameter("needs --plant-friction (the plant's μ values)", param_hint="'--friction-aware'")
+    return {} if plant_friction is None else {
+        "friction": clitools.parse_numbers(plant_friction, "--plant-friction", low=0.0, high=1.0),
+        "friction_aware": friction_aware}
+
+
 @app.command("loading")
 def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
             preset: str = typer.Option("paper", help=PRESET_HELP),
@@ -234,13 +244,9 @@ def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
 
     With --plant-friction the plant's tendons have friction (one run per μ; the frictionless study's IK-compliance
     comparison and bandwidth rows are not run)."""
-    if friction_aware and plant_friction is None:
-        raise typer.BadParameter("needs --plant-friction (the plant's μ values)", param_hint="'--friction-aware'")
+    kw = _friction_study(plant_friction, friction_aware)
     if aware_compute_ms is not None and not friction_aware:
         raise typer.BadParameter("needs --friction-aware", param_hint="'--aware-compute-ms'")
-    kw = {} if plant_friction is None else {
-        "friction": clitools.parse_numbers(plant_friction, "--plant-friction", low=0.0, high=1.0),
-        "friction_aware": friction_aware}
     if aware_compute_ms is not None:
         kw["friction_compute"] = (None, aware_compute_ms * 1e-3)
     _control("loading", out, as_json, preset, force, study_kw=kw)
@@ -266,11 +272,7 @@ def table1(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
     The plant is simulated (locked-length FK with the load hidden); by default it is the controllers' own model
     without noise, with --mismatch an imperfect rig, with --plant-friction a rig whose tendons have friction.
     The paper's numbers are measurements on its physical rig."""
-    if friction_aware and plant_friction is None:
-        raise typer.BadParameter("needs --plant-friction (the plant's μ values)", param_hint="'--friction-aware'")
-    kw = {} if plant_friction is None else {
-        "friction": clitools.parse_numbers(plant_friction, "--plant-friction", low=0.0, high=1.0),
-        "friction_aware": friction_aware}
+    kw = _friction_study(plant_friction, friction_aware)
     _control("table1", out, as_json, preset, force, mismatch=mismatch, study_kw=kw)
 
 
