@@ -16,6 +16,7 @@ eq. (1) Q_f tip load, eq. (2b)    :mod:`ancf.forces.tip_load`, :mod:`ancf.kinema
 assembly of eq. (1)               :mod:`ancf.assembly`
 FK, IK (2), locked FK (3)–(6)     :mod:`ancf.model`, :mod:`ancf.solvers`
 multi-segment chain (statics)     :mod:`ancf.chain`, :mod:`ancf.chain_model` (docs/multisegment.md)
+multi-segment chain IK            :mod:`ancf.chain_ik`
 ================================  ====================================================
 
 ``ancf.__version__`` is the installed distribution's version.  The package attributes are loaded lazily (PEP 562): ``import ancf.errors`` costs only that module (no
@@ -42,10 +43,11 @@ _LAZY = {
     "load_actuator": ("ancf.chain", "load_actuator"),
     "ChainModel": ("ancf.chain_model", "ChainModel"),
     "ChainEquilibrium": ("ancf.chain_model", "ChainEquilibrium"),
+    "ChainIKEquilibrium": ("ancf.chain_ik", "ChainIKEquilibrium"),
 }
 
 __all__ = ["ActuatorParams", "Tendon", "StiffnessLaw", "Model", "Equilibrium", "presets", "ChainParams", "Cap",
-           "load_actuator", "ChainModel", "ChainEquilibrium", "BellowsError",
+           "load_actuator", "ChainModel", "ChainEquilibrium", "ChainIKEquilibrium", "BellowsError",
            "ConfigError", "ConvergenceError", "InfeasibleTargetError", "InputError", "LimitError", "OutputExistsError",
            "UnstableEquilibriumError",
            "CollapsedStateError"]

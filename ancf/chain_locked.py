@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ConvergenceError, InputError, check_finite, check_scalar
-from .solvers import solve_root
+from .compliance import exact_active_set
+from .errors import InputError, check_finite, check_scalar
+from .solvers import locked_active_set
 
 
 def _system(model, A: list, l0, pr, F):
@@ -66,40 +67,20 @@ def fk_locked(model, tendon_lengths, pressures=None, tip_force=(0.0, 0.0, 0.0), 
 
 
 def _active_set(model, z, l0, pr, F, tol, tol_length, max_iter, check_stability):
+    """The active-set loop (:func:`ancf.solvers.locked_active_set`) from z, every tendon slack at the start."""
     m, nz = model.m, model.nz
-    lengths = model.sys.evaluate(z, np.zeros(m), pr, F, hessian=False, lengths=1)[3]
-    A = [j for j in range(m) if lengths[j] > l0[j]]
-    T, seen, total = np.zeros(m), set(), 0
-    scale = model._kscale * model.chain.length
 
-    def accept(R):
-        return bool(np.linalg.norm(R[:nz]) < tol and np.max(np.abs(R[nz:]), initial=0.0) < tol_length)
-    for _ in range(4 * m + 4):
-        if tuple(A) in seen:
-            break
-        seen.add(tuple(A))
-        w = np.concatenate([np.ones(nz), np.full(len(A), scale)])
-        x, info = solve_root(_system(model, A, l0, pr, F), np.concatenate([z, T[A]]), accept=accept,
-                             tol=min(tol, scale * tol_length), max_iter=max_iter, name="fk_locked", weights=w)
-        total += info.iterations
-        z, T = x[:nz], np.zeros(m)
-        T[A] = x[nz:]
-        lengths = model.sys.evaluate(z, T, pr, F, hessian=False, lengths=1)[3]
-        neg = [j for j in A if T[j] < -1e-10]
-        over = [j for j in range(m) if j not in A and lengths[j] > l0[j] + tol_length]
-        if not neg and not over:
-            slack = np.maximum(l0 - lengths, 0.0)
-            slack[A] = 0.0
-            info.iterations = total
-            return model._result(z, np.maximum(T, 0.0), pr, F, info, "fk_locked", JA=info.matrix[nz:, :nz],
-                                 slack=slack, active=tuple(A), check_stability=check_stability)
-        if neg:
-            A.remove(min(neg, key=lambda j: T[j]))
-        if over:
-            A.append(max(over, key=lambda j: lengths[j] - l0[j]))
-            A.sort()
-    raise ConvergenceError("active-set loop of the chain's locked-length FK cycled", solver="fk_locked",
-                           iterations=total, residual_norm=float("nan"), tolerance=tol)
+    def lengths(zz, T):
+        return model.sys.evaluate(zz, T, pr, F, hessian=False, lengths=1)[3]
+
+    z, T, A, lc, info = locked_active_set(lambda A: _system(model, A, l0, pr, F), lengths, z, np.zeros(m), l0,
+                                          tol=tol, tol_length=tol_length, max_iter=max_iter,
+                                          length_scale=model._kscale * model.chain.length,
+                                          what="the chain's locked-length FK")
+    slack = np.maximum(l0 - lc, 0.0)
+    slack[list(A)] = 0.0
+    return model._result(z, np.maximum(T, 0.0), pr, F, info, "fk_locked", JA=info.matrix[nz:, :nz],
+                         slack=slack, active=A, check_stability=check_stability)
 
 
 def _parts(model, eq):
@@ -108,6 +89,21 @@ def _parts(model, eq):
     if H is None:
         raise InputError("the state is outside the model's domain")
     return H, model.sys.tip_jacobian(eq.z), Jl
+
+
+def locked_active(model, eq, load_direction=None) -> tuple:
+    """Taut tendons of the locked linearisation under a small extra tip load along ``load_direction`` (3,)
+    (default: gravity): the exact rule of :func:`ancf.compliance.active_set` — a tendon under tension stays
+    taut, a slack one is taut iff it would otherwise be stretched and its tension increment is ≥ 0."""
+    dF = np.asarray(model.sys.g if load_direction is None else load_direction, float)
+    if dF.shape != (3,) or not np.all(np.isfinite(dF)) or not np.linalg.norm(dF) > 0:
+        raise InputError(f"load_direction must be a finite non-zero 3-vector, got {dF}")
+    u = dF / np.linalg.norm(dF)
+    H, Jp, Jl = _parts(model, eq)
+    X = np.linalg.solve(H, np.hstack([Jp.T, Jl.T]))
+    HiJp, HiJl = X[:, :3], X[:, 3:]
+    start = tuple(int(j) for j in np.flatnonzero(Jl @ (HiJp @ u) > 0))    # the paper's rule: stretched tendons
+    return exact_active_set(HiJp, Jl, HiJl, eq.tensions, u, start)
 
 
 def compliance(model, eq) -> np.ndarray:

@@ -292,6 +292,37 @@ class ChainModel:
         from .chain_locked import locked_compliance
         return locked_compliance(self, self._own(eq), active)
 
+    # ----------------------------------------------------------------------------- IK
+    def ik(self, target, pressures=None, tip_force=(0.0, 0.0, 0.0), **options):
+        """Inverse kinetostatics with redundant tendons: tool point ``target`` (3,) [m] (and ``tip_direction`` for
+        a pose), pressures (K,) [Pa] as inputs, tip_force (3,) [N] → :class:`ancf.chain_ik.ChainIKEquilibrium`,
+        the tensions inside their bounds chosen by ``objective`` ("least_tension": min ½ Σ T²; "compliance": min
+        uᵀ C u along ``compliance_direction``) (:func:`ancf.chain_ik.ik`, its options and errors)."""
+        from .chain_ik import ik
+        return ik(self, target, pressures, tip_force, **options)
+
+    # ----------------------------------------------------------------------------- dynamics
+    def mass_matrix(self, z, cap_inertia=None) -> np.ndarray:
+        """Mass matrix M_z (nz, nz) at free coordinates z (nz,): kinetic energy ½ żᵀ M_z ż [J]; the segments'
+        consistent masses through the cap map, each cap's mass at its centre of mass and ``cap_inertia`` (K − 1,)
+        [kg m²] its transverse moment of inertia (default 0), the distal tip mass (:mod:`ancf.chain_dynamics`)."""
+        from .chain_dynamics import mass_matrix
+        return mass_matrix(self, z, cap_inertia)
+
+    def modes(self, eq: ChainEquilibrium, count: int = 6, cap_inertia=None):
+        """The ``count`` lowest vibration modes about the equilibrium ``eq`` (tensions held, or the taut tendons
+        of a locked equilibrium as constraints) → :class:`ancf.chain_dynamics.ChainModalResult`.  InputError for
+        a state that is not an equilibrium of this chain (:func:`ancf.chain_dynamics.check_equilibrium`)."""
+        from .chain_dynamics import modes
+        return modes(self, eq, count, cap_inertia)
+
+    def simulate(self, t_end: float, dt: float, z0=None, v0=None, **options):
+        """Transient response under constant loads (tensions (m,) [N], pressures (K,) [Pa], tip_force (3,) [N],
+        damping, rho_inf, cap_inertia, …) → :class:`ancf.chain_dynamics.ChainSimulation`
+        (:func:`ancf.chain_dynamics.simulate`)."""
+        from .chain_dynamics import simulate
+        return simulate(self, t_end, dt, z0, v0, **options)
+
     def _own(self, eq) -> ChainEquilibrium:
         if not isinstance(eq, ChainEquilibrium) or eq.z.shape != (self.nz,):
             raise InputError("pass an equilibrium of this chain model (ChainModel.fk / fk_locked)")

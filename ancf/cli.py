@@ -23,6 +23,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from . import clitools, presets
+from .chain import ChainParams
 from .errors import InputError
 from .export import equilibrium_summary, save_png, save_vtu, write_json
 from .model import Model
@@ -41,6 +42,15 @@ NO_LIMITS_HELP = "Analyse loads outside the actuator's operating limits (tension
 #: ``--pressure-kpa`` of the model's commands: any finite number here; the actuator's limits are the model's check
 #: (with --no-limits as the override)
 PRESSURE_HELP = "Chamber pressure [kPa] (within the actuator's limits unless --no-limits)."
+#: ``--pressure-kpa`` of ``fk``, ``locked``, ``compliance``: one number, or one per chamber of a chain
+PRESSURES_HELP = ("Chamber pressure [kPa] (default 0; within the actuator's limits unless --no-limits); a "
+                  "multi-segment actuator: one per chamber, comma separated, segment 1 first.")
+#: ``--tensions-n`` of ``fk`` and ``compliance``
+TENSIONS_HELP = ("Tendon tensions [N], comma separated (default: all 0); a multi-segment actuator: one per tendon, "
+                 "segment 1's first.")
+#: ``--preset`` of the commands that take one segment or a chain (``fk``, ``locked``, ``compliance``, ``params``)
+ANY_PRESET_HELP = (f"Preset name {one_of([*presets.NAMES, *presets.CHAIN_NAMES])} or a path to an actuator .toml "
+                   "file (one segment, or a chain with [[segment]] tables).")
 #: ``--n-elements``: typer's own range check (shown in --help), the same range as the actuator file's n_elements
 N_ELEMENTS_RANGE = {"min": N_ELEMENTS_MIN, "max": N_ELEMENTS_MAX}
 
@@ -61,6 +71,24 @@ def parse_vector(text: str, n: Optional[int], what: str) -> np.ndarray:
     if not np.all(np.isfinite(v)):
         raise InputError(f"{what}: values must be finite, got {text!r}")
     return v
+
+
+def parse_pressures(text: Optional[str], n_chambers: int, option: str = "--pressure-kpa") -> np.ndarray:
+    """'30,10' [kPa] → pressures (K,) [Pa], one per chamber (segment 1 first); None → zeros; a clear error on a
+    wrong count."""
+    if text is None:
+        return np.zeros(n_chambers)
+    v = parse_vector(text, None, option)
+    if v.size != n_chambers:
+        what = ("1 value (one chamber)" if n_chambers == 1
+                else f"{n_chambers} values, one per chamber (segment 1 first)")
+        raise InputError(f"{option}: expected {what}, got {v.size} ({text!r})")
+    return v * 1e3
+
+
+def _tensions(text: Optional[str], m: int) -> np.ndarray:
+    """--tensions-n of a one-segment actuator: (m,) [N]; None → zeros."""
+    return np.zeros(m) if text is None else parse_vector(text, m, "--tensions-n")
 
 
 #: what a preset's parameters are, for the line that says which model produced a result (other presets: their
@@ -124,23 +152,29 @@ def _timed(fn, *a, **k):
     return out, time.perf_counter() - t
 
 
-def fk(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N], comma separated."),
-       pressure_kpa: float = typer.Option(0.0, help=PRESSURE_HELP, callback=clitools.FINITE),
+def fk(tensions_n: Optional[str] = typer.Option(None, help=TENSIONS_HELP),
+       pressure_kpa: Optional[str] = typer.Option(None, help=PRESSURES_HELP),
        tip_force_n: str = typer.Option("0,0,0", help="External tip force [N] (world frame)."),
-       preset: str = typer.Option("paper", help=PRESET_HELP),
-       n_elements: Optional[int] = typer.Option(None, help="Override the number of elements.",
+       preset: str = typer.Option("paper", help=ANY_PRESET_HELP),
+       n_elements: Optional[int] = typer.Option(None, help="Override the number of elements (of every segment).",
                                             **N_ELEMENTS_RANGE),
        vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
        force: bool = typer.Option(False, "--force", help=FORCE_HELP),
        no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP),
        as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
-    """Forward kinetostatics: tensions, pressure, tip load → equilibrium shape and tip."""
+    """Forward kinetostatics: tensions, pressure, tip load → equilibrium shape and tip (a chain: per segment
+    and cap)."""
     vtu = _vtu_path(vtu, force)
-    model = _model(preset, n_elements)
-    T = parse_vector(tensions_n, model.m, "--tensions-n")
+    params = presets.get_any(preset)
+    if isinstance(params, ChainParams):
+        from . import cli_chain
+        return cli_chain.fk(params, preset, tensions_n, pressure_kpa, tip_force_n, n_elements, vtu, no_limits, as_json)
+    model = _model_of(params, n_elements)
+    T = _tensions(tensions_n, model.m)
+    pr = parse_pressures(pressure_kpa, 1)[0]
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
     warm_up()
-    eq, s = _timed(model.fk, T, pressure_kpa * 1e3, F, check_limits=not no_limits)
+    eq, s = _timed(model.fk, T, pr, F, check_limits=not no_limits)
     if vtu:
         save_vtu(vtu, model, eq)
     info = model_info(preset, model.params)
@@ -171,12 +205,14 @@ def ik(target_mm: str = typer.Option(..., help="Target tip position [mm], 'x,y,z
     _emit([{"case": "ik", "eq": eq, "seconds": s}], f"IK — {info['description']}", as_json, info)
 
 
-def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm], comma separated."),
-           pressure_kpa: float = typer.Option(0.0, help=PRESSURE_HELP, callback=clitools.FINITE),
+def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm], comma separated (a multi-segment "
+                                        "actuator: one per tendon, segment 1's first)."),
+           pressure_kpa: Optional[str] = typer.Option(None, help=PRESSURES_HELP),
            tip_force_n: str = typer.Option("0,0,0", help="External tip force [N]."),
            method: str = typer.Option("active_set", help=f"Method {one_of(LOCKED_METHODS)}: "
-                                      + ", ".join(f"{k} ({v})" for k, v in LOCKED_METHODS.items()) + "."),
-           preset: str = typer.Option("paper", help=PRESET_HELP),
+                                      + ", ".join(f"{k} ({v})" for k, v in LOCKED_METHODS.items())
+                                      + " (a multi-segment actuator: active_set)."),
+           preset: str = typer.Option("paper", help=ANY_PRESET_HELP),
            vtu: Optional[pathlib.Path] = typer.Option(None, help="Write the shape to this .vtu file."),
            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
            no_limits: bool = typer.Option(False, "--no-limits", help="Report states whose tensions exceed the "
@@ -184,15 +220,20 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Locked-tendon-length FK: tendon lengths, pressure, load → shape, tensions and slack."""
     vtu = _vtu_path(vtu, force)
-    model = _model(preset, None)
+    params = presets.get_any(preset)
+    if isinstance(params, ChainParams):
+        from . import cli_chain
+        return cli_chain.locked(params, preset, lengths_mm, pressure_kpa, tip_force_n, method, vtu, no_limits, as_json)
+    model = _model_of(params, None)
     l0 = parse_vector(lengths_mm, model.m, "--lengths-mm") * 1e-3
     if not np.all(l0 > 0):
         raise InputError(f"--lengths-mm: tendon lengths must be > 0 mm, got {lengths_mm!r}")
+    pr = parse_pressures(pressure_kpa, 1)[0]
     F = parse_vector(tip_force_n, 3, "--tip-force-n")
     if method not in LOCKED_METHODS:
         raise InputError(f"--method must be one of {', '.join(LOCKED_METHODS)}, got {method!r}")
     warm_up(all_solvers=True)                  # the timed row is the locked solve alone
-    eq, s = _timed(model.fk_locked, l0, pressure_kpa * 1e3, F, method=method, check_limits=not no_limits)
+    eq, s = _timed(model.fk_locked, l0, pr, F, method=method, check_limits=not no_limits)
     if not no_limits:
         eq.require_within_limits()
     if vtu:
@@ -201,23 +242,28 @@ def locked(lengths_mm: str = typer.Option(..., help="Locked tendon lengths [mm],
     _emit([{"case": "locked", "eq": eq, "seconds": s}], f"locked FK — {info['description']}", as_json, info)
 
 
-def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N] at the state."),
-               pressure_kpa: float = typer.Option(0.0, help=PRESSURE_HELP, callback=clitools.FINITE),
+def compliance(tensions_n: Optional[str] = typer.Option(None, help=TENSIONS_HELP),
+               pressure_kpa: Optional[str] = typer.Option(None, help=PRESSURES_HELP),
                tip_force_n: str = typer.Option("0,0,0", help="Tip force [N] at the state."),
                load_direction: str = typer.Option("0,0,-1", help="Direction of the extra load (locked active set)."),
-               preset: str = typer.Option("paper", help=PRESET_HELP),
+               preset: str = typer.Option("paper", help=ANY_PRESET_HELP),
                no_limits: bool = typer.Option(False, "--no-limits", help=NO_LIMITS_HELP),
                as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Tip compliance [mm/N] and stiffness [N/m] at an FK state: constant tension and locked tendons
-    (exact KKT form, paper eq. 13, paper eq. 15)."""
+    (exact KKT form, paper eq. 13, paper eq. 15; a chain: the exact form)."""
     from . import compliance as cp
-    model = _model(preset, None)
-    T = parse_vector(tensions_n, model.m, "--tensions-n")
-    F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    params = presets.get_any(preset)
     u = parse_vector(load_direction, 3, "--load-direction")
     if not np.linalg.norm(u) > 0:
         raise InputError(f"--load-direction must be a non-zero vector, got {load_direction!r}")
-    eq = model.fk(T, pressure_kpa * 1e3, F, check_limits=not no_limits)
+    if isinstance(params, ChainParams):
+        from . import cli_chain
+        return cli_chain.compliance(params, preset, tensions_n, pressure_kpa, tip_force_n, u, no_limits, as_json)
+    model = _model_of(params, None)
+    T = _tensions(tensions_n, model.m)
+    pr = parse_pressures(pressure_kpa, 1)[0]
+    F = parse_vector(tip_force_n, 3, "--tip-force-n")
+    eq = model.fk(T, pr, F, check_limits=not no_limits)
     forms = {"tension": cp.tension(model, eq)}
     for method in ("exact", "paper", "ik"):
         forms[f"locked/{method}"] = cp.locked(model, eq, method, load_direction=u)
@@ -229,7 +275,7 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
     if as_json:
         typer.echo(json.dumps({"tip_m": eq.tip.tolist(), "forms": data, "model": info}, indent=2))
         return
-    t = Table(title=escape(f"tip compliance at T = {vector(T, 'N', digits=2)}, p = {number(pressure_kpa, 'kPa')} "
+    t = Table(title=escape(f"tip compliance at T = {vector(T, 'N', digits=2)}, p = {number(pr / 1e3, 'kPa')} "
                            f"(tip {vector(eq.tip, 'mm', 1e3, 2)}) — {info['description']}"))
     for c in ("form", "active", "C_p [mm/N] rows", "k_x [N/m]", "k_y [N/m]", "k_z [N/m]"):
         t.add_column(escape(c))
@@ -243,8 +289,7 @@ def compliance(tensions_n: str = typer.Option("0,0,0", help="Tendon tensions [N]
 
 
 #: ``bellows params --preset``: the one-segment presets and the multi-segment ones (ancf.chain)
-PARAMS_PRESET_HELP = (f"Preset name {one_of([*presets.NAMES, *presets.CHAIN_NAMES])} or a path to an actuator .toml "
-                      "file (one segment, or a chain with [[segment]] tables).")
+PARAMS_PRESET_HELP = ANY_PRESET_HELP
 
 
 def params(preset: str = typer.Option("paper", help=PARAMS_PRESET_HELP),
@@ -346,7 +391,11 @@ def _vtu_path(vtu: Optional[pathlib.Path], force: bool) -> Optional[pathlib.Path
 
 
 def _model(preset: str, n_elements: Optional[int]) -> Model:
-    p = presets.get(preset)
+    return _model_of(presets.get(preset), n_elements)
+
+
+def _model_of(p, n_elements: Optional[int]) -> Model:
+    """The one-segment model of parameters ``p`` (ActuatorParams), with ``n_elements`` elements if given."""
     if n_elements is not None:
         p = p.replace(n_elements=n_elements)
     return Model(p)

@@ -48,6 +48,7 @@ HELP_SETTINGS = {"terminal_width": 120, "max_content_width": 120}
 # Python-API phrases in error messages and their command-line equivalents
 _CLI_TERMS = [
     (re.compile(r";? ?the Python API takes pascals: 30 kPa = 30e3;? ?"), ""),
+    (re.compile(r"pascals in the Python API; "), ""),
     (re.compile(r"check_limits=False analyses (it|them) anyway"), r"use --no-limits to analyse \1 anyway"),
     (re.compile(r"check_limits=False"), "--no-limits"),
     (re.compile(r"force=True"), "--force"),

@@ -185,16 +185,24 @@ def active_set(model: Model, eq: Equilibrium, load_direction=None, rule: str = "
         return paper
     if rule != "exact":
         raise InputError(f"active-set rule must be 'paper' or 'exact', got {rule!r}")
-    taut = {i for i in range(model.m) if eq.tensions[i] > tol}
-    A = sorted(taut | set(paper))
+    return exact_active_set(HiJp, Jl, HiJl, eq.tensions, u, paper, model._cs, tol)
+
+
+def exact_active_set(HiJp, Jl, HiJl, tensions, u, start, cs: float = 0.0, tol: float = 1e-9) -> tuple:
+    """The exact rule of :func:`active_set` from its parts (any model: one segment or a chain): H⁻¹J_pᵀ (nz, 3),
+    J_l (m, nz), H⁻¹J_lᵀ (nz, m), tensions (m,) [N], the unit load direction u (3,), the paper rule's set
+    ``start``, the series tendon compliance cs [m/N]."""
+    m = len(tensions)
+    taut = {i for i in range(m) if tensions[i] > tol}
+    A = sorted(taut | set(start))
     seen = set()
     while tuple(A) not in seen:
         seen.add(tuple(A))
-        dq, dTA = _kkt(HiJp, Jl[A], HiJl[:, A], model._cs)
+        dq, dTA = _kkt(HiJp, Jl[A], HiJl[:, A], cs)
         dT = dict(zip(A, dTA @ u))
         dl = Jl @ (dq @ u)
         drop = [i for i in A if i not in taut and dT[i] < -1e-12 * max(1.0, abs(dT[i]))]
-        add = [i for i in range(model.m) if i not in A and dl[i] > 1e-14]
+        add = [i for i in range(m) if i not in A and dl[i] > 1e-14]
         if not drop and not add:
             return tuple(A)
         if drop:

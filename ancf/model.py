@@ -53,7 +53,7 @@ from .params import ActuatorParams
 from . import compiled_bounded as _cb
 from . import compiled_solvers as _cs
 from . import shear as _shear
-from .solvers import SolveInfo, solve_root
+from .solvers import SolveInfo, kkt_accept, locked_active_set, solve_root
 from .textfmt import number, vector
 
 
@@ -1239,11 +1239,7 @@ class Model:
     def _locked_accept(self, tol, tol_length):
         """Convergence of a locked solve in the rows' own units: ‖Q‖ < tol [N] and every length residual
         below tol_length [m] (the weighted norm alone would ask lengths EA/L × L times more than stated)."""
-        nz = self.nz
-
-        def accept(R):
-            return bool(np.linalg.norm(R[:nz]) < tol and np.max(np.abs(R[nz:]), initial=0.0) < tol_length)
-        return accept
+        return kkt_accept(self.nz, tol, tol_length)
 
     def _locked_system(self, A, l0, pr, F):
         nz = self.nz
@@ -1268,47 +1264,22 @@ class Model:
         return fun
 
     def _locked_active_set(self, z0, T0, l0, pr, F, tol, tol_length, max_iter, check_stability=True):
-        # initial active set: tendons carrying tension at lock time, else those the start state stretches
-        l_start = self._evaluate(self._to_full(z0), hessian=False, lengths="values").lengths
-        A = [i for i in range(self.m) if T0[i] > 0 or l_start[i] > l0[i]]
-        z, T = z0.copy(), T0.copy()
-        seen = set()
-        total = 0
-        for _ in range(4 * self.m + 4):
-            key = tuple(A)
-            if key in seen:
-                break
-            seen.add(key)
-            fun = self._locked_system(A, l0, pr, F)
-            w = np.concatenate([np.ones(self.nz), np.full(len(A), self._kscale * self.params.length)])
-            x, info = solve_root(fun, np.concatenate([z, T[A]]), accept=self._locked_accept(tol, tol_length),
-                                 tol=min(tol, self._kscale * self.params.length
-                                                                       * tol_length), max_iter=max_iter,
-                                 name="fk_locked", weights=w)
-            total += info.iterations
-            z = x[:self.nz]
-            T = np.zeros(self.m)
-            T[A] = x[self.nz:]
-            lengths = self._evaluate(self._to_full(z), hessian=False, lengths="values").lengths
-            neg = [i for i in A if T[i] < -1e-10]
-            over = [i for i in range(self.m) if i not in A and lengths[i] > l0[i] + tol_length]
-            if not neg and not over:
-                q = self._to_full(z)
-                T = np.maximum(T, 0.0)
-                ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
-                slack = np.maximum(l0 - ev.lengths, 0.0)
-                slack[A] = 0.0
-                info.iterations = total
-                return self._result(q, T, pr, F, info, ev, "fk_locked", slack=slack, active=tuple(A),
-                                    H=info.matrix[:self.nz, :self.nz], JA=info.matrix[self.nz:, :self.nz],
-                                    check_stability=check_stability)
-            if neg:
-                A.remove(min(neg, key=lambda i: T[i]))
-            if over:
-                A.append(max(over, key=lambda i: lengths[i] - l0[i]))
-                A.sort()
-        raise ConvergenceError("active-set loop of the locked-length FK cycled", solver="fk_locked",
-                               iterations=total, residual_norm=float("nan"), tolerance=tol)
+        # the loop (ancf.solvers.locked_active_set) starts with the tendons carrying tension at lock time and
+        # those the start state stretches
+        def lengths(z, T):
+            return self._evaluate(self._to_full(z), hessian=False, lengths="values").lengths
+
+        z, T, A, _, info = locked_active_set(lambda A: self._locked_system(A, l0, pr, F), lengths, z0, T0, l0,
+                                             tol=tol, tol_length=tol_length, max_iter=max_iter,
+                                             length_scale=self._kscale * self.params.length)
+        q = self._to_full(z)
+        T = np.maximum(T, 0.0)
+        ev = self._evaluate(q, T, pr, F, hessian=False, lengths="values")
+        slack = np.maximum(l0 - ev.lengths, 0.0)
+        slack[list(A)] = 0.0
+        return self._result(q, T, pr, F, info, ev, "fk_locked", slack=slack, active=A,
+                            H=info.matrix[:self.nz, :self.nz], JA=info.matrix[self.nz:, :self.nz],
+                            check_stability=check_stability)
 
     def _locked_gamma(self, z0, T0, l0, pr, F, tol, tol_length, max_iter, check_stability=True):
         """Paper eq. (6): T = γ², β = 0 for γ > 0; T = 0, β = γ² for γ ≤ 0, Newton/LM on (z, γ).

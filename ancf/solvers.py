@@ -4,6 +4,12 @@
   potential itself and Levenberg–Marquardt shifting when the Hessian is not positive definite (FK).
 * :func:`solve_root` — damped Newton on a square system F(x) = 0 with backtracking on ‖F‖ and an LM
   fallback (IK, locked-length FK); the LM damping follows the paper (initial μ = 0.01, relative).
+* :func:`locked_active_set` — the active-set loop of the locked-length FK (paper eqs. 3–4) around
+  :func:`solve_root`, shared by :meth:`ancf.Model.fk_locked` and :func:`ancf.chain_locked.fk_locked`.  For a set
+  A of taut tendons the caller's KKT system [∇Π₀ + J_Aᵀ T_A; l_A − (…) − l⁰_A] = 0 is solved in x = (z, T_A);
+  the set then loses the most negative multiplier (T_j < 0) and gains the most over-long slack tendon
+  (l_j > l⁰_j + tol_length) until neither exists, i.e. T ≥ 0, β = l⁰ − l ≥ 0, T β = 0.  A set met twice
+  means the loop cycles: ConvergenceError.
 
 Both raise :class:`ancf.errors.ConvergenceError` with the residual history on failure: a non-converged
 state is never returned as a result.
@@ -238,3 +244,54 @@ def solve_root(fun: Callable, x0: np.ndarray, *, tol: float, max_iter: int = 60,
         hist.append(r)
     raise ConvergenceError("Newton/LM did not converge", solver=name, iterations=len(hist) - 1,
                            residual_norm=hist[-1], tolerance=tol, history=hist)
+
+
+def kkt_accept(nz: int, tol: float, tol_length: float) -> Callable[[np.ndarray], bool]:
+    """Convergence test of a locked KKT residual R = [forces (nz,) [N]; length rows [m]] in the rows' own units:
+    ‖R[:nz]‖₂ < tol and every |R[nz:]| < tol_length (the weighted norm alone would ask the lengths a scale
+    factor more than stated)."""
+    def accept(R):
+        return bool(np.linalg.norm(R[:nz]) < tol and np.max(np.abs(R[nz:]), initial=0.0) < tol_length)
+    return accept
+
+
+def locked_active_set(system: Callable[[list], Callable], lengths: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                      z0: np.ndarray, T0: np.ndarray, l0: np.ndarray, *, tol: float, tol_length: float,
+                      max_iter: int, length_scale: float, what: str = "the locked-length FK",
+                      name: str = "fk_locked") -> tuple[np.ndarray, np.ndarray, tuple, np.ndarray, SolveInfo]:
+    """The active-set loop of a locked-length FK (module docstring).
+
+    ``system(A)`` → the ``fun(x) -> (R, J)`` of :func:`solve_root` for the taut set A (sorted tendon indices),
+    x = (z (nz,), T_A); ``lengths(z, T)`` → tendon lengths (m,) [m] at z (T (m,) [N]: the tensions there);
+    z0 (nz,) and T0 (m,) [N] the start (the first set: the tendons with T0 > 0 or longer than l⁰ (m,) [m] at
+    z0); ``length_scale`` [N/m] weights the length rows.  Returns (z, T (m,) with T[A] the multipliers, A,
+    the lengths at z, the last solve's SolveInfo with the total iteration count)."""
+    m, nz = len(l0), len(z0)
+    l_start = lengths(z0, np.zeros(m))
+    A = [j for j in range(m) if T0[j] > 0 or l_start[j] > l0[j]]
+    z, T = np.array(z0, float), np.array(T0, float)
+    accept = kkt_accept(nz, tol, tol_length)
+    seen, total = set(), 0
+    for _ in range(4 * m + 4):
+        if tuple(A) in seen:
+            break
+        seen.add(tuple(A))
+        w = np.concatenate([np.ones(nz), np.full(len(A), length_scale)])
+        x, info = solve_root(system(list(A)), np.concatenate([z, T[A]]), accept=accept,
+                             tol=min(tol, length_scale * tol_length), max_iter=max_iter, name=name, weights=w)
+        total += info.iterations
+        z, T = x[:nz], np.zeros(m)
+        T[A] = x[nz:]
+        lc = lengths(z, T)
+        neg = [j for j in A if T[j] < -1e-10]
+        over = [j for j in range(m) if j not in A and lc[j] > l0[j] + tol_length]
+        if not neg and not over:
+            info.iterations = total
+            return z, T, tuple(A), lc, info
+        if neg:
+            A.remove(min(neg, key=lambda j: T[j]))
+        if over:
+            A.append(max(over, key=lambda j: lc[j] - l0[j]))
+            A.sort()
+    raise ConvergenceError(f"active-set loop of {what} cycled", solver=name, iterations=total,
+                           residual_norm=float("nan"), tolerance=tol)

@@ -181,12 +181,16 @@ def chain_cost(repeats: int = 50) -> dict:
     the ``two_segment`` preset's (the paper bellows at half length, n = 3, three tendons, turned 120°/K from the
     previous segment's), 10 g / 10 mm caps; 2 N on the distal segment's first tendon, 30 kPa in every chamber.
     Cold: from the straight chain; warm: from the solution at 1.95 N.  The one-segment row has ancf.Model's FK
-    beside it (the same numbers; the chain's Newton loop runs in Python, Model's compiled)."""
+    beside it (the same numbers; the chain's Newton loop runs in Python, Model's compiled).
+
+    IK (ancf.chain_ik, least tension and stiffest along z) of the tip that the tensions T_j = 0.2 + 0.3 j N
+    (j = 0 … 3K − 1, every tendon taut) reach at those pressures, from the default start; with ``Model.ik``'s
+    cold IK beside the one-segment row."""
     import math
 
     from ancf import Cap, ChainModel, ChainParams, Tendon
     seg = presets.two_segment().segments[1]
-    rows = {}
+    rows, ik_rows = {}, {}
     for K in (1, 2, 3):
         segs = tuple(seg.replace(name=f"s{k + 1}", tip_mass=seg.tip_mass if k == K - 1 else 0.0,
                                  tool_offset=seg.tool_offset if k == K - 1 else 0.0,
@@ -203,6 +207,7 @@ def chain_cost(repeats: int = 50) -> dict:
         cold = [timed(model.fk, T, pr)[1] for _ in range(repeats)]
         warm = [timed(model.fk, T, pr, z0=z0)[1] for _ in range(repeats)]
         rows[K] = (statistics.median(cold) * 1e3, statistics.median(warm) * 1e3)
+        ik_rows[K] = _chain_ik_times(model, pr, max(3, repeats // 10))
         if K == 1:
             single = Model(segs[0])                  # the one-segment chain's own actuator
     q0 = single.fk((1.95, 0, 0), 30e3).q
@@ -213,7 +218,25 @@ def chain_cost(repeats: int = 50) -> dict:
     for K, (c, w) in rows.items():
         print(f"  {K:<10d} {c:9.3f} {w:9.3f}")
     print(f"  {'Model (1)':10s} {ref[0]:9.3f} {ref[1]:9.3f}")
-    return {"chain": rows, "model": ref}
+    tip1 = single.fk(0.2 + 0.3 * np.arange(3), 30e3).tip
+    ik_ref = statistics.median([timed(single.ik, tip1, 30e3)[1] for _ in range(max(3, repeats // 10))]) * 1e3
+    print(f"\nIK of a chain per segment count (median of {max(3, repeats // 10)}, milliseconds; tip of "
+          "T_j = 0.2 + 0.3 j N, 30 kPa)")
+    print(f"  {'segments':10s} {'least Σ T²':>12s} {'stiff in z':>12s} {'FK solves':>16s}")
+    for K, (lt, cz, n_lt, n_cz) in ik_rows.items():
+        print(f"  {K:<10d} {lt:12.1f} {cz:12.1f} {n_lt:>8d} {n_cz:>7d}")
+    print(f"  {'Model (1)':10s} {ik_ref:12.1f}")
+    return {"chain": rows, "model": ref, "chain_ik": ik_rows, "model_ik": ik_ref}
+
+
+def _chain_ik_times(model, pr, repeats: int) -> tuple:
+    """(median IK time [ms] least tension, stiff along z; FK solves of each) of a chain (see chain_cost)."""
+    tip = model.fk(0.2 + 0.3 * np.arange(model.m), pr).tip
+    out = []
+    for kw in ({}, {"objective": "compliance", "compliance_direction": (0.0, 0.0, 1.0)}):
+        runs = [timed(model.ik, tip, pr, **kw) for _ in range(repeats)]
+        out.append((statistics.median(t for _, t in runs) * 1e3, runs[0][0].iterations))
+    return out[0][0], out[1][0], out[0][1], out[1][1]
 
 
 if __name__ == "__main__":
@@ -221,7 +244,7 @@ if __name__ == "__main__":
     ap.add_argument("--repeats", type=int, default=200)
     ap.add_argument("--verification-only", action="store_true", help="only the verification cost table")
     ap.add_argument("--friction-only", action="store_true", help="only the friction cost table")
-    ap.add_argument("--chain-only", action="store_true", help="only the FK per segment count table")
+    ap.add_argument("--chain-only", action="store_true", help="only the FK and IK per segment count tables")
     args = ap.parse_args()
     if args.chain_only:
         chain_cost(min(args.repeats, 50))

@@ -126,8 +126,8 @@ def test_cli_params_writes_a_chain_file_that_reads_back(tmp_path, capsys):
 
 
 def test_single_segment_commands_refuse_a_chain_clearly(capsys):
-    with pytest.raises(SystemExit) as info:
-        main(["fk", "--preset", "two_segment"])
+    with pytest.raises(SystemExit) as info:                              # fk / locked / compliance take chains
+        main(["ik", "--preset", "two_segment", "--target-mm", "0,0,150"])
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "multi-segment" in err

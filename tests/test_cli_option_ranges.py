@@ -48,6 +48,7 @@ SAMPLES = ["0", "-1", "10000001", "99999999999999999999999"]
 N_ELEMENTS = ["0", "-1", "201"]
 VECTOR3 = ["", "1,2", "1,x", "1,,2,3", "inf,0,0"]             # a 3-vector of finite numbers
 NUMBERS = ["", ",", "1,x", "1,,2", "nan", "inf"]               # a non-empty list of finite numbers
+CHAIN = ["--preset", "two_segment"]                            # a two-segment actuator (6 tendons, 2 chambers)
 
 #: (command, option, bad values, text the error line names (default: the option), extra arguments)
 RANGES = [
@@ -64,6 +65,12 @@ RANGES = [
     ("ik", "--target-mm", VECTOR3),
     ("locked", "--lengths-mm", [*VECTOR3, "0,160,160", "-1,160,160"]),
     ("compliance", "--load-direction", [*VECTOR3, "0,0,0"]),
+    # a multi-segment actuator: one tension and one locked length per tendon, one pressure per chamber
+    *[(c, "--pressure-kpa", ["30,10"]) for c in ("fk", "locked", "compliance")],
+    *[(c, "--pressure-kpa", ["30", "30,10,5", "nan,0", "30,"], "--pressure-kpa", CHAIN) for c in ("fk", "compliance")],
+    *[(c, "--tensions-n", ["1,0,0", "1,0,0,0,0,0,0", *NUMBERS], "--tensions-n", CHAIN) for c in ("fk", "compliance")],
+    ("locked", "--lengths-mm", ["160,160,160", "0,80,80,160,160,160", "-1,80,80,160,160,160", *NUMBERS],
+     "--lengths-mm", CHAIN),
     ("modes", "--count", ["0", "-1", "1000", "99999999999999999999999"]),
     ("modes", "--damping-ratio", RATIO),
     ("simulate", "--ramp-ms", NON_NEGATIVE),

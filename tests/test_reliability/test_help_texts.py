@@ -39,12 +39,12 @@ def _listed(help_text: str) -> list:
     return m[0].split(" | ")
 
 
-PRESET_COMMANDS = ["fk", "ik", "locked", "compliance", "demo"] + [
+PRESET_COMMANDS = ["ik", "demo"] + [
     f"paper {c}" for c in ("workspace", "stiffness", "table1", "ablation", "loading", "tracking", "feedforward",
                            "all", "convergence", "loads")]
 
 LISTS = [(c, "--preset", list(presets.NAMES)) for c in PRESET_COMMANDS] + [
-    ("params", "--preset", [*presets.NAMES, *presets.CHAIN_NAMES]),
+    *[(c, "--preset", [*presets.NAMES, *presets.CHAIN_NAMES]) for c in ("params", "fk", "locked", "compliance")],
     ("locked", "--method", list(LOCKED_METHODS)),
     *[(c, "--design", list(DESIGNS)) for c in ("identify", "validate", "report", "calibrate")],
     *[(c, "--mesh", list(MESH_LEVELS)) for c in ("identify", "validate", "report", "calibrate")],
