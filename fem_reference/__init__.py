@@ -43,6 +43,8 @@ What is modelled (details and derivations in the module docstrings):
   (sliding cables, tension or locked length, slack allowed), gravity, tip force.
 - :mod:`.model` — Newton with exact tangent, backtracking line search, adaptive load stepping,
   ``ConvergenceError`` with residual history; tip compliance from the condensed tangent.
+- :mod:`.stack` — N bellows in series joined by rigid intermediate caps (one chamber each, tendons anchored
+  per segment and routed through the segments below): ``StackModel``, ``StackResult``.
 - :mod:`.symmetry` — Newton steps in the subspace invariant under the mesh's symmetries that keep the loads.
 - :mod:`.corotation` — each ring of nodes turned by a finite rotation in a Newton update.
 - :mod:`.transfer` — a solved state carried to a finer mesh of the same bellows (its solve's start).
@@ -59,6 +61,7 @@ from .material import Material
 from .mesh import MESH_LEVELS, BellowsMesh, MeshLevel, build_mesh
 from .model import BellowsModel, OperatingLimits
 from .results import BellowsResult
+from .stack import StackModel, StackResult
 
 __all__ = [
            "MESH_LEVELS",
@@ -69,6 +72,8 @@ __all__ = [
            "Material",
            "MeshLevel",
            "OperatingLimits",
+           "StackModel",
+           "StackResult",
            "build_mesh",
            "presets",
 ]
