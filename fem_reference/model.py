@@ -55,6 +55,7 @@ from .loads.caps import (
     point_geometric,
     point_jacobian,
 )
+from .loads.contact import ContactTerms, contact_terms, default_stiffness, flank_pairs
 from .loads.gravity import cap_weight
 from .loads.pressure import cap_pressure_force
 from .loads.tendon_friction import (
@@ -300,11 +301,20 @@ class BellowsModel:
         discontinuous linear pressure per element, condensed (u–p, Q2/P1-disc; locking-free for the nearly
         incompressible wall); ``"displacement"`` — Hex27 alone, which over-stiffens bending of a thin wall at
         κ/μ ≫ 1 (``docs/fem.md`` §3).
+    contact : bool
+        Frictionless penalty contact between the facing outer flanks of adjacent convolutions
+        (:mod:`fem_reference.loads.contact`); off by default (the flanks may then pass through each other:
+        check :func:`fem_reference.contact.flank_gaps`).  While every gap is open the results are the same
+        bit for bit either way.
+    contact_stiffness : float, optional
+        Penalty stiffness ``k_c`` [N/m³] (contact pressure per unit penetration); default
+        :func:`~fem_reference.loads.contact.default_stiffness` (10 · 3 μ / wall thickness).
     """
 
     def __init__(self, geometry: BellowsGeometry, material: Material, mesh="coarse",
                  linear_solver: str = "auto", gravity_vector=G_DEFAULT, limits: OperatingLimits | None = None,
-                 assembly_kernel: str = "numba", element: str = "mixed"):
+                 assembly_kernel: str = "numba", element: str = "mixed", *, contact: bool = False,
+                 contact_stiffness: float | None = None):
         if not isinstance(geometry, BellowsGeometry) or not isinstance(material, Material):
             raise InputError(f"BellowsModel needs (BellowsGeometry, Material), got "
                              f"({type(geometry).__name__}, {type(material).__name__})")
@@ -338,9 +348,27 @@ class BellowsModel:
         self.A_cap = np.pi * geometry.cap_inner_radius ** 2
         self.tendons = [self._route(th) for th in geometry.tendon_angles]
         self.m = len(self.tendons)
+        self._setup_contact(contact, contact_stiffness)
         self.setup_time = time.perf_counter() - t0
 
     # ------------------------------------------------------------------ setup helpers
+    def _setup_contact(self, contact, stiffness) -> None:
+        """``contact_pairs`` (FlankPairs or None), ``contact_stiffness`` [N/m³] and the pairs' reduced DOFs."""
+        if not isinstance(contact, (bool, np.bool_)):
+            raise InputError(f"contact must be True or False, got {contact!r}")
+        if stiffness is not None:
+            stiffness = float(check_finite("contact_stiffness [N/m^3]", stiffness, ()))
+            if stiffness <= 0:
+                raise InputError(f"contact_stiffness must be > 0 N/m^3, got {stiffness}")
+        self.contact_stiffness = (default_stiffness(self.material, self.geometry) if stiffness is None
+                                  else stiffness) if contact else None
+        self.contact_pairs = flank_pairs(self.bmesh) if contact else None
+        if contact:
+            q0 = self.caps.q_of_node[self.contact_pairs.nodes]
+            if np.any(q0 < 0):
+                raise ConfigError("a flank contact node is a cap node: the mesh has no free flank between the caps")
+            self._contact_dofs = (q0[:, :, None] + np.arange(3)).reshape(q0.shape[0], -1)
+
     def _route(self, theta: float) -> TendonPath:
         geo, bm = self.geometry, self.bmesh
         n_s, n_t, n_th = bm.shape
@@ -509,7 +537,10 @@ class BellowsModel:
 
     def _ensure_friction_pattern(self) -> None:
         """Extend the model-wide sparsity pattern (:meth:`_canonical`) by the friction blocks of every tendon."""
-        keys = np.concatenate([self._friction_keys(k) for k in range(self.m)])
+        self._ensure_keys(np.concatenate([self._friction_keys(k) for k in range(self.m)]))
+
+    def _ensure_keys(self, keys: np.ndarray) -> None:
+        """Extend the model-wide sparsity pattern (:meth:`_canonical`) by the flat keys ``row · n_q + col``."""
         pat = getattr(self, "_pattern", None)
         if pat is not None and pat[0] is not None:
             pos = np.minimum(np.searchsorted(pat[2], keys), pat[2].size - 1)
@@ -688,9 +719,12 @@ class BellowsModel:
         Ls = np.zeros(m)
         g = np.zeros((self.n_dofs, m))
         fr = lc.friction
+        ct = self.contact_forces(st, tangent) if self.contact_pairs is not None else None
         if tangent:
             if fr is not None:
                 self._ensure_friction_pattern()
+            if ct is not None and ct.active.size:
+                self._ensure_contact_pattern()
             Kq = self._canonical(Kq)
         for k in range(m):
             if fr is not None and st.T[k] != 0.0:       # segment tensions of the capstan law
@@ -707,7 +741,9 @@ class BellowsModel:
                 fext_q -= st.T[k] * gk
                 if tangent:
                     Kq.data[self._tendon_positions(k)] += st.T[k] * Hk  # distinct positions: no np.add.at
-        out.update(r=r, K=Kq, L=Ls, g=g, f_ref=float(np.linalg.norm(fext_q)))
+        if ct is not None and ct.active.size:
+            self._add_contact(ct, r, Kq if tangent else None)
+        out.update(r=r, K=Kq, L=Ls, g=g, f_ref=float(np.linalg.norm(fext_q)), contact=ct)
         if stats is not None:
             stats.t_assembly += time.perf_counter() - t0
         return out
@@ -761,6 +797,38 @@ class BellowsModel:
         if cache.get(k, (None,))[0] is not pat:
             cache[k] = (pat, np.searchsorted(pat[2], self._tendon_keys(k)))
         return cache[k][1]
+
+    # ------------------------------------------------------------------ flank contact
+    def contact_forces(self, st: State, hessian: bool = False) -> ContactTerms | None:
+        """The flank contact's gaps, energy and (pairs in contact) gradient / normal forces at ``st``
+        (:func:`fem_reference.loads.contact.contact_terms`); None when the model has no contact."""
+        if self.contact_pairs is None:
+            return None
+        return contact_terms(self.contact_pairs, self.bmesh.X + st.U, self.contact_stiffness, hessian=hessian)
+
+    def _contact_keys(self) -> np.ndarray:
+        """Flat keys ``row · n_q + col`` of every contact pair's dense 30 × 30 block, shape (P, 900)."""
+        if "_ckeys" not in self.__dict__:
+            D = self._contact_dofs.astype(np.int64)
+            self._ckeys = (D[:, :, None] * self.n_dofs + D[:, None, :]).reshape(D.shape[0], -1)
+        return self._ckeys
+
+    def _ensure_contact_pattern(self) -> None:
+        """Put every contact pair's block into the model-wide pattern, once (a pattern only grows)."""
+        pat = getattr(self, "_pattern", None)
+        if pat is None or self.__dict__.get("_contact_pattern") is not pat:
+            self._ensure_keys(unique_keys(self._contact_keys()))
+            self._contact_pattern = self._pattern
+
+    def _add_contact(self, ct: ContactTerms, r: np.ndarray, Kq: sp.csr_matrix | None) -> None:
+        """Add the contact's gradient to the reduced residual ``r`` and its Hessian to ``Kq`` (in place)."""
+        D = self._contact_dofs[ct.active]
+        r += np.bincount(D.ravel(), weights=ct.grad.ravel(), minlength=r.size)
+        if Kq is not None:
+            pat = self._pattern
+            pos = np.searchsorted(pat[2], self._contact_keys()[ct.active].ravel())
+            u, inv = np.unique(pos, return_inverse=True)
+            Kq.data[u] += np.bincount(inv.ravel(), weights=ct.hess.ravel(), minlength=u.size)
 
     # ------------------------------------------------------------------ Newton at fixed load
     def _newton(self, st: State, lc: LoadCase, stats: NewtonStats, *, rtol: float, atol: float,
