@@ -43,6 +43,22 @@ m equal to the number of constraints this is the answer (the one-segment chain's
 the multipliers λ, μ from a least-squares solve of the stationarity; its residual, |c| and the least multiplier
 are returned (``ChainIKEquilibrium.kkt``).  A second-order check (f does not fall along the constraint's null
 space) is in the tests.
+
+Obstacles.  ``obstacles`` = spheres (centre c_o (3,) [m], radius R_o [m]) the body must stay out of, with a
+``obstacle_margin`` δ [m] (e.g. the body's radius about its centreline).  The body is its centreline sampled at
+``obstacle_samples`` + 1 points per element of every segment (ξ = 0, 1/s, …, 1), the midpoint of every cap and the
+tool point: x_i(z), each linear in q (x_i = S_i q, S_i the Hermite values at ξ_i) or a tool-point map of a
+segment's last node (r + h t).  The inequality constraints are
+
+    g_{i,o}(T) = |x_i(z(T)) − c_o| − (R_o + δ) ≥ 0   [m],
+    ∂g_{i,o}/∂T = n_{i,o}ᵀ (∂x_i/∂z) dz/dT,   n = (x_i − c_o)/|x_i − c_o|,   ∂x_i/∂z = S_i J (J = ∂q/∂z),
+
+exact through the FK's tangent, as the target's.  They join SLSQP (step 2) and the KKT conditions (an active
+g ≤ 10⁻⁹ m gets a multiplier ν ≥ 0: ∇f + (∂c/∂T)ᵀλ − μ_lo + μ_hi − (∂g/∂T)ᵀν = 0); a result whose body is inside
+an obstacle by more than the target's tolerance (10 ``tol_position``, at least 10⁻⁸ m) is refused with
+InfeasibleTargetError.  Between two body points the centreline may dip into a sphere by about its sag over one
+spacing s, s²/(8(R + δ)); take more samples for a small sphere.  With as many constraints as tendons the target fixes the shape: the obstacles
+are then a check, not a choice.
 """
 
 from __future__ import annotations
@@ -51,6 +67,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import kinematics as kin
 from .chain_model import ChainEquilibrium
 from .errors import (
     CollapsedStateError,
@@ -102,9 +119,10 @@ class _Target:
 class _Problem:
     """The reduced problem over T: the FK state z(T) (warm-started from the last one), c(T), ∂c/∂T, f, ∇f."""
 
-    def __init__(self, model, target: _Target, pr, F, u, tol: float, z0):
+    def __init__(self, model, target: _Target, pr, F, u, tol: float, z0, obstacles: _Obstacles | None = None):
         self.model, self.target, self.pr, self.F, self.u, self.tol = model, target, pr, F, u, tol
         self.z, self._key, self._state, self.nfk = z0, None, None, 0
+        self.obstacles = obstacles
 
     def state(self, T, fallback: bool = True):
         """(z (nz,), H (nz, nz), J_p (3, nz), dz/dT (nz, m)) at T (the last one cached).  The FK is Newton from
@@ -150,6 +168,24 @@ class _Problem:
         z, _, _, dz = self.state(T)
         return self.c_parts(z)[1] @ dz
 
+    def g(self, T) -> np.ndarray:
+        """The obstacle clearances g(T) (P n_o,) [m] (empty without obstacles; module docstring)."""
+        if self.obstacles is None:
+            return np.zeros(0)
+        return self.obstacles.g(self.state(T)[0])
+
+    def g_jac(self, T) -> np.ndarray:
+        """∂g/∂T (P n_o, m) through the FK's tangent."""
+        if self.obstacles is None:
+            return np.zeros((0, np.size(T)))
+        z, _, _, dz = self.state(T)
+        return self.obstacles.g_z(z) @ dz
+
+    def clearance(self, T) -> float:
+        """min g(T) [m] (inf without obstacles)."""
+        g = self.g(T)
+        return float(g.min()) if g.size else float("inf")
+
     def f(self, T) -> float:
         if self.u is None:
             return 0.5 * float(np.dot(T, T))
@@ -176,7 +212,90 @@ class _Problem:
         return g
 
 
+class Body:
+    """The chain's body as points for the obstacle constraints (module docstring, "Obstacles"): the centreline at
+    ``samples`` + 1 points per element of every segment (shared element ends once), each cap's midpoint and the tool
+    point, in order from the base.  ``points(z)`` (P, 3) [m]; ``jacobian(z)`` (P, 3, nz) = ∂x_i/∂z."""
+
+    def __init__(self, model, samples: int = 4):
+        sys = model.sys
+        self.sys, rows = sys, []
+        for k, seg in enumerate(sys.segments):
+            n, l0 = seg.params.n_elements, seg.params.element_length
+            xi = np.linspace(0.0, 1.0, samples + 1)
+            N = kin.hermite(xi, l0)[0]                       # (4, samples + 1)
+            for e in range(n):
+                for i in range(0 if e == 0 else 1, samples + 1):
+                    S = np.zeros((3, sys.ndof))
+                    for a in range(4):                       # r_e, a_e, r_{e+1}, a_{e+1}
+                        c0 = seg.qo + 6 * e + 3 * a
+                        S[:, c0:c0 + 3] = N[a, i] * np.eye(3)
+                    rows.append(S)
+            self.n_centreline = len(rows)
+        self.S = np.array(rows)                              # (P_c, 3, ndof)
+        ends = [s.zo + s.nz for s in sys.segments]
+        # (z index of a segment's last node's end, offset along its tangent [m]): the caps' midpoints, the tool point
+        self.offsets = [(ends[k], 0.5 * h) for k, h in enumerate(sys.caps)] + [(ends[-1],
+                                                                               sys.segments[-1].end_offset)]
+        self.size = len(rows) + len(self.offsets)
+
+    def points(self, z) -> np.ndarray:
+        q = self.sys.to_full(z)
+        x = [self.S @ q] + [kin.tip_position(z[e - 6:e], h)[None] for e, h in self.offsets]
+        return np.concatenate(x)
+
+    def jacobian(self, z) -> np.ndarray:
+        D = np.zeros((self.size, 3, z.size))
+        D[:self.S.shape[0]] = np.einsum("pij,jk->pik", self.S, self.sys.jacobian(z))
+        for i, (e, h) in enumerate(self.offsets):
+            D[self.S.shape[0] + i, :, e - 6:e] = kin.tip_position_jacobian(z[e - 6:e], h)
+        return D
+
+
+@dataclass
+class _Obstacles:
+    """Sphere centres C (n_o, 3) [m], radii plus margin Rm (n_o,) [m], the body's points."""
+    C: np.ndarray
+    Rm: np.ndarray
+    body: Body
+
+    def g(self, z) -> np.ndarray:
+        """g (P n_o,) [m]: every point's clearance from every sphere (point-major)."""
+        x = self.body.points(z)
+        return (np.linalg.norm(x[:, None, :] - self.C[None], axis=2) - self.Rm[None]).ravel()
+
+    def g_z(self, z) -> np.ndarray:
+        """∂g/∂z (P n_o, nz)."""
+        x, D = self.body.points(z), self.body.jacobian(z)
+        d = x[:, None, :] - self.C[None]
+        n = d / np.maximum(np.linalg.norm(d, axis=2, keepdims=True), 1e-300)
+        return np.einsum("poi,pik->pok", n, D).reshape(-1, z.size)
+
+
 # ----------------------------------------------------------------------------- inputs
+def _obstacles(model, obstacles, margin, samples) -> _Obstacles | None:
+    """The checked ``obstacles`` ([(centre (3,) [m], radius [m]), …]) with ``margin`` [m] and ``samples`` per
+    element; None for none."""
+    if obstacles is None:
+        return None
+    try:
+        items = list(obstacles)
+    except TypeError:
+        raise InputError("obstacles must be a list of (centre (3,) [m], radius [m]) pairs") from None
+    margin = check_scalar("obstacle_margin", margin, low=0.0, high=1.0, unit="m")
+    if isinstance(samples, bool) or not isinstance(samples, (int, np.integer)) or not 1 <= samples <= 64:
+        raise InputError(f"obstacle_samples must be an integer in [1, 64] (points per element), got {samples!r}")
+    C, R = [], []
+    for i, ob in enumerate(items):
+        if not (isinstance(ob, (tuple, list)) and len(ob) == 2):
+            raise InputError(f"obstacle {i + 1} must be a (centre (3,) [m], radius [m]) pair, got {ob!r}")
+        C.append(check_finite(f"obstacle {i + 1} centre", ob[0], (3,)))
+        R.append(check_scalar(f"obstacle {i + 1} radius", ob[1], low=0.0, high=10.0, unit="m"))
+    if not C:
+        return None
+    return _Obstacles(np.array(C), np.array(R) + margin, Body(model, int(samples)))
+
+
 def _target(model, target, tip_direction) -> _Target:
     pd = check_finite("target", target, (3,))
     if tip_direction is None:
@@ -222,17 +341,21 @@ def _bounds(model):
 def ik(model, target, pressures=None, tip_force=(0.0, 0.0, 0.0), *, tip_direction=None,
        objective: str = "least_tension", compliance_direction=None, tensions0=None, z0=None,
        tol: float | None = None, tol_position: float = 1e-9, max_iter: int = 200, check_limits: bool = True,
-       check_stability: bool = True) -> ChainIKEquilibrium:
+       check_stability: bool = True, obstacles=None, obstacle_margin: float = 0.0,
+       obstacle_samples: int = 4) -> ChainIKEquilibrium:
     """Inverse kinetostatics of a chain (module docstring): tool point ``target`` (3,) [m] (and, for a pose, the tip
     tangent along ``tip_direction`` (3,), any length), pressures (K,) [Pa] (inputs; a number for one segment),
     tip_force (3,) [N] → :class:`ChainIKEquilibrium` with tensions inside their bounds, the state reaching the
     target within ``tol_position`` [m] (the tangent's components normal to the direction within
     tol_position / L).  ``objective``: ``"least_tension"`` (min ½ Σ T²) or ``"compliance"`` (min uᵀ C u with
-    u = ``compliance_direction``).  Starts from ``tensions0`` (m,) [N] and ``z0`` when given.
+    u = ``compliance_direction``).  Starts from ``tensions0`` (m,) [N] and ``z0`` when given.  ``obstacles``: spheres
+    [(centre (3,) [m], radius [m]), …] whose centres the body's points (``obstacle_samples`` per element, module
+    docstring) stay at least radius + ``obstacle_margin`` [m] from (``kkt["clearance_m"]``: the least clearance).
 
     Errors: InputError / LimitError for inputs (pressures outside their limits unless ``check_limits=False``);
     InfeasibleTargetError when no tensions inside the bounds reach the target (``nearest``, ``tensions``,
-    ``violated``, ``state``); ConvergenceError when the optimisation ends away from a KKT point;
+    ``violated``, ``state``), also when the only shapes found on the target cross an obstacle; ConvergenceError
+    when the optimisation ends away from a KKT point;
     UnstableEquilibriumError for an unstable state (unless ``check_stability=False``)."""
     tol, max_iter = model._options(tol, max_iter)
     tol_position = check_scalar("tol_position", tol_position, low=1e-15, high=1e-2, unit="m")
@@ -245,14 +368,19 @@ def ik(model, target, pressures=None, tip_force=(0.0, 0.0, 0.0), *, tip_directio
                                                                               (model.m,)), lo, hi)
     if z0 is None:
         z0 = model.fk(T0, pr, F, check_limits=False, check_stability=False).z
-    prob = _Problem(model, tg, pr, F, u, tol, model._z0(z0))
+    obs = _obstacles(model, obstacles, obstacle_margin, obstacle_samples)
+    prob = _Problem(model, tg, pr, F, u, tol, model._z0(z0), obs)
     T, nfev = _nearest(prob, T0, lo, hi, tol_position)
     kkt, lam, mu = _kkt(prob, T, lo, hi)
-    if model.m > tg.size and not (kkt["stationarity"] < 1e-9 and kkt["multiplier_min"] > 1e-9):
+    reach = max(10 * tol_position, 1e-8)
+    if model.m > tg.size and not (kkt["stationarity"] < 1e-9 and kkt["multiplier_min"] > 1e-9
+                                  and kkt["clearance_m"] >= -reach):
         # (a reachable point that is already a KKT point, e.g. a vertex of the bounds, is not handed to SLSQP:
         # with more active constraints than free tensions its subproblems are degenerate)
         T, nfev = _optimise(prob, T, lo, hi, tol_position, max_iter, nfev)
         kkt, lam, mu = _kkt(prob, T, lo, hi)
+    if kkt["clearance_m"] < -reach:
+        _blocked(prob, T, kkt["clearance_m"])
     if model.m > tg.size and not (kkt["stationarity"] < 1e-5 and kkt["multiplier_min"] > -1e-5):
         raise ConvergenceError(f"the chain's IK ended away from a KKT point of objective {objective!r}: "
                                f"stationarity {kkt['stationarity']:.3g}, least bound multiplier "
@@ -350,6 +478,27 @@ def _infeasible(prob: _Problem, T, lo, hi, err: float):
         nearest=near, tensions=T, violated=violated, state=state)
 
 
+def _blocked(prob: _Problem, T, clearance: float):
+    """Raise InfeasibleTargetError: the shape found on the target crosses an obstacle (by -clearance [m])."""
+    from .errors import UnstableEquilibriumError
+    from .solvers import SolveInfo
+    model, tg, obs = prob.model, prob.target, prob.obstacles
+    z = prob.state(T)[0]
+    gap = obs.g(z).reshape(obs.body.size, -1)
+    i, o = np.unravel_index(int(np.argmin(gap)), gap.shape)
+    try:
+        state = model._result(z, T, prob.pr, prob.F, SolveInfo(prob.nfk, 0.0, []), "ik")
+    except (CollapsedStateError, UnstableEquilibriumError):
+        state = None
+    how = ("the target fixes the shape (as many constraints as tendons)" if model.m <= tg.size
+           else "no shape on the target clear of it was found from this start")
+    raise InfeasibleTargetError(
+        f"chain IK target {vector(tg.pd, 'mm', 1e3, 3)} is reached only with the body inside obstacle {o + 1} "
+        f"(centre {vector(obs.C[o], 'mm', 1e3, 3)}, radius plus margin {obs.Rm[o] * 1e3:.3f} mm): body point "
+        f"{i + 1} of {obs.body.size} is {-clearance * 1e3:.3f} mm inside; {how}; tensions {vector(T, 'N', 1.0, 4)}",
+        target=tg.pd, nearest=model.sys.tip(z), tensions=T, violated=[f"obstacle {o + 1}"], state=state)
+
+
 class _AtKKT(Exception):
     """Raised from SLSQP's callback at an iterate that is a KKT point to the tolerances (carries it)."""
 
@@ -370,42 +519,63 @@ def _optimise(prob: _Problem, T, lo, hi, tol_position: float, max_iter: int, nfe
 
     def at_kkt(t):
         t = _snap(t, lo, hi, ACTIVE)
-        if np.linalg.norm(prob.c(t)) <= reach:
+        if np.linalg.norm(prob.c(t)) <= reach and prob.clearance(t) >= -reach:
             kkt = _kkt(prob, t, lo, hi)[0]
             if kkt["stationarity"] < 1e-8 and kkt["multiplier_min"] > -1e-8:
                 raise _AtKKT(t)
+    constraints = [{"type": "eq", "fun": lambda t: prob.c(t) * s_c, "jac": lambda t: prob.jac(t) * s_c}]
+    if prob.obstacles is not None:
+        constraints.append({"type": "ineq", "fun": lambda t: prob.g(t) * s_c, "jac": lambda t: prob.g_jac(t) * s_c})
     try:
         opt = so.minimize(lambda t: prob.f(t) / f0, T, jac=lambda t: prob.grad(t) / f0,
                           bounds=list(zip(lo, hi, strict=True)), method="SLSQP", callback=at_kkt,
-                          constraints=[{"type": "eq", "fun": lambda t: prob.c(t) * s_c,
-                                        "jac": lambda t: prob.jac(t) * s_c}],
-                          options={"ftol": 1e-14, "maxiter": max_iter})
+                          constraints=constraints, options={"ftol": 1e-14, "maxiter": max_iter})
         T_end = opt.x
     except _AtKKT as stop:
         T_end = stop.T
     T_opt = _polish(prob, _snap(T_end, lo, hi, ACTIVE), lo, hi, tol_position)
-    if np.linalg.norm(prob.c(T_opt)) <= reach and prob.f(T_opt) <= prob.f(T) + 1e-12 * f0:
+    on = np.linalg.norm(prob.c(T_opt)) <= reach
+    clear_opt, clear0 = prob.clearance(T_opt) >= -reach, prob.clearance(T) >= -reach
+    # SLSQP's end replaces the start when it is on the target and clear of the obstacles, and better or the start
+    # is not clear
+    if on and clear_opt and (not clear0 or prob.f(T_opt) <= prob.f(T) + 1e-12 * f0):
         T = T_opt
     return T, prob.nfk
 
 
+#: An obstacle clearance g ≤ this [m] is active in the KKT conditions.
+ACTIVE_CLEARANCE = 1e-9
+
+
 def _kkt(prob: _Problem, T, lo, hi):
-    """(kkt residuals (dict), λ (n_c,), μ (m,) ≥ 0 at a KKT point) at T (module docstring)."""
+    """(kkt residuals (dict), λ (n_c,), μ (m,) ≥ 0 at a KKT point) at T (module docstring).  With obstacles, the
+    active clearances' multipliers ν ≥ 0 join the stationarity (``obstacle_multipliers``: ν of the active
+    constraints, ``obstacle_active``: their (point, obstacle) pairs) and ``clearance_m`` is min g (inf without)."""
     g, Jc, c = prob.grad(T), prob.jac(T), prob.c(T)
     at_lo = T <= lo + ACTIVE * (hi - lo)
     at_hi = (T >= hi - ACTIVE * (hi - lo)) & ~at_lo
     A = np.nonzero(at_lo | at_hi)[0]
     E = np.zeros((T.size, A.size))
     E[A, np.arange(A.size)] = 1.0
-    M = np.hstack([Jc.T, E])
+    gap = prob.g(T)
+    B = np.nonzero(gap <= ACTIVE_CLEARANCE)[0]
+    G = prob.g_jac(T)[B] if B.size else np.zeros((0, T.size))
+    M = np.hstack([Jc.T, E, -G.T])
     x = np.linalg.lstsq(M, -g, rcond=None)[0]
-    lam, nu = x[:Jc.shape[0]], x[Jc.shape[0]:]
+    nc, na = Jc.shape[0], A.size
+    lam, nu, nu_obs = x[:nc], x[nc:nc + na], x[nc + na:]
     mu = np.zeros(T.size)
     mu[A] = np.where(at_lo[A], -nu, nu)
     gn = max(float(np.linalg.norm(g)), 1e-300)
+    mult = np.concatenate([mu[A], nu_obs])
+    n_o = 0 if prob.obstacles is None else prob.obstacles.C.shape[0]
     kkt = {"stationarity": float(np.linalg.norm(M @ x + g)) / gn,
            "primal_m": float(np.linalg.norm(c)),
            "bounds_N": float(max(np.max(lo - T), np.max(T - hi), 0.0)),
-           "multiplier_min": float(np.min(mu[A])) / gn if A.size else 0.0,
-           "active": tuple(int(j) for j in A)}
+           "multiplier_min": float(np.min(mult)) / gn if mult.size else 0.0,
+           "active": tuple(int(j) for j in A),
+           "clearance_m": float(gap.min()) if gap.size else float("inf")}
+    if prob.obstacles is not None:
+        kkt["obstacle_active"] = tuple((int(b) // n_o, int(b) % n_o) for b in B)
+        kkt["obstacle_multipliers"] = nu_obs
     return kkt, lam, mu

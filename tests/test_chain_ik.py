@@ -256,3 +256,75 @@ def test_documented_example(chain, targets):
     for p, c in ((0.0, 0.118), (120e3, 0.159)):
         eq = chain.fk([1, 0, 0, 2, 0, 0], [p, p])
         assert round(UZ @ chain.compliance(eq) @ UZ, 3) == c
+
+
+# ----------------------------------------------------------------------------- obstacles
+def _centreline(model, q, per_element=4):
+    """Body points by kin.interpolate of each segment's node chain (independent of ancf.chain_ik.Body)."""
+    from ancf import kinematics as kin
+    return np.vstack([kin.interpolate(model.sys.segment_q(q, k), s.params.n_elements, s.params.length, per_element)
+                      for k, s in enumerate(model.sys.segments)])
+
+
+@pytest.fixture(scope="module")
+def blocked(chain, targets):
+    """A sphere (radius 15 mm, margin 10 mm) whose centre is 20 mm outside the least-tension shape's middle: that
+    shape crosses it by 5 mm."""
+    tg = targets["b"].tip
+    free = chain.ik(tg, PR)
+    x = _centreline(chain, free.q)
+    mid = x[len(x) // 2]
+    n = mid - 0.5 * (x[0] + x[-1])
+    centre = mid + 0.020 * n / np.linalg.norm(n)
+    return tg, free, centre
+
+
+def test_obstacle_kept_out_and_target_reached(chain, blocked):
+    tg, free, centre = blocked
+    R, margin = 0.015, 0.010
+    assert np.linalg.norm(_centreline(chain, free.q) - centre, axis=1).min() < R + margin - 4e-3
+    r = chain.ik(tg, PR, obstacles=[(centre, R)], obstacle_margin=margin)
+    eq = chain.fk(r.tensions, PR)                          # cold
+    assert np.linalg.norm(eq.tip - tg) < 1e-8
+    assert np.linalg.norm(_centreline(chain, eq.q) - centre, axis=1).min() >= R + margin - 1e-8
+    assert r.kkt["clearance_m"] >= -1e-8 and r.kkt["stationarity"] < 1e-5 and r.kkt["multiplier_min"] > -1e-5
+    assert r.kkt["obstacle_active"] and np.all(r.kkt["obstacle_multipliers"] > 0)    # the sphere binds
+    assert r.objective_value > free.objective_value         # keeping out costs tension
+
+
+def test_obstacle_gradient_against_fk_differences(chain, blocked):
+    """∂g/∂T (through the FK's tangent) against central differences of FK solves."""
+    from ancf.chain_ik import _obstacles
+    tg, free, centre = blocked
+    obs = _obstacles(chain, [(centre, 0.015)], 0.01, 4)
+    prob = _Problem(chain, _target(chain, tg, None), free.pressures, free.tip_force, None, chain.default_tol, free.z,
+                    obs)
+    T = free.tensions + 0.3
+    G = prob.g_jac(T)
+    h = 1e-5
+    for j in range(chain.m):
+        e = np.zeros(chain.m)
+        e[j] = h
+        gp = obs.g(chain.fk(T + e, PR, z0=free.z).z)
+        gm = obs.g(chain.fk(T - e, PR, z0=free.z).z)
+        np.testing.assert_allclose(G[:, j], (gp - gm) / (2 * h), atol=1e-7 * max(1.0, np.abs(G).max()))
+
+
+def test_one_segment_crossing_an_obstacle_is_refused():
+    """One segment: the target fixes the shape; a sphere across it is an InfeasibleTargetError naming it."""
+    one = ChainModel(presets.paper())
+    eq = one.fk([1.0, 3.0, 3.0], [90e3])
+    x = _centreline(one, eq.q)
+    with pytest.raises(InfeasibleTargetError, match="inside obstacle 1"):
+        one.ik(eq.tip, [90e3], obstacles=[(x[len(x) // 2], 0.01)])
+    clear = one.ik(eq.tip, [90e3], obstacles=[(x[len(x) // 2] + [0, 0, 0.2], 0.01)])
+    assert np.allclose(clear.tensions, eq.tensions, atol=1e-6) and clear.kkt["clearance_m"] > 0.15
+
+
+@pytest.mark.parametrize("obstacles, kw", [
+    (5.0, {}), ([(0, 0, 0)], {}), ([((0, 0), 0.01)], {}), ([((0, 0, 0), -0.01)], {}),
+    ([((0, 0, np.nan), 0.01)], {}), ([((0, 0, 1), 0.01)], {"obstacle_margin": -1e-3}),
+    ([((0, 0, 1), 0.01)], {"obstacle_samples": 0}), ([((0, 0, 1), 0.01)], {"obstacle_samples": 2.5})])
+def test_obstacle_inputs_checked(chain, targets, obstacles, kw):
+    with pytest.raises(InputError):
+        chain.ik(targets["a"].tip, PR, obstacles=obstacles, **kw)

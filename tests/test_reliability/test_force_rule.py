@@ -71,6 +71,8 @@ CASES = {
     "paper convergence": (["paper", "convergence", "--out", "{d}"], "convergence.svg",
                           "validation.paper.convergence:element_convergence"),
     "paper loads": (["paper", "loads", "--out", "{d}"], "loads.json", "validation.paper.loads:locked_drift"),
+    "paper segments": (["paper", "segments", "--quick", "--out", "{d}"], "segments_obstacle.png",
+                       "validation.paper.segments:run_tasks"),
 }
 
 

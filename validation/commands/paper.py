@@ -1,4 +1,4 @@
-"""``bellows paper workspace | stiffness | convergence | loads | table1 | ablation | loading | dynamic | all | compare``.
+"""``bellows paper workspace | segments | stiffness | convergence | loads | table1 | ablation | loading | dynamic | all | compare``.
 
 Each subcommand runs on ``--preset`` (default ``paper``), writes ``<study>.json`` and figures (PNG, SVG)
 to ``--out`` (default ``bellows_out/paper``; existing results are kept unless ``--force``) and prints a
@@ -144,6 +144,52 @@ def workspace(samples: int = typer.Option(10_000, **SAMPLES, help="Monte Carlo s
                   "their inputs are in workspace.json[/yellow]")
     con.print(f"wrote {out}/workspace.json, workspace_samples.csv, workspace_clouds.npz, workspace.png, "
               "workspace.svg")
+
+
+#: the single segment's length of ``paper segments`` [mm] (validation.paper.segments.single_params' range)
+SINGLE_LENGTH_MM = clitools.number_range(50.0, 500.0, unit="mm")
+
+
+@app.command()
+def segments(samples: Optional[int] = typer.Option(None, **SAMPLES, help="Workspace Monte Carlo samples of each "
+                                                   "actuator (default 1000; --quick: 40)."),
+             seed: int = typer.Option(0, **SEED, help="Random seed (same seed → identical clouds)."),
+             rays: Optional[int] = typer.Option(None, min=2, max=64, help="Azimuths along which the chain's "
+                                                "reachable tip tilt is bracketed at each point (default 8; "
+                                                "--quick: 4)."),
+             bisections: Optional[int] = typer.Option(None, min=0, max=10, help="Halvings of each tilt bracket "
+                                                      "(default 3; --quick: 1)."),
+             points: Optional[int] = typer.Option(None, min=1, max=3, help="Target points (default 3; --quick: 1)."),
+             single_length_mm: float = typer.Option(170.0, callback=SINGLE_LENGTH_MM, help="Length of the single "
+                                                    f"segment, {SINGLE_LENGTH_MM.text} (170: the chain's length "
+                                                    "to its last cap; 160: the paper preset)."),
+             quick: bool = typer.Option(False, "--quick", help="Small sample counts: seconds, for a check."),
+             workers: Optional[int] = typer.Option(1, **WORKERS, help="Worker processes for the workspace FK."),
+             out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
+             progress: bool = typer.Option(True, help="Show progress."),
+             force: bool = typer.Option(False, "--force", help=FORCE_HELP),
+             as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
+    """What a second segment buys: one segment against two_segment (workspace, tip directions and stiffness
+    at a point, an obstacle); docs/multisegment.md.  Writes segments.json, segments_clouds.npz and 3 PNGs."""
+    from validation.paper import segments as sg
+    con = _console(as_json)
+    log = (lambda s: con.print(f"[dim]{s}[/dim]")) if progress else (lambda s: None)
+    with _scheduler_errors(None):
+        res = sg.segments_study(samples, seed, rays=rays, bisections=bisections, n_points=points, quick=quick,
+                                single_length=single_length_mm * 1e-3, workers=workers,
+                                progress=progress and not as_json, out=out, force=force, log=log)
+    if as_json:
+        _echo_json(sg.public_result(res))
+    else:
+        from rich.markup import escape
+        from rich.table import Table
+        tab = Table(title=f"{res['single']} vs {res['chain']} (seed {seed})")
+        for col in ("quantity", "one segment", "two segments"):
+            tab.add_column(col)
+        for row in sg.table_rows(res):
+            tab.add_row(*map(escape, row))
+        con.print(tab)
+    con.print(f"wrote {out}/{', '.join(sg.FILES)}")
 
 
 @app.command()

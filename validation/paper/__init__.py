@@ -20,6 +20,7 @@ module                    study
 ``plots``/``tables``      figures and printed tables (no computation)
 ``control``               Table I, the compliance ablation and the cyclic loading with the controllers (Sec. V-D/E)
 ``dynamic``               the cyclic loading on the dynamic plant (docs/dynamics.md)
+``segments``              one segment against two of the same length: workspace, directions, stiffness, obstacle
 ``numbers``               the paper's own numbers, the one place they are written
 ``doc_tables``            the number tables of README.md and docs/paper-readings.md, generated from the studies' JSON
 ========================  ===========================================================================
