@@ -30,6 +30,11 @@ Run:  python benchmarks/bench_dynamics.py [--repeats 5]
    step's final state, 4 locked modes, ζ = 0.05; ``ModalPlant``: its zero-order-hold matrices at 1 ms): time
    per 1 ms step of ``ModalPlant.advance`` (a NumPy step in Python) beside the full model's compiled step.
 
+7. **Tendon friction in the dynamic simulated rig** (``ancf.dynamics.held_friction``): the `paper` actuator at
+   30 kPa, μ = 0.3 against μ = 0, motor 1 pulling 2 mm at 20 mm/s (ζ = 1): wall time per 1 ms rig period while
+   the motor moves, the two rigs interleaved period by period (medians, and the slowest period).
+   ``--rig-friction-only`` runs this item alone.
+
 Runs 1–3 have constant loads; run 4's are time-varying (sampled on the step grid for the compiled rows).
 Per-step times are wall time / steps, everything included (setup, the energy check, the output rows).  The
 last line sets the `paper` 1 kHz real-time factor (and its modal model's) beside the cable's ratio to Exudyn, with
@@ -133,6 +138,7 @@ def main(repeats: int = 5) -> dict:
     out["rig_period_ms"] = rig_periods(pm)
     out["modal_us_per_step"] = modal_step(pm, out["step response, 1 kHz loop"]["us_per_step"], repeats)
     out["friction"] = friction_steps(repeats)
+    out["rig_friction_ms"] = friction_rig_periods()
     rtf = out["step response, 1 kHz loop"]["real_time_factor"]
     ratio = out.get("cable_0.0005", {}).get("ratio")
     print(f"summary: cable / Exudyn {'n/a' if ratio is None else f'{ratio:.2f}×'} time (dt = 0.5 ms); 'paper' at "
@@ -216,12 +222,42 @@ def friction_steps(repeats: int = 5) -> dict:
     return res
 
 
+def friction_rig_periods(periods: int = 60) -> dict:
+    """Item 7: wall time [ms] per 1 ms period of the dynamic simulated rig with tendon friction (μ = 0.3) and
+    without, while motor 1 pulls 2 mm at 20 mm/s from T = (2, 1, 0.5) N at 30 kPa (medians and maxima)."""
+    from hardware import PlantOptions, SimulatedRig
+
+    ref = Model(presets.paper()).fk((2.0, 1.0, 0.5), 30e3)
+    pulled = ref.tendon_lengths - np.array([2e-3, 0.0, 0.0])
+    rigs = {mu: SimulatedRig(presets.paper().replace(tendon_friction=mu), 30e3, dynamics=True,
+                             options=PlantOptions(damping=1.0, length_rate=0.02)) for mu in (0.0, 0.3)}
+    for rig in rigs.values():
+        rig.command(ref.tendon_lengths)
+        rig.true_tip()
+        rig.command(pulled)
+    walls = {mu: [] for mu in rigs}
+    for _ in range(periods):
+        for mu, rig in rigs.items():
+            t0 = time.perf_counter()
+            rig.advance(1e-3)
+            walls[mu].append(time.perf_counter() - t0)
+    res = {mu: {"median_ms": statistics.median(w) * 1e3, "max_ms": max(w) * 1e3} for mu, w in walls.items()}
+    print(f"7. dynamic simulated rig with tendon friction, 'paper', motor 1 pulling (medians of {periods} periods): "
+          f"μ = 0.3 {res[0.3]['median_ms']:.1f} ms per 1 ms period (slowest {res[0.3]['max_ms']:.0f}), μ = 0 "
+          f"{res[0.0]['median_ms']:.1f} ms (slowest {res[0.0]['max_ms']:.0f}); load average {os.getloadavg()[0]:.1f}")
+    return res
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--friction-only", action="store_true", help="run item 5 (tendon friction) alone")
+    ap.add_argument("--rig-friction-only", action="store_true",
+                    help="run item 7 (tendon friction in the dynamic simulated rig) alone")
     args = ap.parse_args()
     if args.friction_only:
         friction_steps(args.repeats)
+    elif args.rig_friction_only:
+        friction_rig_periods()
     else:
         main(args.repeats)

@@ -19,7 +19,9 @@ docs/dynamics.md) over every interval the rig clock advances —
 
 It starts at rest at the locked equilibrium of the first command (the static plant's, up to the stiff
 tendons' µm stretch), so a controller sees the same start on both plants; ``state`` carries q, q̇, the pressure and the tensions, and a
-short history serves the tracker's latency.  Tendon friction is not modelled here (refused up front).
+short history serves the tracker's latency.  With tendon friction (the actuator's ``tendon_friction`` μ > 0) the
+tendons follow the held-length stick/slip law of :mod:`ancf.dynamics.held_friction` instead of one spring
+each, starting at the static plant's friction state (docs/friction.md).
 """
 
 from __future__ import annotations
@@ -32,6 +34,8 @@ from typing import Callable, Optional
 import numpy as np
 
 from ancf import Model
+from ancf.dynamics import held_friction
+from ancf.dynamics.held_friction import HeldFriction
 from ancf.errors import InputError
 
 #: penalty stiffness of inextensible tendons in the dynamic plant [N/m]
@@ -71,11 +75,18 @@ class DynamicActuator:
         self.rho_inf = 0.6
         self.state: Optional[DynamicState] = None
         self.history: list = []                       # DynamicState rows, oldest first (bounded)
+        # tendon friction (μ > 0): the held-length stick/slip law in time (ancf.dynamics.held_friction)
+        self.friction: Optional[HeldFriction] = None
+        if p.tendon_friction > 0:
+            self.friction = HeldFriction(self.model, k, math.inf if holding_force is None else holding_force)
 
     def start(self, lengths: np.ndarray, pressure: float, load: np.ndarray, near, t: float) -> None:
         """Start at rest at the locked equilibrium of motor ``lengths`` (m,) [m], ``pressure`` [Pa] and tip
         ``load`` (3,) [N] at rig time t [s] (``near``: the static plant's equilibrium there, a warm start)."""
-        eq = self.model.fk_locked(lengths, pressure, load, q0=near.q, tensions0=near.tensions)
+        if self.friction is None:
+            eq = self.model.fk_locked(lengths, pressure, load, q0=near.q, tensions0=near.tensions)
+        else:
+            eq = self._start_friction(lengths, pressure, load)
         v = np.zeros(self.model.ndof)
         self.state = DynamicState(t, eq.q.copy(), v, eq.tip.copy(), np.array(eq.tensions, float), float(eq.pressure))
         self.history = [self.state]
@@ -86,8 +97,28 @@ class DynamicActuator:
                 # a ratio ζ: mass-proportional damping α = 2 ζ ω₁ with ω₁ the first mode of this start, tendons
                 # held by the motors (every mode then decays at the rate ζ ω₁; stiffness-proportional damping
                 # would turn the stiff tendon springs into dashpots and make the actuator creep)
-                f1 = self.model.modes(eq, 1).frequencies_hz[0]
+                # (with tendon friction: of the frictionless locked state, the modes' reference)
+                ref = eq if self.friction is None else self.model.fk_locked(lengths, pressure, load, q0=eq.q,
+                                                                            tensions0=eq.tensions)
+                f1 = self.model.modes(ref, 1).frequencies_hz[0]
                 self.damping = {"alpha": 2.0 * float(self.damping_option) * 2 * math.pi * f1}
+
+    def _start_friction(self, lengths: np.ndarray, pressure: float, load: np.ndarray):
+        """The start with tendon friction: the static plant's state (the locked friction step from the slack
+        actuator, :func:`ancf.friction.fk_locked_history`, series spring k lumped at the motor), whose
+        segment and motor tensions start the law's material history at rest."""
+        from ancf import ConvergenceError
+        from ancf.friction import fk_locked_history
+        m = self.model
+        try:
+            st = fk_locked_history(m, m.fk_history(np.zeros(m.m), pressure, load, check_limits=False), lengths,
+                                   pressure, load, check_limits=False)
+        except ConvergenceError as exc:
+            raise ConvergenceError(f"dynamic plant: the start with tendon friction failed: {exc}", solver=exc.solver,
+                                   iterations=exc.iterations, residual_norm=exc.residual_norm,
+                                   tolerance=exc.tolerance, history=exc.history) from exc
+        self.friction.start(st.q, st.segment_tensions, st.equilibrium.tensions, lengths)
+        return st.equilibrium
 
     def advance(self, t0: float, t1: float, lengths_at: Callable[[float], np.ndarray], p_set: float,
                 load_at: Callable[[float], np.ndarray]) -> None:
@@ -98,6 +129,14 @@ class DynamicActuator:
         if dt <= 0:
             return
         s = self.state
+        if self.friction is not None:
+            rows = held_friction.advance(
+                self.model, self.friction, dt, min(self.step, dt), s.q, s.v, lambda t: lengths_at(t0 + t), p_set,
+                self.tau if self.tau > 0 else None, s.pressure if self.tau > 0 else None,
+                lambda t: load_at(t0 + t), self.damping, self.rho_inf)
+            self.history.extend(DynamicState(t0 + r[0], *r[1:5], r[5]) for r in rows)
+            self._trim()
+            return
         sim = self.model.simulate(
             dt, min(self.step, dt), q0=s.q, v0=s.v, lengths=lambda t: lengths_at(t0 + t),
             pressure=p_set, pressure_tau=self.tau if self.tau > 0 else None,
@@ -106,13 +145,17 @@ class DynamicActuator:
         for i in range(1, len(sim.t)):
             self.history.append(DynamicState(t0 + float(sim.t[i]), sim.q[i], sim.v[i], sim.tip[i],
                                              sim.tensions[i], float(sim.pressure[i])))
-        if len(self.history) > 4000:
-            del self.history[:-2000]
-        self.state = self.history[-1]
+        self._trim()
         if sim.interrupted:
             # Ctrl-C during the integration ends the run between steps with the rows done (ancf.dynamics.interrupt):
             # the plant has not reached t1, so the rig must not go on as if it had — the interrupt is raised here
             raise KeyboardInterrupt
+
+    def _trim(self) -> None:
+        """Bound the history; its last row is the present state."""
+        if len(self.history) > 4000:
+            del self.history[:-2000]
+        self.state = self.history[-1]
 
     def at(self, t: Optional[float]) -> DynamicState:
         """The state at rig time t (None: now); earlier times interpolate the history linearly."""

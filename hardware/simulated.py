@@ -31,7 +31,7 @@ its own model:
   actuator sees is l_a = l_m + (T_a + s f_c) / k_s, where T_a is the tension at the actuator and s = +1
   after the motor last pulled (shortened) that tendon, −1 after it released it — a hysteresis of width
   2 f_c / k_s.  Solved by fixed-point iteration on l_a (the actuator is far softer than k_s).
-* the plant actuator's own ``tendon_friction`` μ (``params.tendon_friction``, static plant only) — the
+* the plant actuator's own ``tendon_friction`` μ (``params.tendon_friction``; the dynamic plant: docs/friction.md) — the
   capstan law at the routing guides (docs/friction.md): each new state is the locked equilibrium with
   friction (:func:`ancf.friction.fk_locked_history`) solved from the plant's previous
   :class:`~ancf.friction.FrictionState`, so the plant has the tendons' stick/slip hysteresis; the series
@@ -174,11 +174,6 @@ class _Plant:
         self.rate = options.length_rate       # motor speed [m/s] (a dynamic plant never moves them at once)
         self.dyn = None
         self.mu = float(model.params.tendon_friction)
-        if options.dynamics and self.mu > 0:
-            raise InputError("the dynamic plant (dynamics=True) holds its tendons by length, and tendon friction "
-                             "with held lengths (stuck spans keeping their length, fk_locked_history) has no "
-                             "time-stepped form (Model.simulate's friction is for tendons driven by tension): the "
-                             f"plant actuator's tendon_friction must be 0, got {self.mu:g}")
         if options.dynamics:
             from .sim_dynamics import DynamicActuator
             self.dyn = DynamicActuator(model, options.tendon_stiffness, options.damping, options.pressure_tau,

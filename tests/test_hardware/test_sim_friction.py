@@ -60,9 +60,9 @@ def test_the_force_sensors_read_the_motor_side_and_the_series_stiffness_still_ac
     assert soft.equilibrium().tensions[0] < eq.tensions[0]                            # the tendon stretched
 
 
-def test_the_dynamic_plant_refuses_a_friction_actuator():
-    with pytest.raises(InputError, match="tendon_friction"):
-        SimulatedRig(presets.paper().replace(tendon_friction=0.1), P, dynamics=True)
+def test_the_dynamic_plant_takes_a_friction_actuator():
+    rig = SimulatedRig(presets.paper().replace(tendon_friction=0.1), P, dynamics=True)   # tests/test_hardware/
+    assert rig._plant.dyn.friction is not None                                            # test_dynamic_friction.py
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
