@@ -43,11 +43,12 @@ from .forces.bending import add_bending
 from .forces.gravity import add_gravity
 from .forces.pressure import add_pressure, add_stretch_length
 from .forces.tendon import (
-    add_tendon,
+    add_tendon_ws,
     density_lower_bound,
     slack_density,
     slack_terms,
     tendon_length_density,
+    tendon_work,
 )
 from .forces.tip_load import add_tip_load
 
@@ -217,6 +218,7 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
     H9 = np.zeros((9, 9))
     ga = np.zeros(9)
     gl = np.zeros(9)
+    ws = tendon_work()
     has_p = False
     for k in range(pa.size):
         if pa[k] != 0.0:
@@ -276,7 +278,7 @@ def assemble(q, n_el, N, wq, ea, ei, pa, mg, E, d, co, so, T, h, F, want_H, need
                         lc[i] += sc * wi
                     continue
                 gl[:] = 0.0
-                wi = add_tendon(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H)
+                wi = add_tendon_ws(a, b, E, d[i], co[i], so[i], T[i], sc, g9, H9, gl, want_H, ws)
                 if not (wi >= TENDON_MIN):
                     return np.inf, G, H, lc, Jl, arc, Jarc
                 lc[i] += sc * wi

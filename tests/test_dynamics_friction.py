@@ -265,12 +265,6 @@ def test_friction_with_tendons_held_by_length_is_refused_up_front(monkeypatch):
         m.simulate(0.01, 1e-3, q0=eq.q, lengths=eq.tendon_lengths, pressure=P20)
 
 
-def test_the_rig_refuses_a_friction_plant_with_dynamics():
-    from hardware import SimulatedRig
-    with pytest.raises(InputError, match="held lengths"):
-        SimulatedRig(presets.paper().replace(tendon_friction=0.1), P20, dynamics=True)
-
-
 def test_the_simulate_command_starts_on_the_history_and_reports_no_static_reference(tmp_path):
     """`bellows simulate` with an actuator file with tendon friction: the run starts at rest on
     fk_history's state of the start tensions, and the summary has no static end state (with friction the

@@ -9,10 +9,11 @@ What is the same as the Python path (:mod:`.transient`, :mod:`.integrator`; test
 ``tests/test_dynamics_compiled.py``): the residual r = M z̈ + g(z, ż) with the tendons by tension or by length
 (one-sided springs capped at the holding force, the tangent k ∇l ∇lᵀ of the taut ones), the pressure (held,
 or the first-order supply's trapezoidal rule), the tip force, the Rayleigh matrix, the Kelvin–Voigt axial
-damping, the tool-point inertia; the predictor (z̈_n or −ρ∞ z̈_n), Newton with the convergence tests and the
-backtracking of :func:`.integrator.alpha_step`; the substeps h / 2^base of a refined run and their energy
-bookkeeping (work of the loads, dissipation: trapezoidal sums); each row's state, tool point, tensions,
-pressure, kinetic and potential energy and Newton iterations.
+damping, the tool-point inertia; the predictor (z̈_n or −ρ∞ z̈_n; with length springs the better of it and
+the last state), Newton with the convergence tests, the
+length springs' active-set update and the line search of :func:`.integrator.alpha_step`; the substeps
+h / 2^base of a refined run and their energy bookkeeping (work of the loads, dissipation: trapezoidal sums); each
+row's state, tool point, tensions, pressure, kinetic and potential energy and Newton iterations.
 
 Loads: the caller samples every signal in Python on the substep grid the kernel will walk (the *load table*,
 one row per substep end, row 0 the chunk's start: time, pressure — the signal's, or the supply's trapezoidal rule
@@ -45,6 +46,7 @@ from numba import njit
 
 from ..assembly import assemble
 from ..compiled_solvers import reduce_mat, reduce_rows, reduce_vec, tip_jacobian, tip_position, to_full
+from .integrator import ACTIVE_SET_PASSES, ARMIJO, LINE_SEARCH_TRIES, RESIDUAL_FLOOR
 from .mass import tool_point_inertia
 
 #: kernel results: every row asked for done, or stopped before ``row`` (the caller runs it in Python)
@@ -141,7 +143,8 @@ def _springs(lq, l0, par):
 def _system(z1, v1, x, L, arr, par):
     """The integrator's system (:meth:`ancf.dynamics.transient._Plant.system`) under the loads of the load-table
     row L: (admissible, r (nz,) [N], M, K_t, C_t (nz, nz), force scale [N], Π [J] the potential under the step's
-    loads, ∂Π/∂z (nz,))."""
+    loads, ∂Π/∂z (nz,), the length springs' stretches l − l0 (m,) [m] and gradients ∇l in z (m, nz): zeros for
+    tendons by tension)."""
     q_fix, P, N, wq, ea, ei, vc, mg, E, d, co, so = arr[:12]
     Mz_c, C_R = arr[13], arr[14]
     m = d.size
@@ -152,13 +155,16 @@ def _system(z1, v1, x, L, arr, par):
     lmode = par[P_LMODE] > 0
     q = to_full(z1, q_fix, P, use_P)
     T1 = T_fix
+    nz = z1.size
+    stretch, G = np.zeros(m), np.zeros((m, nz))
     if lmode:
-        T1 = _springs(_values(q, arr, par)[1], l0, par)
+        lq = _values(q, arr, par)[1]
+        stretch = lq - l0
+        T1 = _springs(lq, l0, par)
     En, Q, K, _, Jl, _, _ = assemble(q, n, N, wq, ea, ei, pr1 * vc, mg, E, d, co, so, T1, par[P_HTOOL], F_tot,
                                      True, 2 if lmode else 0)
-    nz = z1.size
     if not np.isfinite(En):
-        return False, np.zeros(nz), Mz_c, Mz_c, Mz_c, 0.0, En, np.zeros(nz)
+        return False, np.zeros(nz), Mz_c, Mz_c, Mz_c, 0.0, En, np.zeros(nz), stretch, G
     Qr = reduce_vec(Q, P, use_P)
     r = Mz_c @ x + Qr
     Kt = reduce_mat(K, P, use_P)
@@ -182,12 +188,12 @@ def _system(z1, v1, x, L, arr, par):
         Ct = Ct.copy()
         Ct[-6:, -3:] += Dvs
     if lmode:
-        JA = reduce_rows(Jl, P, use_P)
+        G = reduce_rows(Jl, P, use_P)
         for i in range(T1.size):
             if T1[i] > 0 and T1[i] < par[P_FHOLD]:
-                g = JA[i]
+                g = G[i]
                 Kt = Kt + par[P_KPEN] * np.outer(g, g)
-    return True, r, Mz, Kt, Ct, par[P_FSCALE] + np.linalg.norm(Mz @ x), En, Qr
+    return True, r, Mz, Kt, Ct, par[P_FSCALE] + np.linalg.norm(Mz @ x), En, Qr, stretch, G
 
 
 @njit(cache=True, nogil=True)
@@ -239,17 +245,87 @@ def _evaluate(x, k, a_const, z_pred, v_pred, h, L, arr, par):
     a1 = k * x + a_const
     z1 = z_pred + h * h * par[P_BETA] * a1
     v1 = v_pred + h * par[P_GAMMA] * a1
-    ok, r, M, Kt, Ct, scale, En, Qr = _system(z1, v1, x, L, arr, par)
-    return ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr
+    ok, r, M, Kt, Ct, scale, En, Qr, st, G = _system(z1, v1, x, L, arr, par)
+    return ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr, st, G
+
+
+@njit(cache=True, nogil=True)
+def _branches(s, k, F_hold):
+    """:func:`ancf.dynamics.integrator.spring_branches`: (branch (m,) 0 slack / 1 taut / 2 held, force (m,) [N])."""
+    br = np.empty(s.size, dtype=np.int64)
+    T = np.empty(s.size)
+    for i in range(s.size):
+        T[i] = min(k * max(s[i], 0.0), F_hold)
+        br[i] = 0 if T[i] <= 0.0 else (2 if T[i] >= F_hold else 1)
+    return br, T
+
+
+@njit(cache=True, nogil=True)
+def _branch_solve(J, r, s, G, bp, k, F_hold, cur, T, new):
+    """:func:`ancf.dynamics.integrator.branch_solve`: (solved, the update with the springs on the branches new)."""
+    JA, rA = J.copy(), r.copy()
+    for i in range(s.size):
+        if new[i] != cur[i]:
+            g = G[i].copy()
+            JA += (bp * k * ((1.0 if new[i] == 1 else 0.0) - (1.0 if cur[i] == 1 else 0.0))) * np.outer(g, g)
+            fb = 0.0 if new[i] == 0 else (k * s[i] if new[i] == 1 else F_hold)
+            rA += (fb - T[i]) * g
+    return _solve(JA, rA)
+
+
+@njit(cache=True, nogil=True)
+def _active_set(J, r, dx, s, G, bp, par, passes):
+    """:func:`ancf.dynamics.integrator.active_set_update` (the Newton update of the piecewise-linear length
+    springs): the same ``passes``, the same search over all branches when they cycle, the same arithmetic."""
+    k, F_hold, m = par[P_KPEN], par[P_FHOLD], s.size
+    cur, T = _branches(s, k, F_hold)
+    used = cur.copy()
+    for _ in range(passes):
+        new = _branches(s - bp * (G @ dx), k, F_hold)[0]
+        if np.all(new == used):
+            return dx
+        solved, d = _branch_solve(J, r, s, G, bp, k, F_hold, cur, T, new)
+        if not solved:
+            return dx
+        used, dx = new, d
+    if np.all(_branches(s - bp * (G @ dx), k, F_hold)[0] == used):
+        return dx
+    n_br = 3 if F_hold < np.inf else 2
+    new = np.empty(m, dtype=np.int64)
+    for changes in range(1, m + 1):
+        for code in range(n_br ** m):
+            n_changed = 0
+            for i in range(m):
+                new[i] = (code // n_br ** i) % n_br
+                if new[i] != cur[i]:
+                    n_changed += 1
+            if n_changed != changes:
+                continue
+            solved, d = _branch_solve(J, r, s, G, bp, k, F_hold, cur, T, new)
+            if solved and np.all(_branches(s - bp * (G @ d), k, F_hold)[0] == new):
+                return d
+    return dx
+
+
+@njit(cache=True, nogil=True)
+def _next_lambda(lam, f0, ft):
+    """:func:`ancf.dynamics.integrator.next_lambda`."""
+    if not ft < np.inf:
+        return 0.5 * lam
+    curv = (ft - f0 * (1.0 - 2.0 * lam)) / (lam * lam)
+    best = f0 / curv if curv > 0.0 else 0.5 * lam
+    return min(0.5 * lam, max(0.1 * lam, best))
 
 
 @njit(cache=True, nogil=True)
 def alpha_step_c(z, v, acc, a, prev_acc, has_prev, h, L, arr, par):
     """:func:`ancf.dynamics.integrator.alpha_step` (rtol, atol, vtol = RTOL, ATOL, VTOL): (ok, z, v, z̈, a,
-    Newton iterations, Π [J] at the new z) under the loads of the load-table row L; not ok where the Python step raises StepFailed.  Π is the potential
-    under the step's loads (:func:`_system`), at the last evaluated state plus ∂Π/∂z · Δz when the last update
-    moved z by Δz without a new evaluation (|Δz| ≤ h·VTOL: the neglected ½ Δzᵀ K Δz is far below round-off of
-    Π); the linear system is solved in the band of ``par[P_BAND]`` diagonals when that is ≥ 0."""
+    Newton iterations, Π [J] at the new z) under the loads of the load-table row L; not ok where the Python step
+    raises StepFailed.  Π is the potential under the step's loads (:func:`_system`), at the last evaluated state
+    plus ∂Π/∂z · Δz when the last update moved z by Δz without a new evaluation (|Δz| ≤ h·VTOL: the neglected
+    ½ Δzᵀ K Δz is far below round-off of Π); the linear system is solved in the band of ``par[P_BAND]`` diagonals
+    when that is ≥ 0; the update is the active-set one of the length springs (:func:`_active_set`) and its length
+    the line search's (:func:`.integrator.line_search`)."""
     rho, am, af, gam, beta = par[P_RHO], par[P_AM], par[P_AF], par[P_GAMMA], par[P_BETA]
     k = (1.0 - af) / (1.0 - am)
     bp, gp = h * h * beta * k, h * gam * k
@@ -259,12 +335,20 @@ def alpha_step_c(z, v, acc, a, prev_acc, has_prev, h, L, arr, par):
     a_const = (af * acc - am * a) / (1.0 - am)
     z_pred = z + h * v + h * h * (0.5 - beta) * a
     v_pred = v + h * (1.0 - gam) * a
-    ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = _evaluate(x, k, a_const, z_pred, v_pred, h, L, arr, par)
+    x_hold = ((z - z_pred) / (h * h * beta) - a_const) / k
+    ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr, st, G = _evaluate(x, k, a_const, z_pred, v_pred, h, L, arr, par)
     if not ok:
-        x = ((z - z_pred) / (h * h * beta) - a_const) / k
-        ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = _evaluate(x, k, a_const, z_pred, v_pred, h, L, arr, par)
+        x = x_hold
+        ok, a1, z1, v1, r, M, Kt, Ct, scale, En, Qr, st, G = _evaluate(x, k, a_const, z_pred, v_pred, h, L, arr,
+                                                                       par)
         if not ok:
             return False, z, v, acc, a, 0, 0.0
+    elif par[P_LMODE] > 0:                # :func:`.integrator._spring_start`: the start with the smaller residual
+        okh, a1h, z1h, v1h, rh, Mh, Kth, Cth, sch, Enh, Qrh, sth, Gh = _evaluate(x_hold, k, a_const, z_pred, v_pred,
+                                                                                 h, L, arr, par)
+        if okh and np.linalg.norm(rh) < np.linalg.norm(r):
+            x, a1, z1, v1, r, M, Kt, Ct = x_hold, a1h, z1h, v1h, rh, Mh, Kth, Cth
+            scale, En, Qr, st, G = sch, Enh, Qrh, sth, Gh
     band = int(par[P_BAND])
     for it in range(1, int(par[P_MAXIT]) + 1):
         rn = np.linalg.norm(r)
@@ -282,22 +366,29 @@ def alpha_step_c(z, v, acc, a, prev_acc, has_prev, h, L, arr, par):
             solved, dx = _solve(J, r)
         if not solved:
             return False, z, v, acc, a, it, 0.0
+        if par[P_LMODE] > 0:
+            dx = _active_set(J, r, dx, st, G, bp, par, ACTIVE_SET_PASSES)
         if gp * np.abs(dx).max() <= VTOL:
             x = x - dx
             a1 = k * x + a_const
             zn = z_pred + h * h * beta * a1
             return True, zn, v_pred + h * gam * a1, x, a1, it, En + Qr @ (zn - z1)
-        lam = 1.0
-        moved = False
-        for _ in range(10):
-            ok, a1n, z1n, v1n, rn_, Mn, Ktn, Ctn, scn, Enn, Qrn = _evaluate(x - lam * dx, k, a_const, z_pred,
-                                                                            v_pred, h, L, arr, par)
-            if ok:
-                x = x - lam * dx
-                a1, z1, v1, r, M, Kt, Ct, scale, En, Qr = a1n, z1n, v1n, rn_, Mn, Ktn, Ctn, scn, Enn, Qrn
+        lam, f0, moved = 1.0, rn * rn, False
+        for _ in range(LINE_SEARCH_TRIES):
+            xt = x - lam * dx
+            okt, a1n, z1n, v1n, rt_, Mn, Ktn, Ctn, scn, Enn, Qrn, stn, Gn = _evaluate(xt, k, a_const, z_pred, v_pred,
+                                                                                     h, L, arr, par)
+            if not okt:
+                lam *= 0.5
+                continue
+            rt = np.linalg.norm(rt_)
+            if rt <= (1.0 - ARMIJO * lam) * rn or rt <= RESIDUAL_FLOOR * scale:
+                x = xt
+                a1, z1, v1, r, M, Kt, Ct = a1n, z1n, v1n, rt_, Mn, Ktn, Ctn
+                scale, En, Qr, st, G = scn, Enn, Qrn, stn, Gn
                 moved = True
                 break
-            lam *= 0.5
+            lam = _next_lambda(lam, f0, rt * rt)
         if not moved:
             return False, z, v, acc, a, it, 0.0
     return False, z, v, acc, a, int(par[P_MAXIT]), 0.0
@@ -420,6 +511,17 @@ def _increment(pa, pb, La, Lb, arr, par):
 
 
 @njit(cache=True, nogil=True)
+def _kinetic(q, vq, M0, par):
+    """K = ½ q̇ᵀ (M0 + m_tip J_pᵀ J_p) q̇ [J] as ½ q̇ᵀ M0 q̇ + ½ m_tip |J_p q̇|² (J_p: the tool point's Jacobian;
+    no ndof × ndof matrix formed per row)."""
+    K = 0.5 * ((vq @ M0) @ vq)
+    if par[P_MTIP] > 0:
+        vp = tip_jacobian(q, par[P_HTOOL]) @ vq
+        K += 0.5 * par[P_MTIP] * (vp @ vp)
+    return K
+
+
+@njit(cache=True, nogil=True)
 def run_rows(i0, i1, times, state, sc, prev, arr, par, tab, o_q, o_v, o_tip, o_T, o_p, o_kin, o_pot, o_work,
              o_diss, o_it):
     """Rows i0 … i1 − 1 of a run from the state (z, ż, z̈, a, previous z̈) = ``state`` (5, nz) at
@@ -463,11 +565,7 @@ def run_rows(i0, i1, times, state, sc, prev, arr, par, tab, o_q, o_v, o_tip, o_T
         w, dd = _increment(pa, pb, tab[ka], tab[k], arr, par)
         dW, dD = dW + w, dD + dd
         o_q[i], o_v[i], o_tip[i], o_T[i], o_p[i] = q, vq, pb[2:5], T, tab[k, L_PR]
-        Mf = M0
-        if par[P_MTIP] > 0:
-            Jp = tip_jacobian(q, par[P_HTOOL])
-            Mf = M0 + par[P_MTIP] * Jp.T @ Jp
-        o_kin[i] = 0.5 * ((vq @ Mf) @ vq)
+        o_kin[i] = _kinetic(q, vq, M0, par)
         o_pot[i] = Pi if potential_known(par) else potential(pb, tab[k], arr, par)
         o_it[i] = n_it
         o_work[i] = o_work[i - 1] + dW
