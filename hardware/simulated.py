@@ -37,7 +37,9 @@ its own model:
   :class:`~ancf.friction.FrictionState`, so the plant has the tendons' stick/slip hysteresis; the series
   stiffness and the constant loss above act as before (the fixed point on l_a, each iterate solved from the
   same previous state).  The history advances with the plant's present: a state at an earlier time (tracker
-  latency) is solved from the present state without becoming the history.  The force sensors read the motor
+  latency) is solved from the present state without becoming the history.  The plant is solved when queried, but
+  its history does not depend on when: it is rigged at the first command's lengths and passes every motor record
+  where a motor turned back (:meth:`_Plant._friction_turns`).  The force sensors read the motor
   side; :meth:`SimulatedRig.pull_through` measures the anchor side of a pull-through test.
 
 Faults are injected with :meth:`SimulatedRig.inject` (``"tracking_lost"``, ``"invalid_pose"``,
@@ -165,6 +167,8 @@ class _Plant:
         self.last_eq: Optional[Equilibrium] = None
         self.fstate = None                   # the friction history's present FrictionState (μ > 0) and its key
         self.fkey: Optional[tuple] = None
+        self.flengths: Optional[np.ndarray] = None   # its motor lengths, and the motor records it has passed
+        self.fidx = 0
         self.solves = 0
         self.faults: dict = {}
         self.load_fn: Callable = lambda t: np.zeros(3)
@@ -261,12 +265,12 @@ class _Plant:
             raise InputError(f"load profile returned {F} at t = {t}")
         return F
 
-    def _solve_friction(self, l_act, F):
-        """The locked state with tendon friction at motor-side lengths l_act (m,) [m] from the present state
-        (the first: from the slack actuator at this pressure and load)."""
+    def _solve_friction(self, l_act, F, prev=None):
+        """The locked state with tendon friction at motor-side lengths l_act (m,) [m] from ``prev`` (default the
+        present state; the first: from the slack actuator at this pressure and load)."""
         from ancf.friction import fk_locked_history
         m = self.model
-        prev = self.fstate or m.fk_history(np.zeros(m.m), self.pressure, F)
+        prev = prev or self.fstate or m.fk_history(np.zeros(m.m), self.pressure, F)
         try:
             return fk_locked_history(m, prev, l_act, self.pressure, F)
         except ConvergenceError as exc:
@@ -274,16 +278,13 @@ class _Plant:
         finally:
             self.solves += 1
 
-    def _static_friction(self, lengths, dirs, F, now: bool) -> Equilibrium:
-        """The plant's state with tendon friction (module docstring): the series-stiffness fixed point, each
-        iterate solved from the present FrictionState; ``now``: the result becomes the present."""
-        key = (lengths.tobytes(), dirs.tobytes(), F.tobytes(), self.pressure)
-        if key == self.fkey:
-            return self.fstate.equilibrium
+    def _friction_step(self, lengths, dirs, F, prev=None):
+        """One locked friction step to motor lengths (m,) [m] (pull directions ``dirs``, load F (3,) [N]): the
+        series-stiffness fixed point, each iterate solved from the same previous state (module docstring)."""
         o = self.options
         la = lengths.copy()
         for _ in range(30 if math.isfinite(o.tendon_stiffness) else 1):
-            st = self._solve_friction(la, F)
+            st = self._solve_friction(la, F, prev)
             if math.isinf(o.tendon_stiffness):
                 break
             T = st.equilibrium.tensions
@@ -291,8 +292,43 @@ class _Plant:
             if np.max(np.abs(la_new - la)) < 1e-10:
                 break
             la = la_new
+        return st
+
+    def _friction_turns(self) -> list:
+        """The motor records (t, lengths, dirs) the friction history passes before the present query: the
+        rigging (the first record, before any state) and every record since the present state at which a motor
+        turns back (its length's change reverses sign).  Between them each motor moves one way — the locked
+        step's assumption — so the state does not depend on when the plant is queried."""
+        out, start = [], self.fidx
+        if self.fstate is None:
+            out, start = [self.hist[0]], 1
+        prev, way = out[0][1] if out else self.flengths, np.zeros(self.model.m)
+        for j in range(start, len(self.hist)):
+            d = np.sign(self.hist[j][1] - prev)
+            if np.any(d * way < 0):
+                out.append(self.hist[j - 1])
+                way = np.zeros_like(way)
+            way = np.where(d != 0, d, way)
+            prev = self.hist[j][1]
+        return out
+
+    def _static_friction(self, lengths, dirs, F, now: bool) -> Equilibrium:
+        """The plant's state with tendon friction (module docstring): the series-stiffness fixed point from the
+        present FrictionState; ``now``: the history first passes the rigging and every turn of the motors since
+        the last solved state (:meth:`_friction_turns`), and the result becomes the present."""
         if now:
-            self.fstate, self.fkey = st, key
+            for t, lt, dt in self._friction_turns():
+                Ft = self.load(t)
+                self.fstate = self._friction_step(lt, dt, Ft)
+                self.fkey = (lt.tobytes(), dt.tobytes(), Ft.tobytes(), self.pressure)
+                self.flengths = lt.copy()
+            self.fidx = len(self.hist)
+        key = (lengths.tobytes(), dirs.tobytes(), F.tobytes(), self.pressure)
+        if key == self.fkey:
+            return self.fstate.equilibrium
+        st = self._friction_step(lengths, dirs, F)
+        if now:
+            self.fstate, self.fkey, self.flengths = st, key, lengths.copy()
         return st.equilibrium
 
     def _solve(self, l_act, F) -> Equilibrium:

@@ -84,3 +84,52 @@ def test_pull_through_is_refused_on_a_dynamic_plant():
     rig.command(Model(presets.paper()).fk([1.0, 1.0, 1.0], P).tendon_lengths)
     with pytest.raises(InputError, match="dynamic"):
         rig.pull_through(0, [1.0, 2.0, 1.0])
+
+
+def _static_rig(lengths):
+    rig = SimulatedRig(presets.paper().replace(tendon_friction=MU), P)
+    rig.command(lengths)
+    return rig
+
+
+def _law_path(lengths, path):
+    """The locked friction law applied by hand (ancf.friction): rigged from the slack actuator at ``lengths``,
+    then one step to each motor state of ``path``; the tip z [m] after each."""
+    from ancf.friction import fk_history, fk_locked_history
+    m = Model(presets.paper().replace(tendon_friction=MU))
+    st = fk_locked_history(m, fk_history(m, np.zeros(3), P, check_limits=False), lengths, P)
+    out = []
+    for L in path:
+        st = fk_locked_history(m, st, L, P)
+        out.append(st.tip[2])
+    return np.array(out)
+
+
+def test_the_static_friction_plant_does_not_depend_on_when_it_is_queried(lengths):
+    """The static plant is solved lazily; its friction history still starts where the tendons were rigged and
+    passes every turn of the motors, so a rig queried only at the end of a cycle 0 → 0.3 mm → 0 on motor 1 is
+    in the state of one queried at every move, and both are the law applied at the rigging and the turn."""
+    pulled = lengths - np.array([3e-4, 0.0, 0.0])
+    every, once = _static_rig(lengths), _static_rig(lengths)
+    z_every = [every.true_tip()[2]]
+    for rig in (every, once):
+        for target in (pulled, lengths):
+            rig.command(target)
+            rig.advance()
+            if rig is every:
+                z_every.append(rig.true_tip()[2])
+    ref = _law_path(lengths, [pulled, lengths])
+    assert once.true_tip()[2] == pytest.approx(z_every[-1], abs=1e-9)
+    assert np.allclose(z_every[1:], ref, rtol=0, atol=1e-9)
+    assert abs(z_every[1] - z_every[0]) > 5e-4                  # the pull moved the tip (0.8 mm)
+
+
+def test_the_static_friction_plant_rigs_at_the_first_command(lengths):
+    """A static friction plant first queried after a move starts from the state rigged at the first command
+    (as the dynamic plant does), not from the slack actuator locked at the moved lengths."""
+    pulled = lengths - np.array([3e-4, 0.0, 0.0])
+    rig = _static_rig(lengths)
+    rig.command(pulled)
+    rig.advance()
+    assert rig.true_tip()[2] == pytest.approx(_law_path(lengths, [pulled])[0], abs=1e-9)
+    assert rig.solves == 2                                       # the rigging and the pull, once each
