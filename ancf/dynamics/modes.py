@@ -120,12 +120,7 @@ def modes(model, eq, count: int = 6, damping=None) -> ModalResult:
         else:
             Z = np.linalg.qr(JA.T, mode="complete")[0][:, len(A):]
             K, Mz = Z.T @ K @ Z, Z.T @ Mz @ Z
-    count = min(int(count), K.shape[0])
-    w2, phi = sla.eigh(0.5 * (K + K.T), 0.5 * (Mz + Mz.T), subset_by_index=[0, count - 1])
-    if w2[0] < -1e-9 * max(abs(w2[-1]), 1.0):
-        raise UnstableEquilibriumError("the linearisation has a negative ω²: the equilibrium is not stable",
-                                       solver="modes", min_eigenvalue=float(w2[0]))
-    w2 = np.maximum(w2, 0.0)
+    w2, phi = lowest_modes(K, Mz, count)
     dz = phi if Z is None else Z @ phi                                # (nz, k)
     if model._P is None:
         shapes = np.zeros((count, model.ndof))
@@ -153,6 +148,18 @@ def modes(model, eq, count: int = 6, damping=None) -> ModalResult:
 
 #: relative residual an equilibrium may have under the model's loads (:func:`check_equilibrium`)
 EQ_RTOL = 1e-6
+
+
+def lowest_modes(K: np.ndarray, M: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``count`` lowest modes of K φ = ω² M φ (K, M (n, n), their symmetric parts used) → (ω² (k,) [1/s²],
+    φ (n, k)), k = min(count, n); UnstableEquilibriumError when the lowest ω² is negative beyond round-off (an
+    equilibrium that is not stable has no vibration modes), round-off negatives clipped to 0."""
+    count = min(int(count), K.shape[0])
+    w2, phi = sla.eigh(0.5 * (K + K.T), 0.5 * (M + M.T), subset_by_index=[0, count - 1])
+    if w2[0] < -1e-9 * max(abs(w2[-1]), 1.0):
+        raise UnstableEquilibriumError("the linearisation has a negative ω²: the equilibrium is not stable",
+                                       solver="modes", min_eigenvalue=float(w2[0]))
+    return np.maximum(w2, 0.0), phi
 
 
 def check_equilibrium(model, eq, what: str) -> None:
