@@ -165,7 +165,7 @@ def _body_on_cantilever(M, c, inertia):
 
 
 def _tip_mass_equation(M):
-    """β L of the brief form 1 + cos βL cosh βL + r βL (cos βL sinh βL − sin βL cosh βL) = 0, r = M/(m'L)."""
+    """β L of the point-mass form 1 + cos βL cosh βL + r βL (cos βL sinh βL − sin βL cosh βL) = 0, r = M/(m'L)."""
     r = M / (MP * L)
     g = lambda b: 1 + math.cos(b) * math.cosh(b) + r * b * (math.cos(b) * math.sinh(b) - math.sin(b) * math.cosh(b))
     return brentq(g, 0.3, 1.875)
