@@ -14,6 +14,22 @@ def paper_model():
     return Model(presets.paper_unscaled())
 
 
+@pytest.fixture
+def python_sigint():
+    """Python's own SIGINT handler (KeyboardInterrupt) for the test's duration, the previous one restored after: a
+    test run started in the background by a non-interactive shell inherits SIGINT ignored, and a run then rightly
+    leaves an ignored SIGINT alone (ancf/dynamics/interrupt.py), so a test of Ctrl-C must set the handler itself."""
+    import signal
+    import threading
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers need the main thread")
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def uniform_params(**changes):
     """Weightless paper actuator with a constant law and no tool offset (closed-form comparisons)."""
     base = presets.paper_unscaled().replace(stiffness=StiffnessLaw.constant(EA=767.2, EI=0.0839), line_mass=0.0,

@@ -230,8 +230,9 @@ def test_progress_is_reported_for_every_row_in_order(paper):
 
 
 @pytest.mark.skipif(os.name != "posix", reason="SIGINT to the own process")
-def test_ctrl_c_ends_a_compiled_run_promptly(paper):
-    """A long run (2·10⁴ steps) interrupted after 0.3 s returns the rows done within 0.2 s of the Ctrl-C."""
+def test_ctrl_c_ends_a_compiled_run_promptly(paper, python_sigint):
+    """A long run (6·10⁴ steps, seconds even at 20× real time) interrupted after 0.3 s returns the rows done within
+    0.2 s of the Ctrl-C."""
     if threading.current_thread() is not threading.main_thread():
         pytest.skip("signal handlers need the main thread")
     eq = paper.fk((2.0, 0.0, 0.0), P30)
@@ -244,11 +245,11 @@ def test_ctrl_c_ends_a_compiled_run_promptly(paper):
     timer = threading.Timer(0.3, interrupt)
     timer.start()
     try:
-        sim = paper.simulate(20.0, 1e-3, q0=eq.q, tensions=(2, 0, 0), pressure=P30, damping=0.05)
+        sim = paper.simulate(60.0, 1e-3, q0=eq.q, tensions=(2, 0, 0), pressure=P30, damping=0.05)
     finally:
         timer.cancel()
     latency = time.perf_counter() - sent["t"]
-    assert sim.interrupted and 1 < len(sim.t) < 20_001
+    assert sim.interrupted and 1 < len(sim.t) < 60_001
     assert latency < 0.2, latency
 
 

@@ -28,7 +28,7 @@ def model():
     return Model(presets.paper())
 
 
-def test_sigint_in_process_keeps_the_rows_done(model):
+def test_sigint_in_process_keeps_the_rows_done(model, python_sigint):
     start = model.fk((0, 0, 0), P30)
     model.simulate(2e-3, 1e-3, q0=start.q, tensions=(2, 0, 0), pressure=P30, damping=0.05)   # imports done
     before = signal.getsignal(signal.SIGINT)
@@ -36,12 +36,13 @@ def test_sigint_in_process_keeps_the_rows_done(model):
         timer = threading.Timer(delay, signal.raise_signal, (signal.SIGINT,))
         timer.start()
         try:
-            sim = model.simulate(10.0, 1e-3, q0=start.q, tensions=(2, 0, 0), pressure=P30, damping=0.05)
+            sim = model.simulate(60.0, 1e-3, q0=start.q, tensions=(2, 0, 0), pressure=P30, damping=0.05)  # longer than
+            # the latest interrupt even at 20× real time
         except BaseException as exc:                       # noqa: BLE001 - a KeyboardInterrupt would end pytest
             timer.cancel()
             pytest.fail(f"interrupt at {delay} s surfaced as {type(exc).__name__}: {exc}")
         timer.join()
-        assert sim.interrupted and 1 <= len(sim.t) < 10001, delay
+        assert sim.interrupted and 1 <= len(sim.t) < 60001, delay
         n = len(sim.t)
         assert sim.q.shape == (n, model.ndof) and np.all(np.isfinite(sim.tip))
         np.testing.assert_allclose(sim.t, np.arange(n) * 1e-3, atol=1e-12)
