@@ -11,7 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 
 from ancf.errors import InputError
 from validation.checks.compare import COMPLIANCE_TARGET_PCT, SHAPE_TARGET_PCT
@@ -162,6 +162,7 @@ def test_shape_figures_are_pngs_and_empty_input_is_rejected():
 
 @settings(max_examples=50, deadline=None)
 @given(st.floats(1e-4, 50.0), st.floats(10.0, 500.0))
+@example(1.0000000000000002e-4, 10.0)              # share·span/d = 9999.999…, whose log10 rounds up to 4.0
 def test_magnification_is_round_and_shows_the_difference_at_about_a_tenth(d, span):
     k = figs.magnification(np.array([[d, 0.0, 0.0]]), span)
     mant = k / 10 ** math.floor(math.log10(k))

@@ -423,6 +423,8 @@ def magnification(diff_mm: np.ndarray, span_mm: float, share: float = 0.1) -> fl
         return 1.0
     raw = share * span_mm / d
     e = 10.0 ** math.floor(math.log10(raw))
+    if e > raw:                               # log10 rounded up just below a power of ten (9999.999… → 4.0)
+        e /= 10.0
     return float(max(m * e for m in (1, 2, 5) if m * e <= raw))
 
 
