@@ -272,6 +272,10 @@ def _friction_study(plant_friction: Optional[str], friction_aware: bool) -> dict
         "friction_aware": friction_aware}
 
 
+#: ``--friction-aware`` of ``paper loading`` and ``paper table1``
+FRICTION_AWARE_HELP = "With --plant-friction: also the LACC whose model has the plant's μ (controller.friction_aware)."
+
+
 @app.command("loading")
 def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
             preset: str = typer.Option("paper", help=PRESET_HELP),
@@ -279,8 +283,7 @@ def loading(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
                 None, help="Tendon friction coefficients μ of the plant's actuator, comma separated, each in "
                            "[0, 1] (e.g. 0,0.1,0.3): both load cases once per μ, LACC's model frictionless, "
                            "each correction a fixed time on the loop's clock; docs/friction.md."),
-            friction_aware: bool = typer.Option(False, "--friction-aware", help="With --plant-friction: also the "
-                                                "LACC whose model has the plant's μ (controller.friction_aware)."),
+            friction_aware: bool = typer.Option(False, "--friction-aware", help=FRICTION_AWARE_HELP),
             aware_compute_ms: Optional[float] = typer.Option(
                 None, callback=LOOP_MS, help=f"With --friction-aware: its compute time per correction on the loop's "
                                              f"clock, {LOOP_MS.text} (default 500, its measured median)."),
@@ -309,8 +312,7 @@ def table1(out: pathlib.Path = typer.Option(DEFAULT_OUT, help=OUT_HELP),
                None, help="Tendon friction coefficients μ of the plant's actuator, comma separated, each in "
                           "[0, 1] (e.g. 0,0.1,0.3): Table I once per μ, the controllers' model frictionless, "
                           "LACC run on to 20 iterations (iterations to 0.1 mm); docs/friction.md."),
-           friction_aware: bool = typer.Option(False, "--friction-aware", help="With --plant-friction: also the "
-                                               "LACC whose model has the plant's μ (controller.friction_aware)."),
+           friction_aware: bool = typer.Option(False, "--friction-aware", help=FRICTION_AWARE_HELP),
            force: bool = typer.Option(False, "--force", help=FORCE_HELP),
            as_json: bool = typer.Option(False, "--json", help="Print JSON instead of a table.")):
     """Table I: VF-CC vs LACC residual error after five iterations (up / horizontal / down).
